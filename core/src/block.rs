@@ -1,0 +1,175 @@
+//! Element blocks: one element kind and one material per block, the kernel monomorphised
+//! inside. The solver calls each block once per step through `dyn Block`; there is no dynamic
+//! dispatch per element and no allocation inside a step.
+use std::marker::PhantomData;
+
+use crate::element::{self, Dmat, Material, Shape};
+use crate::ids::ElemId;
+use crate::mesh::CellKind;
+
+/// A batch of elements of one kind and one material, seen by the solver.
+pub trait Block: Send + Sync {
+    fn kind(&self) -> CellKind;
+    fn nodes_per_elem(&self) -> usize;
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    fn material(&self) -> &Material;
+    fn region(&self) -> &str;
+    /// Global element id of each local element.
+    fn elems(&self) -> &[ElemId];
+    /// Cluster index of each corner of local element `i`.
+    fn conn(&self, i: usize) -> &[u32];
+    /// Re-points corner `a` of local element `i` at `cluster` (after a split).
+    fn remap(&mut self, i: usize, a: usize, cluster: u32);
+    /// `f[c] += F_int` of every element, with `u` the cluster displacements.
+    fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]);
+    /// `f[c] += F_int` for the local elements in `range` only (parallel split of a block).
+    fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]);
+    /// `m[c] += ` lumped mass of every element.
+    fn add_mass(&self, m: &mut [f64]);
+    /// Stress of every copy at its corner (0.9999-scaled natural coordinates), written at the
+    /// copy's index `elem_first_copy[elem] + corner`.
+    fn corner_stress(&self, u: &[[f64; 2]], elem_first_copy: &[u32], out: &mut [[f64; 3]]);
+    /// Stress at natural coordinate `xi` of local element `i`.
+    fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3];
+    /// Average stress of local element `i` (over its Gauss points).
+    fn mean_stress(&self, i: usize, u: &[[f64; 2]]) -> [f64; 3];
+    /// Element stiffness of local element `i`, row-major (2N)^2.
+    fn stiffness(&self, i: usize, k: &mut [f64]);
+    /// Reference (initial) corner coordinates of local element `i`.
+    fn coords(&self, i: usize) -> &[[f64; 2]];
+    /// Upper bound of the highest natural frequency of each element (Gershgorin on M^-1/2 K M^-1/2).
+    fn max_omega_bound(&self) -> f64;
+    /// Smallest element size (sqrt of area) of the block.
+    fn min_size(&self) -> f64;
+}
+
+pub struct ElementBlock<S: Shape<N>, const N: usize> {
+    pub region: String,
+    pub mat: Material,
+    pub d: Dmat,
+    pub elems: Vec<ElemId>,
+    pub x: Vec<[[f64; 2]; N]>,
+    pub conn: Vec<[u32; N]>,
+    _s: PhantomData<S>,
+}
+
+impl<S: Shape<N>, const N: usize> ElementBlock<S, N> {
+    pub fn new(region: String, mat: Material) -> Self {
+        ElementBlock { region, d: mat.dmat(), mat, elems: Vec::new(), x: Vec::new(), conn: Vec::new(), _s: PhantomData }
+    }
+    pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
+        self.elems.push(e);
+        self.x.push(x);
+        self.conn.push(conn);
+    }
+    #[inline(always)]
+    fn gather(&self, i: usize, u: &[[f64; 2]]) -> [[f64; 2]; N] {
+        let c = &self.conn[i];
+        std::array::from_fn(|a| u[c[a] as usize])
+    }
+}
+
+impl<S: Shape<N>, const N: usize> Block for ElementBlock<S, N> {
+    fn kind(&self) -> CellKind {
+        S::KIND
+    }
+    fn nodes_per_elem(&self) -> usize {
+        N
+    }
+    fn len(&self) -> usize {
+        self.elems.len()
+    }
+    fn material(&self) -> &Material {
+        &self.mat
+    }
+    fn region(&self) -> &str {
+        &self.region
+    }
+    fn elems(&self) -> &[ElemId] {
+        &self.elems
+    }
+    fn conn(&self, i: usize) -> &[u32] {
+        &self.conn[i]
+    }
+    fn remap(&mut self, i: usize, a: usize, cluster: u32) {
+        self.conn[i][a] = cluster;
+    }
+    fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.add_internal_forces_range(0..self.len(), u, f)
+    }
+    fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        let t = self.mat.thickness;
+        for i in range {
+            let ue = self.gather(i, u);
+            let fe = element::internal_force::<S, N>(&self.x[i], &ue, &self.d, t);
+            let c = &self.conn[i];
+            for a in 0..N {
+                let fa = &mut f[c[a] as usize];
+                fa[0] += fe[a][0];
+                fa[1] += fe[a][1];
+            }
+        }
+    }
+    fn add_mass(&self, m: &mut [f64]) {
+        for i in 0..self.len() {
+            let me = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);
+            for a in 0..N {
+                m[self.conn[i][a] as usize] += me[a];
+            }
+        }
+    }
+    fn corner_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+        for i in 0..self.len() {
+            let ue = self.gather(i, u);
+            let base = first[self.elems[i].idx()] as usize;
+            for a in 0..N {
+                out[base + a] = element::stress_at::<S, N>(&self.x[i], &ue, &self.d, element::corner_xi::<S, N>(a));
+            }
+        }
+    }
+    fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3] {
+        element::stress_at::<S, N>(&self.x[i], &self.gather(i, u), &self.d, xi)
+    }
+    fn mean_stress(&self, i: usize, u: &[[f64; 2]]) -> [f64; 3] {
+        let ue = self.gather(i, u);
+        let mut s = [0.0; 3];
+        let (mut wsum, mut acc) = (0.0, [0.0; 3]);
+        for &(xi, w) in S::GAUSS {
+            let si = element::stress_at::<S, N>(&self.x[i], &ue, &self.d, xi);
+            for k in 0..3 {
+                acc[k] += w * si[k];
+            }
+            wsum += w;
+        }
+        for k in 0..3 {
+            s[k] = acc[k] / wsum;
+        }
+        s
+    }
+    fn stiffness(&self, i: usize, k: &mut [f64]) {
+        element::stiffness::<S, N>(&self.x[i], &self.d, self.mat.thickness, k)
+    }
+    fn coords(&self, i: usize) -> &[[f64; 2]] {
+        &self.x[i]
+    }
+    fn max_omega_bound(&self) -> f64 {
+        let mut kbuf = vec![0.0; 4 * N * N];
+        let mut best: f64 = 0.0;
+        for i in 0..self.len() {
+            element::stiffness::<S, N>(&self.x[i], &self.d, self.mat.thickness, &mut kbuf);
+            let m = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);
+            let n2 = 2 * N;
+            for r in 0..n2 {
+                let row: f64 = (0..n2).map(|c| kbuf[r * n2 + c].abs() / (m[r / 2] * m[c / 2]).sqrt()).sum();
+                best = best.max(row);
+            }
+        }
+        best.sqrt()
+    }
+    fn min_size(&self) -> f64 {
+        self.x.iter().map(|x| element::area::<S, N>(x).sqrt()).fold(f64::INFINITY, f64::min)
+    }
+}

@@ -1,0 +1,52 @@
+//! Damping: a trait the solver asks once per step for the coefficients of the combined law
+//!
+//! `f_damp = viscous * m * v_mid + local * |F| * sign(v)`,
+//!
+//! integrated implicitly in velocity (METHOD section 7):
+//! `v+ = ((1 - a dt/2) v- + dt (F - local |F| sign(v-)) / m) / (1 + a dt/2)`.
+//! Kinetic damping (velocity reset at a kinetic-energy peak) uses [`Damping::reset_velocities`].
+use std::fmt::Debug;
+
+use crate::traits::ParamError;
+
+/// Coefficients for one step.
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct DampingCoeffs {
+    /// Mass-proportional viscous coefficient `a` (1/time): eta = a m.
+    pub viscous: f64,
+    /// Local (non-viscous) damping ratio, dimensionless in [0, 1).
+    pub local: f64,
+}
+
+/// What the solver measured over the last step (free dofs only).
+#[derive(Copy, Clone, Debug, Default)]
+pub struct StepStats {
+    pub step: u64,
+    pub dt: f64,
+    /// Highest natural frequency of the mesh (rad/time), from the stable-step estimate.
+    pub omega_max: f64,
+    /// Kinetic energy at the half step, sum 1/2 m v+^2.
+    pub kinetic: f64,
+    /// Sum u . F_int (for the Rayleigh quotient).
+    pub u_f_int: f64,
+    /// Sum m u . u.
+    pub u_m_u: f64,
+}
+
+#[typetag::serde(tag = "type")]
+pub trait Damping: Debug + Send + Sync {
+    fn validate(&self) -> Result<(), ParamError>;
+    /// Called at the start of every stage.
+    fn reset(&mut self) {}
+    /// Coefficients for the next step, given the stats of the previous one.
+    fn coeffs(&mut self, stats: &StepStats) -> DampingCoeffs;
+    /// After a step: true asks the solver to zero every velocity (kinetic damping).
+    fn reset_velocities(&mut self, _stats: &StepStats) -> bool {
+        false
+    }
+    /// Internal state, for checkpoints.
+    fn state(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    fn set_state(&mut self, _s: &[f64]) {}
+}

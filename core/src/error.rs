@@ -1,0 +1,35 @@
+//! Typed errors of the core. Every message names the file, key or element it is about.
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum FlemError {
+    /// Scene input that does not parse or does not validate. `key` is the dotted path.
+    #[error("{file}: {key} {msg}")]
+    Config { file: String, key: String, msg: String },
+    /// A mesh that cannot be used (bad element, bad group...).
+    #[error("{file}: {msg}")]
+    Mesh { file: String, msg: String },
+    /// The explicit run blew up.
+    #[error("the run diverged at step {step} (t = {time:.6e}, dt = {dt:.6e}, dt_crit = {dt_crit:.6e}, dt/dt_crit = {ratio:.3}): {why}. Nothing non-finite was written; reduce dt_safety or check stiffness/mass.")]
+    Diverged { step: u64, time: f64, dt: f64, dt_crit: f64, ratio: f64, why: String },
+    /// Writing results failed.
+    #[error("cannot write {path}: {msg}")]
+    Output { path: String, msg: String },
+    /// The implicit check solver could not solve.
+    #[error("{0}")]
+    Solve(String),
+    /// Anything else, with its context.
+    #[error("{0}")]
+    Other(String),
+}
+
+pub type Result<T, E = FlemError> = std::result::Result<T, E>;
+
+impl FlemError {
+    pub fn config(file: impl Into<String>, key: impl Into<String>, msg: impl Into<String>) -> Self {
+        FlemError::Config { file: file.into(), key: key.into(), msg: msg.into() }
+    }
+    pub fn mesh(file: impl Into<String>, msg: impl Into<String>) -> Self {
+        FlemError::Mesh { file: file.into(), msg: msg.into() }
+    }
+}

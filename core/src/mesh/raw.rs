@@ -1,0 +1,215 @@
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{FlemError, Result};
+
+/// First-order 2D cells FLEM computes with.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CellKind {
+    /// 3-node constant-strain triangle.
+    T3,
+    /// 4-node bilinear quadrilateral.
+    Q4,
+}
+
+impl CellKind {
+    pub fn nodes(self) -> usize {
+        match self {
+            CellKind::T3 => 3,
+            CellKind::Q4 => 4,
+        }
+    }
+}
+
+/// One cell: its kind and its corner points, counter-clockwise after validation.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct RawCell {
+    pub kind: CellKind,
+    /// Corner point indices; for T3 only the first three are used.
+    pub nodes: [u32; 4],
+}
+
+impl RawCell {
+    pub fn corners(&self) -> &[u32] {
+        &self.nodes[..self.kind.nodes()]
+    }
+}
+
+/// A mesh with its named groups, as read or generated.
+#[derive(Clone, Debug, Default)]
+pub struct RawMesh {
+    /// Name of the file (or generator) it came from, for error messages.
+    pub source: String,
+    pub points: Vec<[f64; 2]>,
+    pub cells: Vec<RawCell>,
+    /// Region (material) name per cell; `None` everywhere means one region "all".
+    pub cell_region: Vec<String>,
+    /// Named sets of points (supports, point loads, probes).
+    pub node_sets: BTreeMap<String, Vec<u32>>,
+    /// Named sets of edges as point pairs (pressure loads, pre-separated edges, contact surfaces).
+    pub edge_sets: BTreeMap<String, Vec<[u32; 2]>>,
+}
+
+/// How [`RawMesh::validate`] treats clockwise cells.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ValidationOptions {
+    /// Reorient clockwise cells and report each in a warning (default).
+    #[default]
+    Reorient,
+    /// Refuse clockwise cells.
+    Refuse,
+}
+
+/// Signed area of a polygon given by its corners (counter-clockwise positive).
+pub fn signed_area(p: &[[f64; 2]]) -> f64 {
+    let n = p.len();
+    let mut a = 0.0;
+    for i in 0..n {
+        let j = (i + 1) % n;
+        a += p[i][0] * p[j][1] - p[j][0] * p[i][1];
+    }
+    0.5 * a
+}
+
+impl RawMesh {
+    /// Checks the mesh; returns warnings (reoriented cells) or the first error, naming the file
+    /// and the element (0-based index in the file's order of 2D cells).
+    pub fn validate(&mut self, opt: ValidationOptions) -> Result<Vec<String>> {
+        let src = self.source.clone();
+        let np = self.points.len();
+        let mut warnings = Vec::new();
+        if self.cells.is_empty() {
+            return Err(FlemError::mesh(&src, "the mesh has no 2D elements (triangles or quadrilaterals)"));
+        }
+        if self.cell_region.len() != self.cells.len() {
+            self.cell_region = vec!["all".to_string(); self.cells.len()];
+        }
+        for (i, p) in self.points.iter().enumerate() {
+            if !p[0].is_finite() || !p[1].is_finite() {
+                return Err(FlemError::mesh(&src, format!("point {i} has a non-finite coordinate {p:?}")));
+            }
+        }
+        // Lengths for relative tolerances.
+        let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+        for p in &self.points {
+            for d in 0..2 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        let diam = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt().max(f64::MIN_POSITIVE);
+        let mut flipped = 0usize;
+        for (e, c) in self.cells.iter_mut().enumerate() {
+            let k = c.kind.nodes();
+            for a in 0..k {
+                let n = c.nodes[a] as usize;
+                if n >= np {
+                    return Err(FlemError::mesh(&src, format!("element {e} refers to point {n}, but there are only {np} points")));
+                }
+                for b in 0..a {
+                    if c.nodes[b] == c.nodes[a] {
+                        return Err(FlemError::mesh(&src, format!("element {e} uses point {} twice", c.nodes[a])));
+                    }
+                }
+            }
+            let corners: Vec<[f64; 2]> = c.corners().iter().map(|&n| self.points[n as usize]).collect();
+            let area = signed_area(&corners);
+            let h = corners.iter().zip(corners.iter().cycle().skip(1)).map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()).fold(0.0, f64::max);
+            if area.abs() <= 1e-12 * h * h.max(diam * 1e-9) || h == 0.0 {
+                return Err(FlemError::mesh(&src, format!("element {e} has zero area (points {:?})", c.corners())));
+            }
+            if area < 0.0 {
+                if opt == ValidationOptions::Refuse {
+                    return Err(FlemError::mesh(&src, format!("element {e} is clockwise (points {:?}); reorient it or set mesh.orientation = \"reorient\"", c.corners())));
+                }
+                c.nodes[..k].reverse();
+                flipped += 1;
+                if flipped <= 5 {
+                    warnings.push(format!("{src}: element {e} was clockwise and has been reoriented"));
+                }
+            }
+            if c.kind == CellKind::Q4 {
+                // Convexity: every corner must turn left.
+                let pts: Vec<[f64; 2]> = c.corners().iter().map(|&n| self.points[n as usize]).collect();
+                for a in 0..4 {
+                    let (p0, p1, p2) = (pts[a], pts[(a + 1) % 4], pts[(a + 2) % 4]);
+                    let cross = (p1[0] - p0[0]) * (p2[1] - p1[1]) - (p1[1] - p0[1]) * (p2[0] - p1[0]);
+                    if cross <= 0.0 {
+                        return Err(FlemError::mesh(&src, format!("element {e} is not a convex quadrilateral (points {:?})", c.corners())));
+                    }
+                }
+            }
+        }
+        if flipped > 5 {
+            warnings.push(format!("{src}: {} elements in all were clockwise and have been reoriented", flipped));
+        }
+        // Edges shared by more than two elements.
+        let mut edges: Vec<([u32; 2], u32)> = Vec::new();
+        for (e, c) in self.cells.iter().enumerate() {
+            let k = c.kind.nodes();
+            for a in 0..k {
+                let (p, q) = (c.nodes[a], c.nodes[(a + 1) % k]);
+                edges.push(([p.min(q), p.max(q)], e as u32));
+            }
+        }
+        edges.sort_unstable();
+        for w in edges.windows(3) {
+            if w[0].0 == w[1].0 && w[1].0 == w[2].0 {
+                return Err(FlemError::mesh(&src, format!("the edge between points {} and {} is shared by more than two elements (elements {}, {}, {})", w[0].0[0], w[0].0[1], w[0].1, w[1].1, w[2].1)));
+            }
+        }
+        // Duplicate points (used ones only; tolerance relative to the mesh size).
+        let mut used = vec![false; np];
+        for c in &self.cells {
+            for &n in c.corners() {
+                used[n as usize] = true;
+            }
+        }
+        let mut order: Vec<usize> = (0..np).filter(|&i| used[i]).collect();
+        order.sort_by(|&a, &b| self.points[a][0].total_cmp(&self.points[b][0]).then(self.points[a][1].total_cmp(&self.points[b][1])));
+        let tol = 1e-10 * diam;
+        for i in 0..order.len() {
+            let a = order[i];
+            for &b in &order[i + 1..] {
+                if self.points[b][0] - self.points[a][0] > tol {
+                    break;
+                }
+                if (self.points[b][1] - self.points[a][1]).abs() <= tol {
+                    return Err(FlemError::mesh(&src, format!("points {} and {} are duplicates at ({}, {}): merge them or declare the edges between them separated", a.min(b), a.max(b), self.points[a][0], self.points[a][1])));
+                }
+            }
+        }
+        if let Some(i) = (0..np).find(|&i| !used[i]) {
+            let n = used.iter().filter(|u| !**u).count();
+            return Err(FlemError::mesh(&src, format!("point {i} is not used by any element ({n} unreferenced points in all); remove them from the mesh")));
+        }
+        // Groups must refer to existing points.
+        for (name, set) in &self.node_sets {
+            if let Some(&n) = set.iter().find(|&&n| n as usize >= np) {
+                return Err(FlemError::mesh(&src, format!("node set \"{name}\" refers to point {n}, but there are only {np} points")));
+            }
+        }
+        for (name, set) in &self.edge_sets {
+            if let Some(e) = set.iter().find(|e| e[0] as usize >= np || e[1] as usize >= np) {
+                return Err(FlemError::mesh(&src, format!("edge set \"{name}\" refers to edge {e:?}, but there are only {np} points")));
+            }
+        }
+        Ok(warnings)
+    }
+
+    /// Adds node sets for every edge set that has no node set of the same name.
+    pub fn derive_node_sets(&mut self) {
+        let names: Vec<String> = self.edge_sets.keys().cloned().collect();
+        for name in names {
+            if !self.node_sets.contains_key(&name) {
+                let mut v: Vec<u32> = self.edge_sets[&name].iter().flat_map(|e| [e[0], e[1]]).collect();
+                v.sort_unstable();
+                v.dedup();
+                self.node_sets.insert(name, v);
+            }
+        }
+    }
+}

@@ -1,0 +1,159 @@
+//! The built-in structured mesh generator: a rectangle of quads or triangles, with an optional
+//! side notch made of pre-separated edges, so that a scene needs no mesh file.
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::{CellKind, MeshSource, RawCell, RawMesh};
+use crate::error::{FlemError, Result};
+
+/// A side notch: the horizontal grid line at height `y` is separated from the side `side`
+/// over `depth`. Its edges form the edge set "notch" (declare it in `cracking.separated`),
+/// the point at its end the node set "notch_tip".
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Notch {
+    /// "left" or "right".
+    pub side: String,
+    /// Height of the notch line (must fall on a grid line).
+    pub y: f64,
+    /// Length of the notch from the side (must be a whole number of element widths).
+    pub depth: f64,
+}
+
+/// `[mesh] type = "rectangle"`: `nx` x `ny` cells on `[x0, x0 + width] x [y0, y0 + height]`.
+///
+/// Groups: node and edge sets `left`, `right`, `bottom`, `top`; node sets `bottom_left`,
+/// `bottom_right`, `top_left`, `top_right`, `all`; region `all`.
+/// T3 cells split each square by the diagonal from its bottom-left to its top-right corner, so
+/// an interior point has a fan of six triangles.
+/// `distort` moves interior points by up to `distort` x the cell size (deterministic; for
+/// patch tests on distorted meshes).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rectangle {
+    pub width: f64,
+    pub height: f64,
+    pub nx: usize,
+    pub ny: usize,
+    #[serde(default = "default_q4")]
+    pub element: CellKind,
+    #[serde(default)]
+    pub origin: [f64; 2],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub notch: Option<Notch>,
+    #[serde(default)]
+    pub distort: f64,
+}
+
+fn default_q4() -> CellKind {
+    CellKind::Q4
+}
+
+const SRC: &str = "mesh (rectangle)";
+
+impl Rectangle {
+    pub fn new(width: f64, height: f64, nx: usize, ny: usize, element: CellKind) -> Self {
+        Rectangle { width, height, nx, ny, element, origin: [0.0, 0.0], notch: None, distort: 0.0 }
+    }
+
+    pub fn build(&self) -> Result<RawMesh> {
+        let bad = |key: &str, msg: String| FlemError::config(SRC, format!("mesh.{key}"), msg);
+        if !(self.width > 0.0 && self.width.is_finite()) {
+            return Err(bad("width", format!("= {} is incorrect; it must be > 0", self.width)));
+        }
+        if !(self.height > 0.0 && self.height.is_finite()) {
+            return Err(bad("height", format!("= {} is incorrect; it must be > 0", self.height)));
+        }
+        if self.nx == 0 || self.nx > 4096 {
+            return Err(bad("nx", format!("= {} is incorrect; it must be in [1, 4096]", self.nx)));
+        }
+        if self.ny == 0 || self.ny > 4096 {
+            return Err(bad("ny", format!("= {} is incorrect; it must be in [1, 4096]", self.ny)));
+        }
+        if !(0.0..0.3).contains(&self.distort) {
+            return Err(bad("distort", format!("= {} is incorrect; it must be in [0, 0.3)", self.distort)));
+        }
+        let (nx, ny) = (self.nx, self.ny);
+        let (hx, hy) = (self.width / nx as f64, self.height / ny as f64);
+        let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+        let mut points = Vec::with_capacity((nx + 1) * (ny + 1));
+        let mut seed: u64 = 0x2545_F491_4F6C_DD1D;
+        for j in 0..=ny {
+            for i in 0..=nx {
+                let mut x = [self.origin[0] + i as f64 * hx, self.origin[1] + j as f64 * hy];
+                if self.distort > 0.0 && i > 0 && i < nx && j > 0 && j < ny {
+                    for (d, h) in [hx, hy].into_iter().enumerate() {
+                        seed ^= seed << 13;
+                        seed ^= seed >> 7;
+                        seed ^= seed << 17;
+                        let r = (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+                        x[d] += r * self.distort * h;
+                    }
+                }
+                points.push(x);
+            }
+        }
+        let mut cells = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+                match self.element {
+                    CellKind::Q4 => cells.push(RawCell { kind: CellKind::Q4, nodes: [a, b, c, d] }),
+                    CellKind::T3 => {
+                        cells.push(RawCell { kind: CellKind::T3, nodes: [a, b, c, 0] });
+                        cells.push(RawCell { kind: CellKind::T3, nodes: [a, c, d, 0] });
+                    }
+                }
+            }
+        }
+        let mut node_sets = BTreeMap::new();
+        let mut edge_sets = BTreeMap::new();
+        let side = |f: &dyn Fn(usize) -> u32, n: usize| -> (Vec<u32>, Vec<[u32; 2]>) {
+            ((0..=n).map(f).collect(), (0..n).map(|k| [f(k), f(k + 1)]).collect())
+        };
+        for (name, (ns, es)) in [
+            ("left", side(&|j| id(0, j), ny)),
+            ("right", side(&|j| id(nx, j), ny)),
+            ("bottom", side(&|i| id(i, 0), nx)),
+            ("top", side(&|i| id(i, ny), nx)),
+        ] {
+            node_sets.insert(name.to_string(), ns);
+            edge_sets.insert(name.to_string(), es);
+        }
+        node_sets.insert("bottom_left".into(), vec![id(0, 0)]);
+        node_sets.insert("bottom_right".into(), vec![id(nx, 0)]);
+        node_sets.insert("top_left".into(), vec![id(0, ny)]);
+        node_sets.insert("top_right".into(), vec![id(nx, ny)]);
+        node_sets.insert("all".into(), (0..points.len() as u32).collect());
+        if let Some(n) = &self.notch {
+            let jf = (n.y - self.origin[1]) / hy;
+            let j = jf.round();
+            if (jf - j).abs() > 1e-6 || j < 1.0 || j > (ny - 1) as f64 {
+                return Err(bad("notch.y", format!("= {} is incorrect; it must be an interior grid line y0 + k * {hy} with k in [1, {}]", n.y, ny - 1)));
+            }
+            let kf = n.depth / hx;
+            let k = kf.round();
+            if (kf - k).abs() > 1e-6 || k < 1.0 || k > (nx - 1) as f64 {
+                return Err(bad("notch.depth", format!("= {} is incorrect; it must be k * {hx} with k in [1, {}]", n.depth, nx - 1)));
+            }
+            let (j, k) = (j as usize, k as usize);
+            let (edges, tip): (Vec<[u32; 2]>, u32) = match n.side.as_str() {
+                "left" => ((0..k).map(|i| [id(i, j), id(i + 1, j)]).collect(), id(k, j)),
+                "right" => ((nx - k..nx).map(|i| [id(i, j), id(i + 1, j)]).collect(), id(nx - k, j)),
+                other => return Err(bad("notch.side", format!("= \"{other}\" is incorrect; it must be \"left\" or \"right\""))),
+            };
+            edge_sets.insert("notch".into(), edges);
+            node_sets.insert("notch_tip".into(), vec![tip]);
+        }
+        let n = cells.len();
+        Ok(RawMesh { source: SRC.into(), points, cells, cell_region: vec!["all".into(); n], node_sets, edge_sets })
+    }
+}
+
+#[typetag::serde(name = "rectangle")]
+impl MeshSource for Rectangle {
+    fn load(&self, _base: &std::path::Path) -> Result<RawMesh> {
+        self.build()
+    }
+}

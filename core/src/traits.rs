@@ -1,0 +1,175 @@
+//! The plugin traits of FLEM. Plugins implement them; scenes select them by `type = "name"`
+//! (typetag). The core calls them once per event or batch (a check, a split candidate, a step),
+//! never once per element in the hot loop.
+use std::fmt::Debug;
+
+use serde::{Deserialize, Serialize};
+
+use crate::ids::{ClusterId, EdgeId, PointId};
+
+// ---------------------------------------------------------------------------------------------
+// Stress in the geomechanics convention
+// ---------------------------------------------------------------------------------------------
+
+/// In-plane principal stresses in the geomechanics convention (compression positive,
+/// `s1 >= s3`), the out-of-plane stress `s2` (same convention) and the direction of `s1`.
+#[derive(Copy, Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+pub struct Principal {
+    pub s1: f64,
+    pub s3: f64,
+    pub s2: f64,
+    /// Angle of the sigma1 direction from +x, radians in [0, pi).
+    pub theta1: f64,
+}
+
+/// Converts a tension-positive stress `[sxx, syy, sxy]` (and out-of-plane `szz`) into
+/// compression-positive principal values. When s1 == s3 the direction is undefined; by
+/// convention it is then 0 (the +x axis).
+pub fn principal(s: [f64; 3], szz: f64) -> Principal {
+    // compression positive
+    let (a, b, t) = (-s[0], -s[1], -s[2]);
+    let c = 0.5 * (a + b);
+    let r = (0.25 * (a - b) * (a - b) + t * t).sqrt();
+    let mut theta = if r > 0.0 { 0.5 * (2.0 * t).atan2(a - b) } else { 0.0 };
+    if theta < 0.0 {
+        theta += std::f64::consts::PI;
+    }
+    if theta >= std::f64::consts::PI {
+        theta -= std::f64::consts::PI;
+    }
+    Principal { s1: c + r, s3: c - r, s2: -szz, theta1: theta }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Failure criteria
+// ---------------------------------------------------------------------------------------------
+
+/// How a point failed.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FailureMode {
+    Tension,
+    Shear,
+}
+
+/// The answer of a criterion at one point.
+#[derive(Copy, Clone, Debug, PartialEq, Default)]
+pub struct FailureCheck {
+    /// How close to failure: >= 1 failed. Finite, clamped to [0, 1e6].
+    pub index: f64,
+    /// `Some` when the point fails.
+    pub mode: Option<FailureMode>,
+    /// Directions of the failure plane(s), radians in [0, pi): tension one plane (the sigma1
+    /// direction), shear two (+-(pi/4 - phi/2) from sigma1).
+    pub planes: [f64; 2],
+    pub n_planes: u8,
+}
+
+impl FailureCheck {
+    pub fn failed(&self) -> bool {
+        self.mode.is_some()
+    }
+}
+
+/// A failure criterion (METHOD section 4). Inputs are compression positive.
+/// `scale` multiplies the criterion's strengths at this point (1 without scatter).
+#[typetag::serde(tag = "type")]
+pub trait FailureCriterion: Debug + Send + Sync {
+    /// Checks the parameters; the error names the key and the allowed range.
+    fn validate(&self) -> Result<(), ParamError>;
+    fn check(&self, p: &Principal, scale: f64) -> FailureCheck;
+    /// Batch form (one dynamic call per check, not per point). Default: loops over `check`.
+    fn check_batch(&self, p: &[Principal], scale: &[f64], out: &mut [FailureCheck]) {
+        for i in 0..p.len() {
+            out[i] = self.check(&p[i], scale[i]);
+        }
+    }
+}
+
+/// A parameter error: `key = value is incorrect; it must be ...`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamError {
+    pub key: String,
+    pub msg: String,
+}
+
+impl ParamError {
+    pub fn new(key: impl Into<String>, msg: impl Into<String>) -> Self {
+        ParamError { key: key.into(), msg: msg.into() }
+    }
+    /// Checks `lo <= v <= hi` (inclusive flags per side).
+    pub fn range(key: &str, v: f64, lo: f64, lo_incl: bool, hi: f64, hi_incl: bool) -> Result<(), ParamError> {
+        let ok = v.is_finite() && (if lo_incl { v >= lo } else { v > lo }) && (if hi_incl { v <= hi } else { v < hi });
+        if ok {
+            Ok(())
+        } else {
+            let l = if lo_incl { "[" } else { "(" };
+            let h = if hi_incl { "]" } else { ")" };
+            let fmt = |x: f64| if x.is_infinite() { if x > 0.0 { "inf".to_string() } else { "-inf".to_string() } } else { format!("{x}") };
+            Err(ParamError::new(key, format!("= {v} is incorrect; it must be in {l}{}, {}{h}", fmt(lo), fmt(hi))))
+        }
+    }
+}
+
+impl std::fmt::Display for ParamError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {}", self.key, self.msg)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Separation rules
+// ---------------------------------------------------------------------------------------------
+
+/// One joined edge of a fan, as a separation rule sees it.
+#[derive(Copy, Clone, Debug)]
+pub struct LinkGeom {
+    pub edge: EdgeId,
+    /// Direction of the edge leaving the point (current configuration), radians in [0, 2 pi).
+    pub angle: f64,
+    /// Outward normals (current configuration) of the two elements' faces on this edge are
+    /// +-normal; `normal` is the unit normal (angle + pi/2).
+    pub normal: [f64; 2],
+}
+
+/// What a separation rule sees of a failing cluster.
+#[derive(Clone, Debug)]
+pub struct FanView<'a> {
+    pub point: PointId,
+    pub cluster: ClusterId,
+    /// A cycle of links (interior point never split) or a path.
+    pub closed: bool,
+    /// Joined edges at the point, in increasing edge id.
+    pub links: &'a [LinkGeom],
+    /// Nodal stress, tension positive `[sxx, syy, sxy]`.
+    pub stress: [f64; 3],
+    pub principal: Principal,
+}
+
+/// The edges a rule proposes to cut at a point. The core cuts them only if the fan then falls
+/// into exactly two non-empty parts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Proposal {
+    pub edges: Vec<EdgeId>,
+}
+
+/// Chooses the separation face(s) at a failed point (METHOD section 5).
+#[typetag::serde(tag = "type")]
+pub trait SeparationRule: Debug + Send + Sync {
+    fn validate(&self) -> Result<(), ParamError> {
+        Ok(())
+    }
+    fn propose(&self, fan: &FanView, failure: &FailureCheck) -> Option<Proposal>;
+}
+
+/// Angular distance between two directions (radians), as undirected lines (mod pi), in [0, pi/2].
+pub fn line_angle(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(std::f64::consts::PI);
+    d.min(std::f64::consts::PI - d)
+}
+
+/// Angular distance between two directed rays (mod 2 pi), in [0, pi].
+pub fn ray_angle(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(2.0 * std::f64::consts::PI);
+    d.min(2.0 * std::f64::consts::PI - d)
+}
