@@ -4,7 +4,7 @@
 //!
 //! integrated implicitly in velocity (METHOD section 7):
 //! `v+ = ((1 - a dt/2) v- + dt (F - local |F| sign(v-)) / m) / (1 + a dt/2)`.
-//! Kinetic damping (velocity reset at a kinetic-energy peak) uses [`Damping::reset_velocities`].
+//! Kinetic damping (velocity reset at a kinetic-energy peak) would use [`Damping::reset_velocities`].
 use std::fmt::Debug;
 
 use crate::traits::ParamError;
@@ -43,6 +43,10 @@ pub trait Damping: Debug + Send + Sync {
     /// After a step: true asks the solver to zero every velocity (kinetic damping).
     fn reset_velocities(&mut self, _stats: &StepStats) -> bool {
         false
+    }
+    /// Factor (<= 1) on the critical time step that this scheme needs.
+    fn stability_factor(&self) -> f64 {
+        1.0
     }
     /// Internal state, for checkpoints.
     fn state(&self) -> Vec<f64> {

@@ -17,3 +17,9 @@ pub use error::{FlemError, Result};
 
 /// The FLEM core version (checked by the dynamic plugin loader).
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+pub mod cracking;
+pub mod loads;
+pub mod model;
+pub mod output;
+pub mod scene;
+pub mod solver;

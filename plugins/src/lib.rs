@@ -1,1 +1,14 @@
-pub fn hello(){}
+//! FLEM's built-in plugins. Each is one file with one registration line (`#[typetag::serde]`),
+//! selected in a scene by `type = "name"`.
+pub mod damping;
+
+/// Every built-in plugin as (kind, name), in a fixed order (`flem plugins`).
+pub fn registry() -> Vec<(&'static str, &'static str)> {
+    let mut v = Vec::new();
+    v.extend(damping::NAMES.iter().map(|n| ("damping", *n)));
+    v.push(("mesh", "rectangle"));
+    v
+}
+
+/// Call once from a binary so that the linker keeps this crate (typetag registrations).
+pub fn link() {}

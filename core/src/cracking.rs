@@ -1,0 +1,162 @@
+//! Cracking (METHOD sections 3-5): nodal stress recovery, failure checks, separation proposals
+//! and the one place where splits are applied, in a deterministic order (score, then id).
+use crate::ids::{ClusterId, EdgeId, PointId};
+use crate::model::Model;
+use crate::scene::CrackingCfg;
+use crate::topology::{SplitRecord, Topology};
+use crate::traits::{principal, FailureCheck, FailureMode, FanView, LinkGeom, Principal};
+
+/// One applied split, for the split log.
+#[derive(Clone, Debug)]
+pub struct SplitEvent {
+    pub time: f64,
+    pub step: u64,
+    pub point: PointId,
+    pub cluster: ClusterId,
+    pub new_cluster: ClusterId,
+    pub mode: FailureMode,
+    pub index: f64,
+    /// sigma1 direction, degrees in [0, 180).
+    pub sigma1_deg: f64,
+    pub edges: Vec<EdgeId>,
+    /// Nodal stress at the split, tension positive.
+    pub stress: [f64; 3],
+}
+
+/// Weibull strength factor of a point, mean 1: F = lambda (-ln(1 - U))^(1/m) with
+/// lambda = 1 / Gamma(1 + 1/m) and U from a stateless hash of (seed, point) (splitmix64), so it
+/// depends on neither order nor thread count.
+pub fn weibull_scale(modulus: f64, seed: u64, point: u64) -> f64 {
+    let mut z = seed ^ point.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    let u = ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+    let lambda = 1.0 / gamma(1.0 + 1.0 / modulus);
+    lambda * (-(1.0 - u).ln()).powf(1.0 / modulus)
+}
+
+/// Lanczos approximation of the gamma function (x > 0), relative error < 1e-13.
+pub fn gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [0.999_999_999_999_809_9, 676.520_368_121_885_1, -1_259.139_216_722_402_8, 771.323_428_777_653_1, -176.615_029_162_140_6, 12.507_343_278_686_905, -0.138_571_095_265_720_12, 9.984_369_578_019_572e-6, 1.505_632_735_149_311_6e-7];
+    if x < 0.5 {
+        return std::f64::consts::PI / ((std::f64::consts::PI * x).sin() * gamma(1.0 - x));
+    }
+    let x = x - 1.0;
+    let mut a = G[0];
+    let t = x + 7.5;
+    for (i, g) in G.iter().enumerate().skip(1) {
+        a += g / (x + i as f64);
+    }
+    (2.0 * std::f64::consts::PI).sqrt() * t.powf(x + 0.5) * (-t).exp() * a
+}
+
+/// Cracking state: strength scatter, buffers and the last failure index per cluster.
+pub struct Cracking {
+    /// Strength factor per point (1 without scatter).
+    pub scale: Vec<f64>,
+    corner: Vec<[f64; 3]>,
+    pub nodal: Vec<[f64; 3]>,
+    principal: Vec<Principal>,
+    scales: Vec<f64>,
+    checks: Vec<FailureCheck>,
+    /// Failure index of every cluster at the last check.
+    pub index: Vec<f64>,
+    pub n_splits: usize,
+}
+
+impl Cracking {
+    pub fn new(cfg: &CrackingCfg, model: &Model) -> Self {
+        let np = model.topo.n_points;
+        let scale = match &cfg.weibull {
+            Some(w) => (0..np as u64).map(|p| weibull_scale(w.modulus, w.seed, p)).collect(),
+            None => vec![1.0; np],
+        };
+        Cracking { scale, corner: Vec::new(), nodal: Vec::new(), principal: Vec::new(), scales: Vec::new(), checks: Vec::new(), index: vec![0.0; model.topo.n_clusters()], n_splits: 0 }
+    }
+
+    /// Direction (radians, [0, 2 pi)) of every joined edge of the fan, in the current configuration.
+    pub fn link_geometry(topo: &Topology, fan: &crate::topology::Fan, x0: &[[f64; 2]], u: &[[f64; 2]], out: &mut Vec<LinkGeom>) {
+        out.clear();
+        let xc = |c: ClusterId| [x0[c.idx()][0] + u[c.idx()][0], x0[c.idx()][1] + u[c.idx()][1]];
+        let xp = xc(fan.cluster);
+        for l in &fan.links {
+            let q = topo.other_end(l.edge, fan.point);
+            let e = topo.copy_elem[l.a.idx()];
+            let cq = topo.copy_cluster[topo.copy_at(e, q).expect("edge end in element").idx()];
+            let xq = xc(cq);
+            let (dx, dy) = (xq[0] - xp[0], xq[1] - xp[1]);
+            let angle = dy.atan2(dx).rem_euclid(2.0 * std::f64::consts::PI);
+            let len = (dx * dx + dy * dy).sqrt().max(f64::MIN_POSITIVE);
+            out.push(LinkGeom { edge: l.edge, angle, normal: [-dy / len, dx / len] });
+        }
+    }
+
+    /// Evaluates the criterion at every cluster and applies the proposed splits, the most
+    /// critical first (index descending, then cluster id), at most `max_splits_per_check`.
+    pub fn check(&mut self, cfg: &CrackingCfg, model: &mut Model, u: &[[f64; 2]], x0: &[[f64; 2]], time: f64, step: u64) -> (SplitRecord, Vec<SplitEvent>) {
+        let mut nodal = std::mem::take(&mut self.nodal);
+        model.nodal_stress(u, &mut self.corner, &mut nodal);
+        self.nodal = nodal;
+        let nc = model.topo.n_clusters();
+        self.principal.clear();
+        self.scales.clear();
+        for c in 0..nc {
+            let k = model.topo.point_copies.row(model.topo.cluster_point[c].idx())[0];
+            let mat = model.material_of(model.topo.copy_elem[k.idx()]);
+            self.principal.push(principal(self.nodal[c], mat.szz(self.nodal[c])));
+            self.scales.push(self.scale[model.topo.cluster_point[c].idx()]);
+        }
+        self.checks.resize(nc, FailureCheck::default());
+        cfg.criterion.check_batch(&self.principal, &self.scales, &mut self.checks);
+        self.index.resize(nc, 0.0);
+        let mut cands: Vec<(f64, u32)> = Vec::new();
+        for c in 0..nc {
+            self.index[c] = self.checks[c].index;
+            if self.checks[c].failed() {
+                cands.push((self.checks[c].index, c as u32));
+            }
+        }
+        cands.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let mut rec = SplitRecord::default();
+        let mut events = Vec::new();
+        let mut links = Vec::new();
+        for (idx, c) in cands {
+            if events.len() >= cfg.max_splits_per_check {
+                break;
+            }
+            let cid = ClusterId(c);
+            let fan = model.topo.fan(cid);
+            if fan.copies.len() < 2 || fan.links.is_empty() {
+                continue;
+            }
+            Self::link_geometry(&model.topo, &fan, x0, u, &mut links);
+            let view = FanView { point: fan.point, cluster: cid, closed: fan.is_closed(), links: &links, stress: self.nodal[c as usize], principal: self.principal[c as usize] };
+            let chk = self.checks[c as usize];
+            let Some(prop) = cfg.separation.propose(&view, &chk) else { continue };
+            let r = model.topo.cut(cid, &prop.edges, true);
+            if r.is_empty() {
+                continue;
+            }
+            model.apply_record(&r);
+            for nc in &r.new_clusters {
+                self.index.push(idx);
+                events.push(SplitEvent {
+                    time,
+                    step,
+                    point: fan.point,
+                    cluster: cid,
+                    new_cluster: nc.id,
+                    mode: chk.mode.unwrap_or(FailureMode::Tension),
+                    index: idx,
+                    sigma1_deg: self.principal[c as usize].theta1.to_degrees(),
+                    edges: prop.edges.clone(),
+                    stress: self.nodal[c as usize],
+                });
+            }
+            rec.extend(r);
+        }
+        self.n_splits += events.len();
+        (rec, events)
+    }
+}

@@ -1,0 +1,169 @@
+//! The model: mesh groups, the topology of copies and clusters, and the element blocks.
+use crate::block::{Block, ElementBlock};
+use crate::element::{Material, Plane, Q4, T3};
+use crate::error::{FlemError, Result};
+use crate::ids::{EdgeId, ElemId, PointId};
+use crate::mesh::{CellKind, RawMesh};
+use crate::scene::MaterialCfg;
+use crate::topology::{SplitRecord, Topology};
+
+pub struct Model {
+    pub mesh: RawMesh,
+    pub topo: Topology,
+    pub blocks: Vec<Box<dyn Block>>,
+    /// (block, local index) of every element.
+    pub elem_slot: Vec<(u32, u32)>,
+    pub plane: Plane,
+}
+
+impl Model {
+    /// Builds blocks (one per region and element kind) from a validated mesh.
+    pub fn new(mesh: RawMesh, materials: &[MaterialCfg], plane: Plane, scene_file: &str) -> Result<Model> {
+        let topo = Topology::new(&mesh);
+        let mut regions: Vec<&str> = mesh.cell_region.iter().map(String::as_str).collect();
+        regions.sort_unstable();
+        regions.dedup();
+        for (i, m) in materials.iter().enumerate() {
+            if m.region != "all" && !regions.contains(&m.region.as_str()) {
+                return Err(FlemError::config(scene_file, format!("material[{i}].region"), format!("= \"{}\" names no element region of the mesh; regions are {regions:?}", m.region)));
+            }
+        }
+        let mat_of = |region: &str| -> Option<Material> {
+            let m = materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all"))?;
+            Some(Material { young: m.young_modulus, poisson: m.poisson_ratio, density: m.density, thickness: m.thickness, plane })
+        };
+        let mut blocks: Vec<Box<dyn Block>> = Vec::new();
+        let mut elem_slot = vec![(0u32, 0u32); mesh.cells.len()];
+        for region in &regions {
+            let mat = mat_of(region).ok_or_else(|| FlemError::config(scene_file, "material", format!("gives no material for element region \"{region}\" (add [[material]] region = \"{region}\" or region = \"all\")")))?;
+            let mut q4 = ElementBlock::<Q4, 4>::new(region.to_string(), mat);
+            let mut t3 = ElementBlock::<T3, 3>::new(region.to_string(), mat);
+            for (e, c) in mesh.cells.iter().enumerate() {
+                if mesh.cell_region[e] != *region {
+                    continue;
+                }
+                let x = |a: usize| mesh.points[c.nodes[a] as usize];
+                match c.kind {
+                    CellKind::Q4 => {
+                        q4.push(ElemId::new(e), [x(0), x(1), x(2), x(3)], [c.nodes[0], c.nodes[1], c.nodes[2], c.nodes[3]]);
+                    }
+                    CellKind::T3 => {
+                        t3.push(ElemId::new(e), [x(0), x(1), x(2)], [c.nodes[0], c.nodes[1], c.nodes[2]]);
+                    }
+                }
+            }
+            if !q4.is_empty() {
+                blocks.push(Box::new(q4));
+            }
+            if !t3.is_empty() {
+                blocks.push(Box::new(t3));
+            }
+        }
+        for (b, blk) in blocks.iter().enumerate() {
+            for (i, e) in blk.elems().iter().enumerate() {
+                elem_slot[e.idx()] = (b as u32, i as u32);
+            }
+        }
+        Ok(Model { mesh, topo, blocks, elem_slot, plane })
+    }
+
+    /// Points of a named node set; the error names the set and the groups that exist.
+    pub fn node_set(&self, name: &str, key: &str, file: &str) -> Result<Vec<PointId>> {
+        match self.mesh.node_sets.get(name) {
+            Some(v) => Ok(v.iter().map(|&p| PointId(p)).collect()),
+            None => {
+                let names: Vec<&str> = self.mesh.node_sets.keys().map(String::as_str).collect();
+                let hint = crate::scene::nearest(name, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
+                Err(FlemError::config(file, key, format!("= \"{name}\" names no node set of the mesh{hint}; node sets are {names:?}")))
+            }
+        }
+    }
+
+    /// Edges of a named edge set.
+    pub fn edge_set(&self, name: &str, key: &str, file: &str) -> Result<Vec<EdgeId>> {
+        let set = self.mesh.edge_sets.get(name).ok_or_else(|| {
+            let names: Vec<&str> = self.mesh.edge_sets.keys().map(String::as_str).collect();
+            let hint = crate::scene::nearest(name, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
+            FlemError::config(file, key, format!("= \"{name}\" names no edge set of the mesh{hint}; edge sets are {names:?}"))
+        })?;
+        set.iter()
+            .map(|&[p, q]| {
+                self.topo.edge_between(PointId(p), PointId(q)).ok_or_else(|| FlemError::config(file, key, format!("= \"{name}\": points {p} and {q} are not joined by an element edge")))
+            })
+            .collect()
+    }
+
+    /// Applies a split record to the blocks' connectivity.
+    pub fn apply_record(&mut self, rec: &SplitRecord) {
+        for nc in &rec.new_clusters {
+            for &k in &nc.copies {
+                let e = self.topo.copy_elem[k.idx()];
+                let a = k.idx() - self.topo.elem_first_copy[e.idx()] as usize;
+                let (b, i) = self.elem_slot[e.idx()];
+                self.blocks[b as usize].remap(i as usize, a, nc.id.0);
+            }
+        }
+    }
+
+    /// Reference position of every cluster.
+    pub fn cluster_x0(&self) -> Vec<[f64; 2]> {
+        self.topo.cluster_point.iter().map(|p| self.mesh.points[p.idx()]).collect()
+    }
+
+    pub fn n_elems(&self) -> usize {
+        self.topo.n_elems()
+    }
+
+    /// Internal forces of every block into `f` (zeroed first).
+    pub fn internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        f.iter_mut().for_each(|x| *x = [0.0; 2]);
+        for b in &self.blocks {
+            b.add_internal_forces(u, f);
+        }
+    }
+
+    /// Lumped mass of every cluster.
+    pub fn masses(&self) -> Vec<f64> {
+        let mut m = vec![0.0; self.topo.n_clusters()];
+        for b in &self.blocks {
+            b.add_mass(&mut m);
+        }
+        m
+    }
+
+    /// Stress of every copy at its (0.9999-scaled) corner.
+    pub fn corner_stresses(&self, u: &[[f64; 2]], out: &mut Vec<[f64; 3]>) {
+        out.resize(self.topo.copy_point.len(), [0.0; 3]);
+        for b in &self.blocks {
+            b.corner_stress(u, &self.topo.elem_first_copy, out);
+        }
+    }
+
+    /// Nodal stress of every cluster: the average over its copies (paper 2.1).
+    pub fn nodal_stress(&self, u: &[[f64; 2]], corner: &mut Vec<[f64; 3]>, out: &mut Vec<[f64; 3]>) {
+        self.corner_stresses(u, corner);
+        let nc = self.topo.n_clusters();
+        out.clear();
+        out.resize(nc, [0.0; 3]);
+        let mut cnt = vec![0u32; nc];
+        for (k, s) in corner.iter().enumerate() {
+            let c = self.topo.copy_cluster[k].idx();
+            for d in 0..3 {
+                out[c][d] += s[d];
+            }
+            cnt[c] += 1;
+        }
+        for (s, n) in out.iter_mut().zip(cnt) {
+            if n > 0 {
+                for v in s.iter_mut() {
+                    *v /= n as f64;
+                }
+            }
+        }
+    }
+
+    /// The material of element `e`.
+    pub fn material_of(&self, e: ElemId) -> &Material {
+        self.blocks[self.elem_slot[e.idx()].0 as usize].material()
+    }
+}

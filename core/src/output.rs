@@ -1,0 +1,259 @@
+//! Results on disk: VTU snapshots with a PVD series, a history CSV, a split log, and
+//! `summary.json`. Every file is written to a temporary name and renamed into place, so a
+//! reader never sees half a file.
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use vtkio::model::{Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers, Vtk};
+
+use crate::cracking::SplitEvent;
+use crate::error::{FlemError, Result};
+use crate::ids::EdgeId;
+use crate::mesh::CellKind;
+use crate::solver::{Observer, Progress, Simulation};
+use crate::topology::SplitRecord;
+
+/// Writes `bytes` to `path` atomically (temporary file in the same folder, fsync, rename).
+pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let err = |e: std::io::Error| FlemError::Output { path: path.display().to_string(), msg: e.to_string() };
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let mut f = std::fs::File::create(&tmp).map_err(err)?;
+    f.write_all(bytes).map_err(err)?;
+    f.sync_all().map_err(err)?;
+    drop(f);
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        err(e)
+    })
+}
+
+/// Checks that results can be written into `dir` (creating it), before any step is computed.
+pub fn prepare_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| FlemError::Output { path: dir.display().to_string(), msg: e.to_string() })?;
+    let probe = dir.join(".flem-write-test");
+    std::fs::write(&probe, b"ok").map_err(|e| FlemError::Output { path: dir.display().to_string(), msg: format!("the output folder is not writable: {e}") })?;
+    let _ = std::fs::remove_file(probe);
+    Ok(())
+}
+
+fn finite(v: f64) -> f64 {
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
+}
+
+/// The VTU of the current state: points are clusters (reference coordinates; `displacement`
+/// moves them), cells are the elements on their clusters, then one line cell per crack face
+/// (cell array `crack`: 1 separated at one end, 2 at both ends; 0 on elements).
+pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
+    let m = &sim.model;
+    let topo = &m.topo;
+    let nc = topo.n_clusters();
+    let mut pts = Vec::with_capacity(3 * nc);
+    for x in &sim.x0 {
+        pts.extend_from_slice(&[x[0], x[1], 0.0]);
+    }
+    let mut conn: Vec<u64> = Vec::new();
+    let mut offs: Vec<u64> = Vec::new();
+    let mut types = Vec::new();
+    let mut region = Vec::new();
+    let mut crack = Vec::new();
+    let mut stress = Vec::new();
+    let mut regions: Vec<&str> = m.blocks.iter().map(|b| b.region()).collect();
+    regions.dedup();
+    for e in 0..topo.n_elems() {
+        for k in topo.elem_copies(crate::ids::ElemId::new(e)) {
+            conn.push(topo.copy_cluster[k].0 as u64);
+        }
+        offs.push(conn.len() as u64);
+        let (b, i) = m.elem_slot[e];
+        let blk = &m.blocks[b as usize];
+        types.push(match blk.kind() {
+            CellKind::Q4 => CellType::Quad,
+            CellKind::T3 => CellType::Triangle,
+        });
+        region.push(regions.iter().position(|r| *r == blk.region()).unwrap_or(0) as i32);
+        crack.push(0i32);
+        let s = blk.mean_stress(i as usize, &sim.state.u);
+        stress.extend_from_slice(&[finite(s[0]), finite(s[1]), finite(s[2])]);
+    }
+    for ei in 0..topo.edges.len() {
+        let st = topo.crack_state(EdgeId::new(ei));
+        if st == 0 {
+            continue;
+        }
+        let ed = &topo.edges[ei];
+        for side in ed.sides.iter().flatten() {
+            for p in ed.points {
+                let k = topo.copy_at(side.0, p).unwrap();
+                conn.push(topo.copy_cluster[k.idx()].0 as u64);
+            }
+            offs.push(conn.len() as u64);
+            types.push(CellType::Line);
+            region.push(-1);
+            crack.push(st as i32);
+            stress.extend_from_slice(&[0.0; 3]);
+        }
+    }
+    let vec2 = |v: &[[f64; 2]]| -> Vec<f64> { v.iter().flat_map(|a| [finite(a[0]), finite(a[1]), 0.0]).collect() };
+    let mut point = vec![
+        Attribute::generic("displacement", 3).with_data(vec2(&sim.state.u)),
+        Attribute::generic("velocity", 3).with_data(vec2(&sim.state.v)),
+        Attribute::generic("point_id", 1).with_data(topo.cluster_point.iter().map(|p| p.0 as i64).collect::<Vec<i64>>()),
+        Attribute::generic("mass", 1).with_data(sim.state.mass.iter().map(|&m| finite(m)).collect::<Vec<f64>>()),
+    ];
+    let mut corner = Vec::new();
+    let mut nodal = Vec::new();
+    m.nodal_stress(&sim.state.u, &mut corner, &mut nodal);
+    point.push(Attribute::generic("nodal_stress", 3).with_data(nodal.iter().flat_map(|s| s.map(finite)).collect::<Vec<f64>>()));
+    if let Some(cr) = &sim.cracking {
+        let mut idx: Vec<f64> = cr.index.iter().map(|&v| finite(v)).collect();
+        idx.resize(nc, 0.0);
+        point.push(Attribute::generic("failure_index", 1).with_data(idx));
+    }
+    let cell = vec![
+        Attribute::generic("region", 1).with_data(region),
+        Attribute::generic("crack", 1).with_data(crack),
+        Attribute::generic("stress", 3).with_data(stress),
+    ];
+    Vtk {
+        version: Version::new_xml(1, 0),
+        title: String::from("FLEM snapshot"),
+        byte_order: ByteOrder::LittleEndian,
+        file_path: None,
+        data: DataSet::inline(UnstructuredGridPiece {
+            points: pts.into(),
+            cells: Cells { cell_verts: VertexNumbers::XML { connectivity: conn, offsets: offs }, types },
+            data: Attributes { point, cell },
+        }),
+    }
+}
+
+/// Serialises a VTK model to VTU bytes (little endian, raw or zlib).
+pub fn vtu_bytes(vtk: Vtk, compress: bool) -> Result<Vec<u8>> {
+    use vtkio::xml::Compressor;
+    let (c, level) = if compress { (Compressor::ZLib, 5) } else { (Compressor::None, 0) };
+    let file = vtk.try_into_xml_format(c, level).map_err(|e| FlemError::Other(format!("VTU encoding failed: {e}")))?;
+    let mut out = Vec::new();
+    file.write(&mut out).map_err(|e| FlemError::Other(format!("VTU encoding failed: {e}")))?;
+    Ok(out)
+}
+
+/// Writes a run's results into a folder.
+pub struct OutputWriter {
+    pub dir: PathBuf,
+    snapshots: Vec<(f64, String)>,
+    history: String,
+    splits: String,
+    compress: bool,
+    probes: Vec<(String, usize)>,
+    pub quiet: bool,
+    pub on_progress: Option<Box<dyn FnMut(&Progress)>>,
+}
+
+impl OutputWriter {
+    pub fn new(dir: &Path, sim: &Simulation) -> Result<Self> {
+        prepare_dir(dir)?;
+        let mut probes = Vec::new();
+        for p in &sim.scene.file.output.probes {
+            let pts = &sim.model.mesh.points;
+            let best = (0..pts.len()).min_by(|&a, &b| {
+                let d = |i: usize| (pts[i][0] - p.at[0]).powi(2) + (pts[i][1] - p.at[1]).powi(2);
+                d(a).total_cmp(&d(b))
+            });
+            probes.push((p.name.clone(), best.unwrap_or(0)));
+        }
+        let mut history = String::from("step,time,stage");
+        for l in &sim.loads.loads {
+            let _ = write!(history, ",level_{}", l.name);
+        }
+        for (n, _) in &probes {
+            let _ = write!(history, ",{n}_ux,{n}_uy");
+        }
+        history.push_str(",external_work,kinetic,strain,damping,energy_residual,unbalanced_ratio\n");
+        let w = OutputWriter { dir: dir.to_path_buf(), snapshots: Vec::new(), history, splits: String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"), compress: sim.scene.file.output.compress, probes, quiet: false, on_progress: None };
+        atomic_write(&dir.join("scene.resolved.toml"), sim.scene.resolved_toml().as_bytes())?;
+        Ok(w)
+    }
+
+    fn write_pvd(&self) -> Result<()> {
+        let mut s = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n  <Collection>\n");
+        for (t, f) in &self.snapshots {
+            let _ = writeln!(s, "    <DataSet timestep=\"{t:e}\" group=\"\" part=\"0\" file=\"{f}\"/>");
+        }
+        s.push_str("  </Collection>\n</VTKFile>\n");
+        atomic_write(&self.dir.join("results.pvd"), s.as_bytes())
+    }
+
+    /// Writes `summary.json`.
+    pub fn write_summary(&self, sim: &Simulation, wall: f64) -> Result<()> {
+        let l = &sim.ledger;
+        let (one, two) = sim.model.topo.crack_counts();
+        let v = serde_json::json!({
+            "title": sim.scene.file.title,
+            "elements": sim.model.n_elems(),
+            "points": sim.model.topo.n_points,
+            "clusters": sim.model.topo.n_clusters(),
+            "steps": sim.state.step,
+            "time": sim.state.time,
+            "wall_seconds": wall,
+            "dt": sim.dt,
+            "dt_crit": sim.stable.dt_crit,
+            "dt_over_dt_crit": sim.dt / sim.stable.dt_crit,
+            "dt_element_bound": sim.stable.dt_element_bound,
+            "stages": sim.stages_done,
+            "energy": {"external_work": finite(l.external()), "kinetic": finite(l.kinetic), "strain": finite(l.strain), "damping": finite(l.dissipated()), "residual": finite(l.residual()), "relative_residual": finite(l.relative_residual())},
+            "splits": sim.cracking.as_ref().map(|c| c.n_splits).unwrap_or(0),
+            "crack_faces": {"separated_one_end": one, "separated_both_ends": two},
+            "warnings": sim.warnings,
+        });
+        atomic_write(&self.dir.join("summary.json"), serde_json::to_string_pretty(&v).unwrap_or_default().as_bytes())
+    }
+}
+
+impl Observer for OutputWriter {
+    fn history(&mut self, sim: &Simulation, stage: usize) -> Result<()> {
+        let l = &sim.ledger;
+        let _ = write!(self.history, "{},{:e},{}", sim.state.step, sim.state.time, stage);
+        for v in &sim.levels {
+            let _ = write!(self.history, ",{v:e}");
+        }
+        for (_, p) in &self.probes {
+            let c = sim.model.topo.point_clusters[*p][0].idx();
+            let _ = write!(self.history, ",{:e},{:e}", sim.state.u[c][0], sim.state.u[c][1]);
+        }
+        let _ = writeln!(self.history, ",{:e},{:e},{:e},{:e},{:e},{:e}", finite(l.external()), finite(l.kinetic), finite(l.strain), finite(l.dissipated()), finite(l.residual()), finite(sim.last_ratio));
+        atomic_write(&self.dir.join("history.csv"), self.history.as_bytes())
+    }
+
+    fn snapshot(&mut self, sim: &Simulation, _stage: usize, label: &str) -> Result<()> {
+        let name = format!("snapshot_{:04}_{label}.vtu", self.snapshots.len());
+        let bytes = vtu_bytes(snapshot_vtk(sim), self.compress)?;
+        atomic_write(&self.dir.join(&name), &bytes)?;
+        self.snapshots.push((sim.state.time, name));
+        self.write_pvd()
+    }
+
+    fn splits(&mut self, sim: &Simulation, _rec: &SplitRecord, events: &[SplitEvent]) -> Result<()> {
+        for e in events {
+            let x = sim.model.mesh.points[e.point.idx()];
+            let edges: Vec<String> = e.edges.iter().map(|ed| {
+                let p = sim.model.topo.edges[ed.idx()].points;
+                format!("{}-{}", p[0], p[1])
+            }).collect();
+            let _ = writeln!(self.splits, "{:e},{},{},{:e},{:e},{},{},{:?},{:e},{:.3},{:e},{:e},{:e},{}", e.time, e.step, e.point, x[0], x[1], e.cluster, e.new_cluster, e.mode, e.index, e.sigma1_deg, e.stress[0], e.stress[1], e.stress[2], edges.join(" "));
+        }
+        atomic_write(&self.dir.join("splits.csv"), self.splits.as_bytes())
+    }
+
+    fn progress(&mut self, p: &Progress) {
+        if let Some(f) = self.on_progress.as_mut() {
+            f(p);
+        }
+    }
+}

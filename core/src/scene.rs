@@ -1,0 +1,444 @@
+//! Scenes: TOML files parsed into raw structs that reject unknown keys, then validated into a
+//! [`Scene`] whose errors name the file, the key and the allowed range.
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::damping::Damping;
+use crate::element::Plane;
+use crate::error::{FlemError, Result};
+use crate::mesh::{MeshSource, ValidationOptions};
+use crate::traits::{FailureCriterion, ParamError, SeparationRule};
+
+/// The scene file as written (after defaults).
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    #[serde(default)]
+    pub title: String,
+    pub mesh: Box<dyn MeshSource>,
+    #[serde(default)]
+    pub model: ModelCfg,
+    #[serde(rename = "material")]
+    pub materials: Vec<MaterialCfg>,
+    #[serde(default)]
+    pub solver: SolverCfg,
+    #[serde(default, rename = "support")]
+    pub supports: Vec<SupportCfg>,
+    #[serde(default, rename = "load")]
+    pub loads: Vec<LoadCfg>,
+    #[serde(rename = "stage")]
+    pub stages: Vec<StageCfg>,
+    #[serde(default)]
+    pub output: OutputCfg,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cracking: Option<CrackingCfg>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plugins: Option<PluginsCfg>,
+}
+
+/// `[plugins] load = ["path/to/libfoo.so"]`: dynamic plugin libraries loaded before the rest
+/// of the scene is read.
+#[derive(Debug, Clone, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PluginsCfg {
+    #[serde(default)]
+    pub load: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelCfg {
+    /// "strain" (default) or "stress".
+    #[serde(default)]
+    pub plane: Plane,
+    /// Gravity acceleration vector, e.g. [0, -9.81].
+    #[serde(default)]
+    pub gravity: [f64; 2],
+    /// Edge sets separated from the start (a notch, a pre-cut plane).
+    #[serde(default)]
+    pub separated: Vec<String>,
+    /// "reorient" clockwise elements with a warning (default) or "refuse" them.
+    #[serde(default)]
+    pub orientation: ValidationOptions,
+}
+
+impl Default for ModelCfg {
+    fn default() -> Self {
+        ModelCfg { plane: Plane::Strain, gravity: [0.0; 2], separated: Vec::new(), orientation: ValidationOptions::Reorient }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialCfg {
+    /// Element region (mesh group) this material applies to; "all" for every element.
+    #[serde(default = "all")]
+    pub region: String,
+    pub young_modulus: f64,
+    pub poisson_ratio: f64,
+    pub density: f64,
+    #[serde(default = "one")]
+    pub thickness: f64,
+}
+
+fn all() -> String {
+    "all".into()
+}
+fn one() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverCfg {
+    /// Time step; default: `dt_safety` x the computed critical step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt: Option<f64>,
+    #[serde(default = "default_safety")]
+    pub dt_safety: f64,
+    /// Accept a `dt` above the critical step with a warning instead of an error.
+    #[serde(default)]
+    pub allow_unstable_dt: bool,
+    #[serde(default = "default_damping")]
+    pub damping: Box<dyn Damping>,
+    /// Unbalanced-force ratio at which a stage is in equilibrium.
+    #[serde(default = "default_tol")]
+    pub tolerance: f64,
+    /// Step limit of a stage.
+    #[serde(default = "default_max_steps")]
+    pub max_steps: u64,
+    /// Steps between evaluations of the unbalanced-force ratio.
+    #[serde(default = "default_ratio_every")]
+    pub ratio_every: u64,
+    /// Worker threads for the element loop (results are identical for any count).
+    #[serde(default = "one_usize")]
+    pub threads: usize,
+}
+
+fn default_safety() -> f64 {
+    0.8
+}
+fn default_tol() -> f64 {
+    1e-6
+}
+fn default_max_steps() -> u64 {
+    1_000_000
+}
+fn default_ratio_every() -> u64 {
+    10
+}
+fn one_usize() -> usize {
+    1
+}
+
+/// The default damping when a scene names none: adaptive dynamic relaxation.
+fn default_damping() -> Box<dyn Damping> {
+    serde_json::from_str(r#"{"type": "adaptive"}"#).expect("the adaptive damping plugin is not linked into this binary")
+}
+
+impl Default for SolverCfg {
+    fn default() -> Self {
+        SolverCfg {
+            dt: None,
+            dt_safety: default_safety(),
+            allow_unstable_dt: false,
+            damping: default_damping(),
+            tolerance: default_tol(),
+            max_steps: default_max_steps(),
+            ratio_every: default_ratio_every(),
+            threads: 1,
+        }
+    }
+}
+
+/// Fixed directions on a node set.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SupportCfg {
+    pub nodes: String,
+    /// "x", "y" or "xy".
+    pub fix: String,
+}
+
+/// Loads. Each has a `name`; a stage's `levels` scale it (levels start at 0 and keep their
+/// value from stage to stage until a stage changes them).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum LoadCfg {
+    /// Pressure on an edge set, positive pushing into the body. `follow = false` (the paper's):
+    /// direction fixed at the initial edge normal; `true`: follows the deformed edge.
+    Pressure { name: String, edges: String, value: f64, #[serde(default)] follow: bool },
+    /// Traction vector (force per length per thickness) on an edge set, fixed direction.
+    Traction { name: String, edges: String, value: [f64; 2] },
+    /// Force on every point of a node set.
+    Point { name: String, nodes: String, value: [f64; 2] },
+    /// Prescribed velocity of a node set (components not given are free).
+    Velocity { name: String, nodes: String, #[serde(default)] x: Option<f64>, #[serde(default)] y: Option<f64> },
+    /// Prescribed displacement of a node set, applied at the start of each stage.
+    Displacement { name: String, nodes: String, #[serde(default)] x: Option<f64>, #[serde(default)] y: Option<f64> },
+}
+
+impl LoadCfg {
+    pub fn name(&self) -> &str {
+        match self {
+            LoadCfg::Pressure { name, .. } | LoadCfg::Traction { name, .. } | LoadCfg::Point { name, .. } | LoadCfg::Velocity { name, .. } | LoadCfg::Displacement { name, .. } => name,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StageCfg {
+    #[serde(default)]
+    pub name: String,
+    /// Load levels set by this stage, by load name.
+    #[serde(default)]
+    pub levels: BTreeMap<String, f64>,
+    /// Overrides solver.max_steps for this stage.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_steps: Option<u64>,
+    /// Overrides solver.tolerance for this stage.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// Run a fixed number of steps (dynamics) instead of marching to equilibrium.
+    #[serde(default)]
+    pub dynamic: bool,
+    /// Write a snapshot at the end of the stage.
+    #[serde(default = "yes")]
+    pub snapshot: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// A probe: a named point whose displacement goes into the history.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeCfg {
+    pub name: String,
+    /// The point nearest to these coordinates.
+    pub at: [f64; 2],
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputCfg {
+    /// Steps between history rows (0: only at stage ends).
+    #[serde(default = "default_hist")]
+    pub history_every: u64,
+    /// Steps between extra VTU snapshots inside a stage (0: only at stage ends).
+    #[serde(default)]
+    pub snapshot_every: u64,
+    #[serde(default)]
+    pub probes: Vec<ProbeCfg>,
+    /// zlib-compress VTU arrays.
+    #[serde(default)]
+    pub compress: bool,
+}
+
+fn default_hist() -> u64 {
+    1000
+}
+
+impl Default for OutputCfg {
+    fn default() -> Self {
+        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false }
+    }
+}
+
+/// `[cracking]`: failure checks and node splitting.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CrackingCfg {
+    pub criterion: Box<dyn FailureCriterion>,
+    pub separation: Box<dyn SeparationRule>,
+    /// Steps between failure checks.
+    #[serde(default = "default_check_every")]
+    pub check_every: u64,
+    /// At most this many splits per check (the most critical first).
+    #[serde(default = "default_max_splits")]
+    pub max_splits_per_check: usize,
+    /// Optional Weibull scatter of strengths.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weibull: Option<WeibullCfg>,
+}
+
+fn default_check_every() -> u64 {
+    10
+}
+fn default_max_splits() -> usize {
+    1
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WeibullCfg {
+    pub modulus: f64,
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// A validated scene.
+#[derive(Debug)]
+pub struct Scene {
+    pub file: SceneFile,
+    /// The scene file's path (for messages) and folder (for relative paths).
+    pub path: PathBuf,
+    pub base_dir: PathBuf,
+}
+
+fn range(file: &str, key: &str, v: f64, lo: f64, lo_incl: bool, hi: f64, hi_incl: bool) -> Result<()> {
+    ParamError::range(key, v, lo, lo_incl, hi, hi_incl).map_err(|e| FlemError::config(file, e.key, e.msg))
+}
+
+/// Nearest name by edit distance, for "did you mean" hints.
+pub fn nearest<'a>(name: &str, options: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    fn lev(a: &str, b: &str) -> usize {
+        let b: Vec<char> = b.chars().collect();
+        let mut prev: Vec<usize> = (0..=b.len()).collect();
+        for (i, ca) in a.chars().enumerate() {
+            let mut cur = vec![i + 1];
+            for (j, cb) in b.iter().enumerate() {
+                cur.push((prev[j] + (ca != *cb) as usize).min(prev[j + 1] + 1).min(cur[j] + 1));
+            }
+            prev = cur;
+        }
+        prev[b.len()]
+    }
+    options.into_iter().map(|o| (lev(name, o), o)).filter(|(d, o)| *d <= (o.len() / 2).max(2)).min().map(|(_, o)| o)
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn from_file(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| FlemError::config(path.display().to_string(), "", format!("cannot be read: {e}")))?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Scene::from_str(&text, path, &base)
+    }
+
+    /// Parses and validates scene text; `path` is used in messages, `base_dir` for relative paths.
+    pub fn from_str(text: &str, path: &Path, base_dir: &Path) -> Result<Scene> {
+        let name = path.display().to_string();
+        let file: SceneFile = toml::from_str(text).map_err(|e| parse_error(&name, text, e))?;
+        let scene = Scene { file, path: path.to_path_buf(), base_dir: base_dir.to_path_buf() };
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    fn validate(&self) -> Result<()> {
+        let f = &self.file;
+        let n = self.path.display().to_string();
+        if f.materials.is_empty() {
+            return Err(FlemError::config(&n, "material", "is missing; give at least one [[material]]"));
+        }
+        for (i, m) in f.materials.iter().enumerate() {
+            let k = |s: &str| format!("material[{i}].{s}");
+            range(&n, &k("young_modulus"), m.young_modulus, 0.0, false, f64::INFINITY, false)?;
+            range(&n, &k("poisson_ratio"), m.poisson_ratio, -1.0, false, 0.5, false)?;
+            range(&n, &k("density"), m.density, 0.0, false, f64::INFINITY, false)?;
+            range(&n, &k("thickness"), m.thickness, 0.0, false, f64::INFINITY, false)?;
+        }
+        let s = &f.solver;
+        if let Some(dt) = s.dt {
+            range(&n, "solver.dt", dt, 0.0, false, f64::INFINITY, false)?;
+        }
+        range(&n, "solver.dt_safety", s.dt_safety, 0.0, false, 1.0, true)?;
+        range(&n, "solver.tolerance", s.tolerance, 0.0, false, 1.0, false)?;
+        if s.max_steps == 0 {
+            return Err(FlemError::config(&n, "solver.max_steps", "= 0 is incorrect; it must be >= 1"));
+        }
+        if s.ratio_every == 0 {
+            return Err(FlemError::config(&n, "solver.ratio_every", "= 0 is incorrect; it must be >= 1"));
+        }
+        if !(1..=256).contains(&s.threads) {
+            return Err(FlemError::config(&n, "solver.threads", format!("= {} is incorrect; it must be in [1, 256]", s.threads)));
+        }
+        s.damping.validate().map_err(|e| FlemError::config(&n, format!("solver.damping.{}", e.key), e.msg))?;
+        for d in 0..2 {
+            range(&n, &format!("model.gravity[{d}]"), f.model.gravity[d], f64::MIN, true, f64::MAX, true)?;
+        }
+        for (i, sup) in f.supports.iter().enumerate() {
+            if !["x", "y", "xy"].contains(&sup.fix.as_str()) {
+                return Err(FlemError::config(&n, format!("support[{i}].fix"), format!("= \"{}\" is incorrect; it must be \"x\", \"y\" or \"xy\"", sup.fix)));
+            }
+        }
+        let mut names: Vec<&str> = Vec::new();
+        for (i, l) in f.loads.iter().enumerate() {
+            if names.contains(&l.name()) {
+                return Err(FlemError::config(&n, format!("load[{i}].name"), format!("= \"{}\" is used twice; load names must be unique", l.name())));
+            }
+            names.push(l.name());
+            let vals: Vec<f64> = match l {
+                LoadCfg::Pressure { value, .. } => vec![*value],
+                LoadCfg::Traction { value, .. } | LoadCfg::Point { value, .. } => value.to_vec(),
+                LoadCfg::Velocity { x, y, .. } | LoadCfg::Displacement { x, y, .. } => {
+                    if x.is_none() && y.is_none() {
+                        return Err(FlemError::config(&n, format!("load[{i}]"), "prescribes neither x nor y; give at least one"));
+                    }
+                    x.iter().chain(y.iter()).copied().collect()
+                }
+            };
+            for v in vals {
+                range(&n, &format!("load[{i}].value"), v, f64::MIN, true, f64::MAX, true)?;
+            }
+        }
+        if f.stages.is_empty() {
+            return Err(FlemError::config(&n, "stage", "is missing; give at least one [[stage]]"));
+        }
+        for (i, st) in f.stages.iter().enumerate() {
+            for (lname, v) in &st.levels {
+                if !names.contains(&lname.as_str()) {
+                    let hint = nearest(lname, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
+                    return Err(FlemError::config(&n, format!("stage[{i}].levels.{lname}"), format!("names no load{hint}; loads are: {names:?}")));
+                }
+                range(&n, &format!("stage[{i}].levels.{lname}"), *v, f64::MIN, true, f64::MAX, true)?;
+            }
+            if let Some(t) = st.tolerance {
+                range(&n, &format!("stage[{i}].tolerance"), t, 0.0, false, 1.0, false)?;
+            }
+            if st.max_steps == Some(0) {
+                return Err(FlemError::config(&n, format!("stage[{i}].max_steps"), "= 0 is incorrect; it must be >= 1"));
+            }
+        }
+        if let Some(c) = &f.cracking {
+            c.criterion.validate().map_err(|e| FlemError::config(&n, format!("cracking.criterion.{}", e.key), e.msg))?;
+            c.separation.validate().map_err(|e| FlemError::config(&n, format!("cracking.separation.{}", e.key), e.msg))?;
+            if c.check_every == 0 {
+                return Err(FlemError::config(&n, "cracking.check_every", "= 0 is incorrect; it must be >= 1"));
+            }
+            if c.max_splits_per_check == 0 {
+                return Err(FlemError::config(&n, "cracking.max_splits_per_check", "= 0 is incorrect; it must be >= 1"));
+            }
+            if let Some(w) = &c.weibull {
+                range(&n, "cracking.weibull.modulus", w.modulus, 0.5, true, 1000.0, true)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The resolved scene (every default filled in) as TOML.
+    pub fn resolved_toml(&self) -> String {
+        toml::to_string_pretty(&self.file).unwrap_or_else(|e| format!("# could not serialise the resolved scene: {e}\n"))
+    }
+}
+
+/// Turns a TOML/serde error into a message naming the file, with a "did you mean" for an
+/// unknown plugin name.
+fn parse_error(file: &str, _text: &str, e: toml::de::Error) -> FlemError {
+    let msg = e.to_string();
+    let mut hint = String::new();
+    if let (Some(a), Some(b)) = (msg.find("unknown variant `"), msg.find("expected one of")) {
+        let rest = &msg[a + 17..];
+        if let Some(end) = rest.find('`') {
+            let bad = &rest[..end];
+            let opts: Vec<&str> = msg[b..].split('`').skip(1).step_by(2).collect();
+            if let Some(h) = nearest(bad, opts.iter().copied()) {
+                hint = format!("\n(did you mean \"{h}\"?)");
+            }
+        }
+    }
+    FlemError::config(file, "", format!("is not a valid scene: {}{hint}", msg.trim_end()))
+}

@@ -1,0 +1,522 @@
+//! The explicit solver: central difference with damping treated implicitly in velocity
+//! (METHOD section 7), stages marched to equilibrium (section 8), an energy ledger and the
+//! stable time step.
+use crate::cracking::Cracking;
+use crate::damping::{DampingCoeffs, StepStats};
+use crate::error::{FlemError, Result};
+use crate::loads::Loads;
+use crate::model::Model;
+use crate::scene::Scene;
+use crate::topology::SplitRecord;
+
+/// Nodal state, one array per field, indexed by cluster.
+#[derive(Clone, Debug, Default)]
+pub struct State {
+    pub u: Vec<[f64; 2]>,
+    pub v: Vec<[f64; 2]>,
+    pub f_int: Vec<[f64; 2]>,
+    pub f_ext: Vec<[f64; 2]>,
+    pub mass: Vec<f64>,
+    /// Prescribed-dof bits (1: x, 2: y).
+    pub fix: Vec<u8>,
+    /// Velocity of prescribed dofs.
+    pub v_pres: Vec<[f64; 2]>,
+    pub time: f64,
+    pub step: u64,
+}
+
+/// Energy ledger (METHOD section 7). With the trapezoidal work sums and the kinetic energy
+/// taken as `1/2 m v(n-1/2) . v(n+1/2)`, the balance of the central-difference scheme is exact
+/// for linear elasticity, so the residual measures round-off, damping bookkeeping and events
+/// (splits, contact) only.
+#[derive(Copy, Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Ledger {
+    pub external_work: f64,
+    pub kinetic: f64,
+    pub strain: f64,
+    pub damping: f64,
+    /// Work of the last half step, not yet part of the balance.
+    pub pending_ext: f64,
+    pub pending_damp: f64,
+}
+
+impl Ledger {
+    pub fn external(&self) -> f64 {
+        self.external_work - self.pending_ext
+    }
+    pub fn dissipated(&self) -> f64 {
+        self.damping - self.pending_damp
+    }
+    /// `W_ext - (KE + U + D)`.
+    pub fn residual(&self) -> f64 {
+        self.external() - (self.kinetic + self.strain + self.dissipated())
+    }
+    /// Residual relative to the largest term.
+    pub fn relative_residual(&self) -> f64 {
+        let scale = self.external().abs().max(self.kinetic.abs() + self.strain.abs() + self.dissipated().abs());
+        if scale > 0.0 {
+            self.residual().abs() / scale
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The stable step estimate.
+#[derive(Copy, Clone, Debug, Default, serde::Serialize)]
+pub struct StableStep {
+    /// 2 / omega_max with omega_max from power iteration on M^-1 K (free dofs), times the
+    /// damping scheme's stability factor.
+    pub dt_crit: f64,
+    /// 2 / max element omega (Gershgorin bound: always <= the true limit).
+    pub dt_element_bound: f64,
+    pub omega_max: f64,
+    pub iterations: usize,
+}
+
+/// Per-stage results.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct StageResult {
+    pub name: String,
+    pub steps: u64,
+    pub converged: bool,
+    pub final_ratio: f64,
+    pub wall_seconds: f64,
+    pub time: f64,
+    pub splits: usize,
+    pub energy_residual: f64,
+}
+
+/// What a progress callback sees.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct Progress {
+    pub stage: usize,
+    pub n_stages: usize,
+    pub step: u64,
+    pub stage_step: u64,
+    pub max_steps: u64,
+    pub dt: f64,
+    pub ratio: f64,
+    pub tolerance: f64,
+}
+
+/// Receives what a run produces (the output writer implements it; tests may collect).
+pub trait Observer {
+    fn history(&mut self, _sim: &Simulation, _stage: usize) -> Result<()> {
+        Ok(())
+    }
+    fn snapshot(&mut self, _sim: &Simulation, _stage: usize, _label: &str) -> Result<()> {
+        Ok(())
+    }
+    fn splits(&mut self, _sim: &Simulation, _rec: &SplitRecord, _events: &[crate::cracking::SplitEvent]) -> Result<()> {
+        Ok(())
+    }
+    fn progress(&mut self, _p: &Progress) {}
+}
+
+/// A do-nothing observer.
+pub struct NoOutput;
+impl Observer for NoOutput {}
+
+pub struct Simulation {
+    pub scene: Scene,
+    pub model: Model,
+    pub loads: Loads,
+    pub state: State,
+    pub ledger: Ledger,
+    pub levels: Vec<f64>,
+    pub dt: f64,
+    pub stable: StableStep,
+    pub warnings: Vec<String>,
+    pub cracking: Option<Cracking>,
+    pub stages_done: Vec<StageResult>,
+    pub last_ratio: f64,
+    /// x0 of every cluster.
+    pub x0: Vec<[f64; 2]>,
+    f_const: Vec<[f64; 2]>,
+    stats: StepStats,
+    coeffs: DampingCoeffs,
+    /// The next step starts from rest (after a kinetic-damping reset): half a kick.
+    restart: bool,
+}
+
+impl Simulation {
+    /// Builds the model, resolves loads, separates the declared edges and computes the step.
+    pub fn new(scene: Scene) -> Result<Simulation> {
+        let file = scene.path.display().to_string();
+        let mut mesh = scene.file.mesh.load(&scene.base_dir)?;
+        let mut warnings = mesh.validate(scene.file.model.orientation)?;
+        mesh.derive_node_sets();
+        let mut model = Model::new(mesh, &scene.file.materials, scene.file.model.plane, &file)?;
+        let loads = Loads::new(&model, &scene.file, &file)?;
+        // Pre-separated edges.
+        for (i, g) in scene.file.model.separated.iter().enumerate() {
+            let edges = model.edge_set(g, &format!("model.separated[{i}]"), &file)?;
+            let rec = model.topo.separate_edges(&edges);
+            model.apply_record(&rec);
+        }
+        let cracking = match &scene.file.cracking {
+            Some(c) => Some(Cracking::new(c, &model)),
+            None => None,
+        };
+        let nc = model.topo.n_clusters();
+        let mass = model.masses();
+        let x0 = model.cluster_x0();
+        let mut sim = Simulation {
+            levels: vec![0.0; loads.loads.len()],
+            loads,
+            state: State { u: vec![[0.0; 2]; nc], v: vec![[0.0; 2]; nc], f_int: vec![[0.0; 2]; nc], f_ext: vec![[0.0; 2]; nc], mass, fix: vec![0; nc], v_pres: vec![[0.0; 2]; nc], time: 0.0, step: 0 },
+            ledger: Ledger::default(),
+            dt: 0.0,
+            stable: StableStep::default(),
+            warnings: Vec::new(),
+            cracking,
+            stages_done: Vec::new(),
+            last_ratio: f64::NAN,
+            x0,
+            f_const: Vec::new(),
+            stats: StepStats::default(),
+            coeffs: DampingCoeffs::default(),
+            restart: false,
+            scene,
+            model,
+        };
+        sim.warnings.append(&mut warnings);
+        sim.apply_constraints_bits();
+        sim.stable = sim.estimate_stable_step();
+        sim.dt = sim.choose_dt(&file)?;
+        Ok(sim)
+    }
+
+    fn apply_constraints_bits(&mut self) {
+        let (fix, vp, _) = self.loads.constraints(&self.model, &self.levels);
+        self.state.fix = fix;
+        self.state.v_pres = vp;
+    }
+
+    fn choose_dt(&mut self, file: &str) -> Result<f64> {
+        let s = &self.scene.file.solver;
+        let crit = self.stable.dt_crit;
+        match s.dt {
+            None => Ok(s.dt_safety * crit),
+            Some(dt) if dt <= crit => Ok(dt),
+            Some(dt) if s.allow_unstable_dt => {
+                self.warnings.push(format!("{file}: solver.dt = {dt:e} is above the critical step {crit:e} (dt/dt_crit = {:.3}); running anyway because solver.allow_unstable_dt = true", dt / crit));
+                Ok(dt)
+            }
+            Some(dt) => Err(FlemError::config(file, "solver.dt", format!("= {dt:e} is incorrect; it must be <= the critical step {crit:e} of this mesh (dt/dt_crit = {:.3}); remove it to use {} x dt_crit, or set solver.allow_unstable_dt = true", dt / crit, s.dt_safety))),
+        }
+    }
+
+    /// Highest natural frequency by power iteration on `M^-1/2 K M^-1/2` over free dofs.
+    pub fn estimate_stable_step(&self) -> StableStep {
+        let n = self.state.mass.len();
+        let fix = &self.state.fix;
+        let sqm: Vec<f64> = self.state.mass.iter().map(|m| m.sqrt()).collect();
+        let mut x = vec![[0.0; 2]; n];
+        let mut seed: u64 = 0x9E37_79B9_7F4A_7C15;
+        for (c, xc) in x.iter_mut().enumerate() {
+            for d in 0..2 {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                if fix[c] & (1 << d) == 0 {
+                    xc[d] = ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5;
+                }
+            }
+        }
+        let mut u = vec![[0.0; 2]; n];
+        let mut f = vec![[0.0; 2]; n];
+        let (mut lam, mut prev, mut it) = (0.0f64, 0.0f64, 0usize);
+        let mut stable_iters = 0;
+        while it < 2000 {
+            it += 1;
+            let nx: f64 = x.iter().map(|v| v[0] * v[0] + v[1] * v[1]).sum::<f64>().sqrt();
+            if nx == 0.0 {
+                break;
+            }
+            for c in 0..n {
+                for d in 0..2 {
+                    x[c][d] /= nx;
+                    u[c][d] = x[c][d] / sqm[c];
+                }
+            }
+            self.model.internal_forces(&u, &mut f);
+            let mut dot = 0.0;
+            for c in 0..n {
+                for d in 0..2 {
+                    let y = if fix[c] & (1 << d) == 0 { f[c][d] / sqm[c] } else { 0.0 };
+                    dot += x[c][d] * y;
+                    x[c][d] = y;
+                }
+            }
+            lam = dot;
+            if (lam - prev).abs() <= 1e-7 * lam.abs() {
+                stable_iters += 1;
+                if stable_iters >= 5 {
+                    break;
+                }
+            } else {
+                stable_iters = 0;
+            }
+            prev = lam;
+        }
+        let omega = lam.max(0.0).sqrt();
+        let bound = self.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
+        let k = self.scene.file.solver.damping.stability_factor();
+        StableStep { dt_crit: if omega > 0.0 { k * 2.0 / omega } else { f64::INFINITY }, dt_element_bound: k * 2.0 / bound, omega_max: omega, iterations: it }
+    }
+
+    /// Sets the load levels of stage `i` and imposes its constraints.
+    fn begin_stage(&mut self, i: usize) {
+        let st = &self.scene.file.stages[i];
+        for (name, &v) in &st.levels {
+            if let Some(k) = self.loads.loads.iter().position(|l| &l.name == name) {
+                self.levels[k] = v;
+            }
+        }
+        let (fix, vp, up) = self.loads.constraints(&self.model, &self.levels);
+        self.state.fix = fix;
+        self.state.v_pres = vp;
+        if !up.is_empty() {
+            // A jump of prescribed displacement injects the change of strain energy at once.
+            let before = self.strain_energy();
+            for (c, d, val) in up {
+                self.state.u[c][d] = val;
+                self.state.v[c][d] = 0.0;
+            }
+            self.update_internal_forces();
+            let after = self.strain_energy();
+            self.ledger.external_work += after - before;
+            self.ledger.strain = after;
+        }
+        self.refresh_constant_force();
+        self.scene.file.solver.damping.reset();
+    }
+
+    fn refresh_constant_force(&mut self) {
+        let mut f = std::mem::take(&mut self.f_const);
+        self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
+        self.f_const = f;
+    }
+
+    fn update_internal_forces(&mut self) {
+        self.model.internal_forces(&self.state.u, &mut self.state.f_int);
+    }
+
+    /// `1/2 u . F_int` (linear elasticity).
+    pub fn strain_energy(&self) -> f64 {
+        let mut f = vec![[0.0; 2]; self.state.u.len()];
+        self.model.internal_forces(&self.state.u, &mut f);
+        0.5 * self.state.u.iter().zip(&f).map(|(u, f)| u[0] * f[0] + u[1] * f[1]).sum::<f64>()
+    }
+
+    /// One central-difference step.
+    pub fn step(&mut self) -> Result<()> {
+        let dt = self.dt;
+        self.model.internal_forces(&self.state.u, &mut self.state.f_int);
+        self.state.f_ext.copy_from_slice(&self.f_const);
+        if self.loads.has_follower {
+            self.loads.add_follower_force(&self.model, &self.levels, &self.x0, &self.state.u, &mut self.state.f_ext);
+        }
+        self.coeffs = self.scene.file.solver.damping.coeffs(&self.stats);
+        let (a, beta) = (self.coeffs.viscous, self.coeffs.local);
+        let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
+        let kick = if std::mem::take(&mut self.restart) { 0.5 * dt } else { dt };
+        let st = &mut self.state;
+        let (mut w, mut dmp, mut pw, mut pd, mut ke, mut keh, mut ufi, mut umu, mut uf) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for c in 0..st.u.len() {
+            let m = st.mass[c];
+            let fix = st.fix[c];
+            for d in 0..2 {
+                let (fe, fi, vm) = (st.f_ext[c][d], st.f_int[c][d], st.v[c][d]);
+                let ud = st.u[c][d];
+                uf += ud * fi;
+                let vp;
+                if fix & (1 << d) == 0 {
+                    let f = fe - fi;
+                    let s = if vm > 0.0 { 1.0 } else if vm < 0.0 { -1.0 } else { 0.0 };
+                    vp = (c1 * vm + kick * (f - beta * f.abs() * s) / m) * c2;
+                    let fd = f - m * (vp - vm) / dt;
+                    let va = 0.5 * (vm + vp) * dt;
+                    w += fe * va;
+                    dmp += fd * va;
+                    pw += 0.5 * fe * vp * dt;
+                    pd += 0.5 * fd * vp * dt;
+                    ufi += ud * fi;
+                    umu += m * ud * ud;
+                } else {
+                    vp = st.v_pres[c][d];
+                    let va = 0.5 * (vm + vp) * dt;
+                    w += fi * va;
+                    pw += 0.5 * fi * vp * dt;
+                }
+                ke += 0.5 * m * vm * vp;
+                keh += 0.5 * m * vp * vp;
+                st.v[c][d] = vp;
+                st.u[c][d] = ud + dt * vp;
+            }
+        }
+        self.ledger.external_work += w;
+        self.ledger.damping += dmp;
+        self.ledger.pending_ext = pw;
+        self.ledger.pending_damp = pd;
+        self.ledger.kinetic = ke;
+        self.ledger.strain = 0.5 * uf;
+        self.state.time += dt;
+        self.state.step += 1;
+        self.stats = StepStats { step: self.state.step, dt, omega_max: self.stable.omega_max, kinetic: keh, u_f_int: ufi, u_m_u: umu };
+        if !keh.is_finite() || keh > 1e12 * self.ledger.external_work.abs().max(1e-300) && keh > 1e-200 {
+            return Err(self.diverged(if keh.is_finite() { "the kinetic energy grew beyond 1e12 times the work done on the body" } else { "velocities became non-finite" }));
+        }
+        if self.scene.file.solver.damping.reset_velocities(&self.stats) {
+            self.ledger.damping += self.ledger.kinetic;
+            self.ledger.kinetic = 0.0;
+            self.restart = true;
+            for (c, v) in self.state.v.iter_mut().enumerate() {
+                for d in 0..2 {
+                    if self.state.fix[c] & (1 << d) == 0 {
+                        v[d] = 0.0;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn diverged(&self, why: &str) -> FlemError {
+        FlemError::Diverged { step: self.state.step, time: self.state.time, dt: self.dt, dt_crit: self.stable.dt_crit, ratio: self.dt / self.stable.dt_crit, why: why.to_string() }
+    }
+
+    /// Unbalanced-force ratio `max |F_unbal| / mean |F_applied|` of the last step (free dofs;
+    /// applied = external force on free dofs and the reaction on prescribed ones).
+    pub fn unbalanced_ratio(&self) -> f64 {
+        let st = &self.state;
+        let (mut num, mut sum, mut cnt) = (0.0f64, 0.0f64, 0usize);
+        for c in 0..st.u.len() {
+            let (mut un, mut ap) = (0.0, 0.0);
+            for d in 0..2 {
+                let (fe, fi) = (st.f_ext[c][d], st.f_int[c][d]);
+                if st.fix[c] & (1 << d) == 0 {
+                    un += (fe - fi) * (fe - fi);
+                    ap += fe * fe;
+                } else {
+                    ap += fi * fi;
+                }
+            }
+            num = num.max(un);
+            if ap > 0.0 {
+                sum += ap.sqrt();
+                cnt += 1;
+            }
+        }
+        let num = num.sqrt();
+        if cnt == 0 || sum == 0.0 {
+            return if num == 0.0 { 0.0 } else { f64::INFINITY };
+        }
+        num / (sum / cnt as f64)
+    }
+
+    /// Runs every stage.
+    pub fn run(&mut self, obs: &mut dyn Observer) -> Result<()> {
+        for i in 0..self.scene.file.stages.len() {
+            self.run_stage(i, obs)?;
+        }
+        Ok(())
+    }
+
+    /// Marches stage `i` to equilibrium (or its step limit, or its fixed step count when dynamic).
+    pub fn run_stage(&mut self, i: usize, obs: &mut dyn Observer) -> Result<()> {
+        let t0 = std::time::Instant::now();
+        self.begin_stage(i);
+        let st = self.scene.file.stages[i].clone();
+        let sc = &self.scene.file.solver;
+        let (max_steps, tol, every) = (st.max_steps.unwrap_or(sc.max_steps), st.tolerance.unwrap_or(sc.tolerance), sc.ratio_every);
+        let hist_every = self.scene.file.output.history_every;
+        let snap_every = self.scene.file.output.snapshot_every;
+        let check_every = self.scene.file.cracking.as_ref().map(|c| c.check_every).unwrap_or(0);
+        let n_stages = self.scene.file.stages.len();
+        let mut k = 0u64;
+        let mut converged = false;
+        let mut splits = 0usize;
+        let mut ratio = f64::INFINITY;
+        while k < max_steps {
+            self.step()?;
+            k += 1;
+            if check_every > 0 && k % check_every == 0 {
+                splits += self.check_failure(obs)?;
+            }
+            if k % every == 0 || k == max_steps {
+                ratio = self.unbalanced_ratio();
+                self.last_ratio = ratio;
+                if !st.dynamic && ratio < tol && k >= 2 * every {
+                    converged = true;
+                    break;
+                }
+            }
+            if k % 256 == 0 {
+                obs.progress(&Progress { stage: i, n_stages, step: self.state.step, stage_step: k, max_steps, dt: self.dt, ratio, tolerance: tol });
+            }
+            if hist_every > 0 && k % hist_every == 0 {
+                obs.history(self, i)?;
+            }
+            if snap_every > 0 && k % snap_every == 0 {
+                obs.snapshot(self, i, &format!("{}_step{}", i, k))?;
+            }
+        }
+        ratio = self.unbalanced_ratio();
+        self.last_ratio = ratio;
+        if st.dynamic {
+            converged = true;
+        }
+        self.stages_done.push(StageResult {
+            name: if st.name.is_empty() { format!("stage{i}") } else { st.name.clone() },
+            steps: k,
+            converged,
+            final_ratio: ratio,
+            wall_seconds: t0.elapsed().as_secs_f64(),
+            time: self.state.time,
+            splits,
+            energy_residual: self.ledger.relative_residual(),
+        });
+        obs.history(self, i)?;
+        if st.snapshot {
+            obs.snapshot(self, i, &format!("stage{i}"))?;
+        }
+        Ok(())
+    }
+
+    /// Failure check: proposes and applies splits, then makes every per-cluster array follow.
+    fn check_failure(&mut self, obs: &mut dyn Observer) -> Result<usize> {
+        let Some(cr) = self.cracking.as_mut() else { return Ok(0) };
+        let cfg = self.scene.file.cracking.as_ref().expect("cracking config");
+        let (rec, events) = cr.check(cfg, &mut self.model, &self.state.u, &self.x0, self.state.time, self.state.step);
+        if rec.is_empty() {
+            return Ok(0);
+        }
+        self.apply_split_record(&rec);
+        obs.splits(self, &rec, &events)?;
+        Ok(events.len())
+    }
+
+    /// Grows the per-cluster arrays for new clusters (same displacement and velocity as the
+    /// parent), recomputes masses, fixities and the constant loads.
+    pub fn apply_split_record(&mut self, rec: &SplitRecord) {
+        let st = &mut self.state;
+        for nc in &rec.new_clusters {
+            let p = nc.parent.idx();
+            let (u, v, vp) = (st.u[p], st.v[p], st.v_pres[p]);
+            st.u.push(u);
+            st.v.push(v);
+            st.v_pres.push(vp);
+            st.f_int.push([0.0; 2]);
+            st.f_ext.push([0.0; 2]);
+            self.x0.push(self.model.mesh.points[nc.point.idx()]);
+        }
+        st.mass = self.model.masses();
+        let (fix, vpres, _) = self.loads.constraints(&self.model, &self.levels);
+        // Keep the velocities of prescribed dofs as they were (no new jump).
+        st.fix = fix;
+        st.v_pres = vpres;
+        self.refresh_constant_force();
+    }
+}
+

@@ -1,0 +1,122 @@
+//! Damping plugins (METHOD section 7). Each returns, once per step, the coefficients of the
+//! combined law `f_damp = a m v + beta |F| sign(v)` that the core integrates implicitly in
+//! velocity: `v+ = ((1 - a dt/2) v- + dt (F - beta |F| sign(v-)) / m) / (1 + a dt/2)`.
+//!
+//! Names: `viscous`, `local`, `adaptive`, `none`.
+//!
+//! ```toml
+//! [solver.damping]
+//! type = "viscous"
+//! alpha = 20.0
+//! ```
+//!
+//! ```toml
+//! [solver.damping]
+//! type = "local"
+//! ratio = 0.8
+//! ```
+//!
+//! ```toml
+//! [solver.damping]
+//! type = "adaptive"
+//! ```
+
+use flem_core::damping::{Damping, DampingCoeffs, StepStats};
+use flem_core::traits::ParamError;
+use serde::{Deserialize, Serialize};
+
+/// The paper's mass-proportional viscous damping, eta = alpha m (paper eq. 5; METHOD 7).
+/// `alpha` in 1/time. Critical damping of a mode of angular frequency w is alpha = 2 w.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Viscous {
+    pub alpha: f64,
+}
+
+#[typetag::serde(name = "viscous")]
+impl Damping for Viscous {
+    fn validate(&self) -> Result<(), ParamError> {
+        ParamError::range("alpha", self.alpha, 0.0, true, f64::INFINITY, false)
+    }
+    fn coeffs(&mut self, _s: &StepStats) -> DampingCoeffs {
+        DampingCoeffs { viscous: self.alpha, local: 0.0 }
+    }
+}
+
+/// Local (non-viscous) damping as in FLAC/UDEC: a force `ratio |F| sign(v)` opposing the
+/// motion, dimensionless `ratio` in [0, 1) (0.8 is FLAC's default for statics).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Local {
+    #[serde(default = "default_local")]
+    pub ratio: f64,
+}
+
+fn default_local() -> f64 {
+    0.8
+}
+
+#[typetag::serde(name = "local")]
+impl Damping for Local {
+    fn validate(&self) -> Result<(), ParamError> {
+        ParamError::range("ratio", self.ratio, 0.0, true, 1.0, false)
+    }
+    fn coeffs(&mut self, _s: &StepStats) -> DampingCoeffs {
+        DampingCoeffs { viscous: 0.0, local: self.ratio }
+    }
+    /// Opposing the previous half-step velocity, the local force acts along F for the highest
+    /// mode (whose velocity flips every step): it stiffens it by (1 + ratio).
+    fn stability_factor(&self) -> f64 {
+        1.0 / (1.0 + self.ratio).sqrt()
+    }
+}
+
+/// Adaptive dynamic relaxation (Underwood 1983): critical viscous damping of the current
+/// lowest mode, `alpha = 2 w0` with `w0^2 = (u . F_int) / (u . M u)` (the Rayleigh quotient of the
+/// current displacement, free dofs). Needs no parameter. Before the body has moved it uses
+/// `w_max / 100`.
+#[derive(Debug, Clone, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct Adaptive {
+    #[serde(skip)]
+    alpha: f64,
+}
+
+#[typetag::serde(name = "adaptive")]
+impl Damping for Adaptive {
+    fn validate(&self) -> Result<(), ParamError> {
+        Ok(())
+    }
+    fn reset(&mut self) {
+        self.alpha = 0.0;
+    }
+    fn coeffs(&mut self, s: &StepStats) -> DampingCoeffs {
+        let w2 = if s.u_m_u > 0.0 { s.u_f_int / s.u_m_u } else { 0.0 };
+        let w0 = if w2 > 0.0 && w2.is_finite() { w2.sqrt().min(s.omega_max) } else { 0.01 * s.omega_max };
+        self.alpha = 2.0 * w0;
+        DampingCoeffs { viscous: self.alpha, local: 0.0 }
+    }
+    fn state(&self) -> Vec<f64> {
+        vec![self.alpha]
+    }
+    fn set_state(&mut self, s: &[f64]) {
+        self.alpha = s.first().copied().unwrap_or(0.0);
+    }
+}
+
+/// No damping (dynamics, wave propagation).
+#[derive(Debug, Clone, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct NoDamping {}
+
+#[typetag::serde(name = "none")]
+impl Damping for NoDamping {
+    fn validate(&self) -> Result<(), ParamError> {
+        Ok(())
+    }
+    fn coeffs(&mut self, _s: &StepStats) -> DampingCoeffs {
+        DampingCoeffs::default()
+    }
+}
+
+pub const NAMES: &[&str] = &["viscous", "local", "adaptive", "none"];
