@@ -1,1 +1,5 @@
-
+//! The one integration-test binary (cargo/ripgrep style: `autotests = false`, links once).
+//! Every verification test names its reference and tolerance.
+mod common;
+mod configs;
+mod verification;

@@ -4,7 +4,7 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum FlemError {
     /// Scene input that does not parse or does not validate. `key` is the dotted path.
-    #[error("{file}: {key} {msg}")]
+    #[error("{file}: {}{msg}", if key.is_empty() { String::new() } else { format!("{key} ") })]
     Config { file: String, key: String, msg: String },
     /// A mesh that cannot be used (bad element, bad group...).
     #[error("{file}: {msg}")]

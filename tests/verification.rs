@@ -1,0 +1,222 @@
+//! Verification of the core engine against analytic references (issue 2).
+use flem_core::mesh::{CellKind, Rectangle};
+use flem_core::solver::NoOutput;
+
+use crate::common::{rel, sim};
+
+fn bar_scene(damping: &str, extra: &str) -> String {
+    format!(
+        r#"
+[mesh]
+type = "rectangle"
+width = 10.0
+height = 1.0
+nx = 20
+ny = 2
+
+[[material]]
+young_modulus = 1000.0
+poisson_ratio = 0.25
+density = 1.0
+
+[solver]
+tolerance = 1e-10
+{extra}
+
+[solver.damping]
+{damping}
+
+[[support]]
+nodes = "left"
+fix = "x"
+
+[[support]]
+nodes = "bottom_left"
+fix = "xy"
+
+[[load]]
+name = "pull"
+type = "traction"
+edges = "right"
+value = [2.0, 0.0]
+
+[[stage]]
+levels = {{ pull = 1.0 }}
+"#
+    )
+}
+
+/// Patch test (form A): a linear displacement field u = A x + b on a distorted mesh gives zero
+/// net force at every interior point and the exact constant stress D A in every element.
+/// Reference: the exact field. Tolerance 1e-12 relative to the element force scale.
+#[test]
+fn patch_test_q4_t3_plane_strain_and_stress() {
+    for kind in ["q4", "t3"] {
+        for plane in ["strain", "stress"] {
+            let s = sim(&format!(
+                "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.5\nnx = 5\nny = 4\nelement = \"{kind}\"\ndistort = 0.25\n[model]\nplane = \"{plane}\"\n[[material]]\nyoung_modulus = 210.0\npoisson_ratio = 0.3\ndensity = 1.0\n[[stage]]\n"
+            ));
+            let (a, b) = ([[1e-3, 2e-3], [-0.5e-3, 3e-3]], [0.1, -0.2]);
+            let u: Vec<[f64; 2]> = s.x0.iter().map(|x| [a[0][0] * x[0] + a[0][1] * x[1] + b[0], a[1][0] * x[0] + a[1][1] * x[1] + b[1]]).collect();
+            let mut f = vec![[0.0; 2]; u.len()];
+            s.model.internal_forces(&u, &mut f);
+            let mesh = &s.model.mesh;
+            let boundary = |p: usize| {
+                let x = mesh.points[p];
+                x[0].abs() < 1e-12 || (x[0] - 2.0).abs() < 1e-12 || x[1].abs() < 1e-12 || (x[1] - 1.5).abs() < 1e-12
+            };
+            let scale = f.iter().map(|v| v[0].abs().max(v[1].abs())).fold(0.0, f64::max);
+            assert!(scale > 0.0);
+            for (c, v) in f.iter().enumerate() {
+                if !boundary(s.model.topo.cluster_point[c].idx()) {
+                    assert!(v[0].abs() < 1e-12 * scale && v[1].abs() < 1e-12 * scale, "{kind} {plane}: interior force {v:?} (scale {scale})");
+                }
+            }
+            let m = s.model.blocks[0].material();
+            let d = m.dmat();
+            let eps = [a[0][0], a[1][1], a[0][1] + a[1][0]];
+            let exact = d.stress(eps);
+            for blk in &s.model.blocks {
+                for i in 0..blk.len() {
+                    for xi in [[0.3, -0.7], [0.9999, 0.9999], [0.1, 0.2]] {
+                        let st = blk.stress_at(i, &u, xi);
+                        for k in 0..3 {
+                            assert!((st[k] - exact[k]).abs() < 1e-12 * exact.iter().fold(0.0f64, |m, v| m.max(v.abs())), "{kind} {plane}: stress {st:?} vs {exact:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A bar pulled by a traction: tip displacement sigma L (1 - nu^2) / E (plane strain, uniaxial
+/// stress). Reference: analytic. Tolerance 1e-6 relative, for every damping scheme; the
+/// adaptive scheme has no parameter.
+#[test]
+fn bar_static_displacement_each_damping() {
+    let exact = 2.0 * 10.0 * (1.0 - 0.25f64.powi(2)) / 1000.0;
+    // Critical viscous damping of the first axial mode: 2 w0, w0 = (pi / 2L) sqrt(E' / rho).
+    let w0 = std::f64::consts::PI / 20.0 * (1000.0f64 / (1.0 - 0.0625)).sqrt();
+    for damping in [format!("type = \"viscous\"\nalpha = {}", 2.0 * w0), "type = \"local\"\nratio = 0.8".into(), "type = \"adaptive\"".into()] {
+        let mut s = sim(&bar_scene(&damping, ""));
+        s.run(&mut NoOutput).unwrap();
+        let st = &s.stages_done[0];
+        assert!(st.converged, "{damping}: not converged ({} steps, ratio {})", st.steps, st.final_ratio);
+        let tip = s.model.mesh.node_sets["top_right"][0] as usize;
+        let ux = s.state.u[s.model.topo.point_clusters[tip][0].idx()][0];
+        assert!(rel(ux, exact) < 1e-6, "{damping}: tip {ux} vs {exact} ({} steps)", st.steps);
+        eprintln!("bar: {damping:?}: {} steps, tip error {:.2e}", st.steps, rel(ux, exact));
+    }
+}
+
+/// 1D wave in a long bar (plane stress, nu = 0, lateral motion fixed): behind the front of a
+/// step traction sigma at x = 0 the displacement is u(x, t) = sigma / (rho c) (t - x / c) with
+/// c = sqrt(E / rho). Fitting that line at two probes gives the front speed.
+/// Reference: analytic. Tolerance 1 %.
+#[test]
+fn wave_speed_in_long_bar() {
+    let (e, rho, l) = (400.0, 1.0, 200.0);
+    let c = (e / rho as f64).sqrt();
+    let mut s = sim(&format!(
+        "[mesh]\ntype = \"rectangle\"\nwidth = {l}\nheight = 1.0\nnx = 800\nny = 1\n[model]\nplane = \"stress\"\n[[material]]\nyoung_modulus = {e}\npoisson_ratio = 0.0\ndensity = {rho}\n[solver.damping]\ntype = \"none\"\n[[support]]\nnodes = \"all\"\nfix = \"y\"\n[[load]]\nname = \"push\"\ntype = \"traction\"\nedges = \"left\"\nvalue = [1.0, 0.0]\n[[stage]]\nlevels = {{ push = 1.0 }}\ndynamic = true\nmax_steps = 1\n"
+    ));
+    s.run(&mut NoOutput).unwrap();
+    let probe = |s: &flem_core::solver::Simulation, x: f64| {
+        let p = s.model.mesh.points.iter().position(|q| (q[0] - x).abs() < 1e-9 && q[1] == 0.0).unwrap();
+        s.state.u[s.model.topo.point_clusters[p][0].idx()][0]
+    };
+    let (x1, x2) = (50.0, 100.0);
+    let t_end = 0.9 * (2.0 * l - x2) / c; // before the reflection from the far end comes back
+    let (mut rows1, mut rows2) = (Vec::new(), Vec::new());
+    while s.state.time < t_end {
+        s.step().unwrap();
+        let t = s.state.time;
+        if t > x1 / c * 1.15 && t < 2.0 * l / c - x1 / c {
+            rows1.push((t, probe(&s, x1)));
+        }
+        if t > x2 / c * 1.15 {
+            rows2.push((t, probe(&s, x2)));
+        }
+    }
+    let fit = |rows: &[(f64, f64)]| {
+        let n = rows.len() as f64;
+        let (sx, sy) = rows.iter().fold((0.0, 0.0), |a, r| (a.0 + r.0, a.1 + r.1));
+        let (mx, my) = (sx / n, sy / n);
+        let (sxy, sxx) = rows.iter().fold((0.0, 0.0), |a, r| (a.0 + (r.0 - mx) * (r.1 - my), a.1 + (r.0 - mx).powi(2)));
+        let slope = sxy / sxx;
+        (slope, mx - my / slope) // slope and arrival time
+    };
+    let ((s1, t1), (s2, t2)) = (fit(&rows1), fit(&rows2));
+    let c_meas = (x2 - x1) / (t2 - t1);
+    assert!(rel(c_meas, c) < 0.01, "wave speed {c_meas} vs {c}");
+    assert!(rel(s1, 1.0 / (rho * c)) < 0.01 && rel(s2, 1.0 / (rho * c)) < 0.01, "particle velocity {s1} {s2} vs {}", 1.0 / (rho * c));
+    // Energy ledger of the undamped wave: closes within 0.5 %.
+    assert!(s.ledger.relative_residual() < 5e-3, "undamped ledger residual {}", s.ledger.relative_residual());
+    eprintln!("wave: c = {c_meas} (exact {c}), ledger residual {:.2e}", s.ledger.relative_residual());
+}
+
+fn small_dynamic(dt_factor: f64, steps: u64) -> Result<flem_core::solver::Simulation, flem_core::FlemError> {
+    let base = "[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 1.0\nnx = 8\nny = 2\ndistort = 0.1\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[solver.damping]\ntype = \"none\"\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"p\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [0.3, -0.2]\n";
+    let probe = sim(&format!("{base}[[stage]]\n"));
+    let dt = dt_factor * probe.stable.dt_crit;
+    let text = format!("{base}[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n[solver.damping]\ntype = \"none\"\n[[stage]]\nlevels = {{ p = 1.0 }}\ndynamic = true\nmax_steps = {steps}\n").replacen("[solver.damping]\ntype = \"none\"\n[[support]]", "[[support]]", 1);
+    let mut s = sim(&text);
+    s.run(&mut NoOutput).map(|_| s)
+}
+
+/// Stability: at 1.1 x the predicted dt_crit the run diverges and is stopped with a message
+/// naming step, dt and dt_crit; at 0.9 x it is stable for 1e5 steps; the measured threshold
+/// (bisection, 4000 steps) is within 5 % of the prediction. Reference: central-difference
+/// stability dt < 2 / w_max.
+#[test]
+fn stability_threshold_matches_prediction() {
+    let err = small_dynamic(1.1, 100_000).err().expect("1.1 x dt_crit must diverge");
+    let msg = err.to_string();
+    assert!(msg.contains("diverged at step") && msg.contains("dt_crit") && msg.contains("dt/dt_crit = 1.100"), "{msg}");
+    let s = small_dynamic(0.9, 100_000).expect("0.9 x dt_crit must be stable");
+    assert!(s.state.u.iter().all(|u| u[0].is_finite() && u[1].is_finite()));
+    let (mut lo, mut hi) = (0.9, 1.1);
+    for _ in 0..7 {
+        let mid = 0.5 * (lo + hi);
+        if small_dynamic(mid, 4000).is_ok() {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let measured = 0.5 * (lo + hi);
+    eprintln!("stability: measured threshold / predicted = {measured:.4}");
+    assert!((measured - 1.0).abs() < 0.05, "measured threshold {measured} x dt_crit");
+}
+
+/// Energy ledger of a damped relaxation (viscous): W_ext = KE + U + D within 0.5 %.
+/// Reference: the energy balance of the scheme.
+#[test]
+fn energy_ledger_closes_damped() {
+    let mut s = sim(&bar_scene("type = \"viscous\"\nalpha = 3.0", ""));
+    s.run(&mut NoOutput).unwrap();
+    let l = s.ledger;
+    assert!(l.relative_residual() < 5e-3, "{l:?}");
+    // At rest after static loading by a constant force, half the work is stored, half dissipated.
+    assert!(rel(l.strain, 0.5 * l.external()) < 1e-4, "{l:?}");
+    eprintln!("ledger damped: residual {:.2e}", l.relative_residual());
+}
+
+/// A scene with neither [cracking] nor contact builds no cracking state, so its steps run no
+/// failure check and no nodal-stress recovery.
+#[test]
+fn no_failure_section_no_cracking_cost() {
+    let s = sim(&bar_scene("type = \"adaptive\"", ""));
+    assert!(s.cracking.is_none());
+}
+
+/// The rectangle generator: counts and groups. Reference: construction.
+#[test]
+fn rectangle_generator_counts() {
+    let m = Rectangle::new(2.0, 1.0, 4, 2, CellKind::T3).build().unwrap();
+    assert_eq!(m.points.len(), 15);
+    assert_eq!(m.cells.len(), 16);
+    assert_eq!(m.node_sets["left"].len(), 3);
+    assert_eq!(m.edge_sets["top"].len(), 4);
+}
