@@ -260,6 +260,9 @@ mod tests {
         let t = ex.check(&pr(-1.0, -1.0, -1.0), 1.0);
         assert!(t.failed() && t.index == 1e6);
         assert!(!ex.check(&pr(0.0, 0.0, 0.0), 1.0).failed());
+        let at = |sc: f64| ex.check(&p, sc);
+        assert!(at(1.0).failed() && !at(10.0).failed());
+        assert!((at(2.0).index - ratio_index(invariants(&p).1, alpha * 1.0 + 2.0 * k)).abs() < 1e-12);
     }
 
     /// Bad combinations and ranges name the key.

@@ -138,12 +138,15 @@ mod tests {
         a.to_degrees()
     }
 
+    /// One table row: input, s1, s3, sigma1 dir, f_s, tension fails, shear planes.
+    type Row = ([f64; 3], f64, f64, f64, f64, bool, [f64; 2]);
+
     /// METHOD.md section 4 worked-numbers table, all six rows and every column.
     /// Tolerances: stresses and angles 1e-9 (exact arithmetic), f_s 1e-4 (table rounding).
     #[test]
     fn method_worked_numbers_table() {
         // input (sxx, syy, sxy), s1, s3, sigma1 dir, f_s, tension fails, shear planes
-        let rows: [([f64; 3], f64, f64, f64, f64, bool, [f64; 2]); 6] = [
+        let rows: [Row; 6] = [
             ([1.2, 0.0, 0.0], 0.0, -1.2, 90.0, -0.3557, true, [60.0, 120.0]),
             ([0.8, 0.0, 0.0], 0.0, -0.8, 90.0, -0.2835, false, [60.0, 120.0]),
             ([0.0, 0.0, 0.3], 0.3, -0.3, 135.0, 0.2887, false, [105.0, 165.0]),

@@ -10,6 +10,7 @@
 //!     opposite ray of the plane (the plane oriented towards the first link, plus pi);
 //!   - open fan: cut that link only if its line angle to the plane is < pi/4.
 //! - Tension failure (or a shear check without planes): exactly as `sigma1_nearest`.
+//!
 //! Angles in radians; no parameters.
 //!
 //! ```toml

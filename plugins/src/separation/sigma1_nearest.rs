@@ -7,6 +7,7 @@
 //! - closed fan: cut the link whose ray is nearest `d` and, among the others, the one nearest
 //!   `d + pi` (two distinct links; BB' in figs. 3(c), 4(c));
 //! - open fan: cut the link nearest `d` as a line (mod pi), only if that angle is < pi/4.
+//!
 //! Ties within 1e-9 rad: the link counter-clockwise from the target (signed offset in (0, pi]
 //! for rays, (0, pi/2] for lines), then the smaller edge id (see [`super`]).
 //! Angles in radians; no parameters.
