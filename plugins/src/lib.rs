@@ -1,11 +1,15 @@
 //! FLEM's built-in plugins. Each is one file with one registration line (`#[typetag::serde]`),
 //! selected in a scene by `type = "name"`.
+pub mod criteria;
 pub mod damping;
+pub mod separation;
 
 /// Every built-in plugin as (kind, name), in a fixed order (`flem plugins`).
 pub fn registry() -> Vec<(&'static str, &'static str)> {
     let mut v = Vec::new();
     v.extend(damping::NAMES.iter().map(|n| ("damping", *n)));
+    v.extend(criteria::NAMES.iter().map(|n| ("criterion", *n)));
+    v.extend(separation::NAMES.iter().map(|n| ("separation", *n)));
     v.push(("mesh", "rectangle"));
     v
 }
