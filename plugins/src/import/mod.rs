@@ -36,7 +36,7 @@ mod vtk;
 mod tests;
 
 pub use gmsh::{read_msh_bytes, Gmsh};
-pub use vtk::Vtk;
+pub use vtk::{read_vtk_bytes, Vtk};
 
 /// Resolves `file` against `base_dir` and reads it whole; the error names the full path.
 pub(crate) fn read_input(base_dir: &Path, file: &str) -> Result<(String, PathBuf, Vec<u8>)> {

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use flem_core::mesh::{CellKind, MeshSource, RawMesh, ValidationOptions};
 
-use super::{read_msh_bytes, Gmsh, Vtk};
+use super::{read_msh_bytes, read_vtk_bytes, Gmsh, Vtk};
 
 fn meshes() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/meshes")
@@ -232,6 +232,8 @@ mod fuzz {
 
     const FILES: [&str; 5] = ["rect_quad_v22.msh", "rect_quad_v22_bin.msh", "rect_quad_v41.msh", "rect_quad_v41_bin.msh", "rect_tri_v22.msh"];
 
+    const VTK_FILES: [(&str, &str); 3] = [("rect_quad.vtu", "vtu"), ("rect_quad_ascii.vtu", "vtu"), ("rect_tri.vtk", "vtk")];
+
     fn cases() -> u32 {
         std::env::var("FLEM_FUZZ_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(256)
     }
@@ -301,6 +303,19 @@ mod fuzz {
                 apply(&mut b, m);
             }
             if let Ok(mut mesh) = read_msh_bytes(FILES[file], &b) {
+                let _ = mesh.validate(ValidationOptions::Reorient);
+            }
+        }
+
+        /// The same for VTK files (vtkio inside `catch_unwind`, then our checks).
+        #[test]
+        fn mutated_vtk_files_never_panic(file in 0..VTK_FILES.len(), muts in prop::collection::vec(mutation(), 1..4)) {
+            let (name, ext) = VTK_FILES[file];
+            let mut b = std::fs::read(meshes().join(name)).unwrap();
+            for m in &muts {
+                apply(&mut b, m);
+            }
+            if let Ok(mut mesh) = read_vtk_bytes(name, ext, &b, None) {
                 let _ = mesh.validate(ValidationOptions::Reorient);
             }
         }

@@ -38,29 +38,39 @@ impl MeshSource for Vtk {
     fn load(&self, base_dir: &Path) -> Result<RawMesh> {
         let (src, path, bytes) = read_input(base_dir, &self.file)?;
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-        let parsed = no_panic("the VTK reader (vtkio)", || match ext.as_str() {
-            "vtu" => Some(vtkio::Vtk::parse_xml(std::io::Cursor::new(&bytes[..]))),
-            "vtk" => Some(vtkio::Vtk::parse_legacy_be(&bytes[..])),
-            _ => None,
-        });
-        let vtk = match parsed {
-            Ok(Some(Ok(v))) => v,
-            Ok(Some(Err(e))) => return Err(FlemError::mesh(&src, format!("cannot parse the VTK file: {e}"))),
-            Ok(None) => return Err(FlemError::mesh(&src, format!("unknown VTK file extension \"{ext}\"; use .vtu (XML unstructured grid) or .vtk (legacy)"))),
-            Err(e) => return Err(FlemError::mesh(&src, e)),
-        };
-        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-            return Err(FlemError::mesh(&src, "the VTK file holds no unstructured grid"));
-        };
-        let mut g = Gathered::default();
-        for piece in pieces {
-            match piece {
-                Piece::Inline(p) => add_piece(&src, *p, self.region_array.as_deref(), &mut g)?,
-                _ => return Err(FlemError::mesh(&src, "pieces stored in other files (parallel VTK) are not supported")),
-            }
-        }
-        g.finish(&src)
+        read_vtk_bytes(&src, &ext, &bytes, self.region_array.as_deref())
     }
+}
+
+/// Reads a VTK file held in memory: `ext` is "vtu" (XML) or "vtk" (legacy); `src` names it in
+/// errors; `region_array` as in [`Vtk`].
+pub fn read_vtk_bytes(src: &str, ext: &str, bytes: &[u8], region_array: Option<&str>) -> Result<RawMesh> {
+    let src = src.to_string();
+    let parsed = no_panic("the VTK reader (vtkio)", || match ext {
+        "vtu" => Some(vtkio::Vtk::parse_xml(std::io::Cursor::new(bytes))),
+        "vtk" => Some(vtkio::Vtk::parse_legacy_be(bytes)),
+        _ => None,
+    });
+    let vtk = match parsed {
+        Ok(Some(Ok(v))) => v,
+        Ok(Some(Err(e))) => return Err(FlemError::mesh(&src, format!("cannot parse the VTK file: {e}"))),
+        Ok(None) => return Err(FlemError::mesh(&src, format!("unknown VTK file extension \"{ext}\"; use .vtu (XML unstructured grid) or .vtk (legacy)"))),
+        Err(e) => return Err(FlemError::mesh(&src, e)),
+    };
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        return Err(FlemError::mesh(&src, "the VTK file holds no unstructured grid"));
+    };
+    let mut g = Gathered::default();
+    for piece in pieces {
+        match piece {
+            Piece::Inline(p) => add_piece(&src, *p, region_array, &mut g)?,
+            _ => return Err(FlemError::mesh(&src, "pieces stored in other files (parallel VTK) are not supported")),
+        }
+    }
+    let mut mesh = g.finish(&src)?;
+    mesh.node_sets.retain(|_, s| !s.is_empty());
+    mesh.edge_sets.retain(|_, s| !s.is_empty());
+    Ok(mesh)
 }
 
 /// The cells of a piece as (type, point indices), whatever the connectivity layout.
