@@ -321,3 +321,43 @@ mod fuzz {
         }
     }
 }
+
+/// A msh 4.1 ASCII file with sparse node tags (10..40) and one unused node (99).
+const SPARSE_V41: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n1 7 \"edge\"\n2 5 \"rock\"\n$EndPhysicalNames\n$Entities\n0 1 1 0\n1 0 0 0 1 0 0 1 7 0\n1 0 0 0 1 1 0 1 5 0\n$EndEntities\n$Nodes\n1 5 10 99\n2 1 0 5\n10\n20\n30\n40\n99\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n5 5 5\n$EndNodes\n$Elements\n2 3 1 3\n1 1 1 1\n3 10 20\n2 1 2 2\n1 10 20 30\n2 10 30 40\n$EndElements\n";
+
+#[test]
+fn sparse_node_tags_are_renumbered_in_v41() {
+    let m = read_msh_bytes("s.msh", SPARSE_V41.as_bytes()).unwrap();
+    assert_eq!(m.points, [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+    assert_eq!(m.cells.iter().map(|c| c.corners().to_vec()).collect::<Vec<_>>(), [vec![0, 1, 2], vec![0, 2, 3]]);
+    assert_eq!(m.cell_region, ["rock", "rock"]);
+    assert_eq!(m.edge_sets["edge"], [[0, 1]]);
+    assert_eq!(m.node_sets["edge"], [0, 1]);
+}
+
+#[test]
+fn sparse_node_tags_are_renumbered_in_v22() {
+    let text = small_v22("", &[]).replace("\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n", "\n100 0 0 0\n20 1 0 0\n3 1 1 0\n4000 0 1 0\n");
+    let text = text.replace("1 2 2 5 1 1 2 3\n2 2 2 5 1 1 3 4\n3 1 2 7 1 1 2", "1 2 2 5 1 100 20 3\n2 2 2 5 1 100 3 4000\n3 1 2 7 1 100 20");
+    let m = read_msh_bytes("s.msh", text.as_bytes()).unwrap();
+    // Increasing tag order: 3, 20, 100, 4000.
+    assert_eq!(m.points, [[1.0, 1.0], [1.0, 0.0], [0.0, 0.0], [0.0, 1.0]]);
+    assert_eq!(m.cells[0].corners(), [2, 1, 0]);
+    assert_eq!(m.edge_sets["7"], [[2, 1]]);
+}
+
+#[test]
+fn element_block_on_a_missing_entity() {
+    let text = SPARSE_V41.replace("2 1 2 2\n1 10", "2 9 2 2\n1 10");
+    let e = read_msh_bytes("s.msh", text.as_bytes()).unwrap_err().to_string();
+    assert!(e.contains("entity (dimension 2, tag 9), which is not in $Entities"), "{e}");
+}
+
+#[test]
+fn element_in_two_surface_groups_takes_the_smallest_tag() {
+    // msh 2.2 writes such an element once per group.
+    let m = read_msh_bytes("t.msh", small_v22("2 5 \"rock\"\n2 4 \"soil\"\n", &["1 2 2 4 1 1 2 3"]).as_bytes()).unwrap();
+    assert_eq!(m.cell_region, ["soil", "rock"]);
+    let e = msh_err(&small_v22("", &["1 2 2 4 1 1 2 4"]));
+    assert!(e.contains("element tag 1 is used by two different elements"), "{e}");
+}
