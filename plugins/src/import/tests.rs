@@ -71,6 +71,22 @@ fn rectangle_of_quads_in_four_versions_is_identical() {
 }
 
 #[test]
+fn every_mesh_file_in_configs_loads_and_validates() {
+    let mut n = 0;
+    for entry in std::fs::read_dir(meshes()).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_str().unwrap().to_string();
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("msh") => drop(gmsh(&name)),
+            Some("vtu" | "vtk") => drop(vtk(&name, None)),
+            _ => continue,
+        }
+        n += 1;
+    }
+    assert!(n >= 9, "only {n} mesh files found");
+}
+
+#[test]
 fn rectangle_of_triangles() {
     let m = gmsh("rect_tri_v22.msh");
     assert_eq!((m.points.len(), count(&m, CellKind::T3), m.cells.len()), (45, 64, 64));
@@ -360,4 +376,10 @@ fn element_in_two_surface_groups_takes_the_smallest_tag() {
     assert_eq!(m.cell_region, ["soil", "rock"]);
     let e = msh_err(&small_v22("", &["1 2 2 4 1 1 2 4"]));
     assert!(e.contains("element tag 1 is used by two different elements"), "{e}");
+}
+
+#[test]
+fn a_panic_inside_a_third_party_parser_becomes_an_error() {
+    let r: Result<(), String> = super::no_panic("the test parser", || panic!("boom"));
+    assert_eq!(r.unwrap_err(), "the test parser failed on this (corrupt?) file: boom");
 }

@@ -142,7 +142,7 @@ fn regions(src: &str, p: &UnstructuredGridPiece, wanted: Option<&str>, n: usize)
 
 fn add_piece(src: &str, p: UnstructuredGridPiece, wanted: Option<&str>, g: &mut Gathered) -> Result<()> {
     let coords: Vec<f64> = p.points.cast_into().ok_or_else(|| FlemError::mesh(src, "the points are not numeric"))?;
-    if coords.len() % 3 != 0 {
+    if coords.len() / 3 * 3 != coords.len() {
         return Err(FlemError::mesh(src, format!("{} point coordinates is not a multiple of 3", coords.len())));
     }
     let base = g.points.len() as u64;
