@@ -2,6 +2,7 @@
 //! selected in a scene by `type = "name"`.
 pub mod criteria;
 pub mod damping;
+pub mod import;
 pub mod separation;
 
 /// Every built-in plugin as (kind, name), in a fixed order (`flem plugins`).
@@ -10,7 +11,7 @@ pub fn registry() -> Vec<(&'static str, &'static str)> {
     v.extend(damping::NAMES.iter().map(|n| ("damping", *n)));
     v.extend(criteria::NAMES.iter().map(|n| ("criterion", *n)));
     v.extend(separation::NAMES.iter().map(|n| ("separation", *n)));
-    v.push(("mesh", "rectangle"));
+    v.extend(["rectangle", "gmsh", "vtk"].iter().map(|n| ("mesh", *n)));
     v
 }
 
