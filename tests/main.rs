@@ -2,4 +2,5 @@
 //! Every verification test names its reference and tolerance.
 mod common;
 mod configs;
+mod interop;
 mod verification;
