@@ -2,5 +2,6 @@
 //! Every verification test names its reference and tolerance.
 mod common;
 mod configs;
+mod cracking;
 mod interop;
 mod verification;

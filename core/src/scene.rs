@@ -255,9 +255,14 @@ impl Default for OutputCfg {
 pub struct CrackingCfg {
     pub criterion: Box<dyn FailureCriterion>,
     pub separation: Box<dyn SeparationRule>,
-    /// Steps between failure checks.
+    /// Steps between failure checks, when `at_equilibrium = false`.
     #[serde(default = "default_check_every")]
     pub check_every: u64,
+    /// Check failure only once the stage has reached equilibrium (default: damped relaxation
+    /// overshoots, and its transient stresses are not the static ones); after splits the
+    /// stage relaxes again and checks again, until a check splits nothing.
+    #[serde(default = "yes")]
+    pub at_equilibrium: bool,
     /// At most this many splits per check (the most critical first).
     #[serde(default = "default_max_splits")]
     pub max_splits_per_check: usize,

@@ -432,7 +432,11 @@ impl Simulation {
         let (max_steps, tol, every) = (st.max_steps.unwrap_or(sc.max_steps), st.tolerance.unwrap_or(sc.tolerance), sc.ratio_every);
         let hist_every = self.scene.file.output.history_every;
         let snap_every = self.scene.file.output.snapshot_every;
-        let check_every = self.scene.file.cracking.as_ref().map(|c| c.check_every).unwrap_or(0);
+        let (check_every, check_at_eq) = match self.scene.file.cracking.as_ref() {
+            Some(c) if c.at_equilibrium => (0, true),
+            Some(c) => (c.check_every, false),
+            None => (0, false),
+        };
         let n_stages = self.scene.file.stages.len();
         let mut k = 0u64;
         let mut converged = false;
@@ -448,6 +452,13 @@ impl Simulation {
                 ratio = self.unbalanced_ratio();
                 self.last_ratio = ratio;
                 if !st.dynamic && ratio < tol && k >= 2 * every {
+                    if check_at_eq {
+                        let n = self.check_failure(obs)?;
+                        splits += n;
+                        if n > 0 {
+                            continue;
+                        }
+                    }
                     converged = true;
                     break;
                 }
