@@ -302,6 +302,19 @@ impl Simulation {
         self.model.internal_forces(&self.state.u, &mut self.state.f_int);
     }
 
+    /// The external force at the current load levels, per cluster: the constant part (gravity,
+    /// fixed-direction edge loads, point loads) plus following pressures on the reference
+    /// configuration (u = 0), as a linear static solve sees them.
+    pub fn external_force(&self) -> Vec<[f64; 2]> {
+        let mut f = Vec::new();
+        self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
+        if self.loads.has_follower {
+            let zero = vec![[0.0; 2]; f.len()];
+            self.loads.add_follower_force(&self.model, &self.levels, &self.x0, &zero, &mut f);
+        }
+        f
+    }
+
     /// `1/2 u . F_int` (linear elasticity).
     pub fn strain_energy(&self) -> f64 {
         let mut f = vec![[0.0; 2]; self.state.u.len()];

@@ -1,5 +1,6 @@
 //! FLEM's built-in plugins. Each is one file with one registration line (`#[typetag::serde]`),
 //! selected in a scene by `type = "name"`.
+pub mod check;
 pub mod criteria;
 pub mod damping;
 pub mod import;
