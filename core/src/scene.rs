@@ -112,7 +112,8 @@ pub struct SolverCfg {
     /// Steps between evaluations of the unbalanced-force ratio.
     #[serde(default = "default_ratio_every")]
     pub ratio_every: u64,
-    /// Worker threads for the element loop (results are identical for any count).
+    /// Worker threads for the element loop. Only 1 is implemented yet (the parallel step with a
+    /// deterministic scatter is issue 9); other values are refused.
     #[serde(default = "one_usize")]
     pub threads: usize,
 }
@@ -358,8 +359,8 @@ impl Scene {
         if s.ratio_every == 0 {
             return Err(FlemError::config(&n, "solver.ratio_every", "= 0 is incorrect; it must be >= 1"));
         }
-        if !(1..=256).contains(&s.threads) {
-            return Err(FlemError::config(&n, "solver.threads", format!("= {} is incorrect; it must be in [1, 256]", s.threads)));
+        if s.threads != 1 {
+            return Err(FlemError::config(&n, "solver.threads", format!("= {} is incorrect; only 1 is implemented so far", s.threads)));
         }
         s.damping.validate().map_err(|e| FlemError::config(&n, format!("solver.damping.{}", e.key), e.msg))?;
         for d in 0..2 {

@@ -12,6 +12,7 @@ pub fn registry() -> Vec<(&'static str, &'static str)> {
     v.extend(damping::NAMES.iter().map(|n| ("damping", *n)));
     v.extend(criteria::NAMES.iter().map(|n| ("criterion", *n)));
     v.extend(separation::NAMES.iter().map(|n| ("separation", *n)));
+    v.push(("check", "faer_cholesky"));
     v.extend(["rectangle", "gmsh", "vtk"].iter().map(|n| ("mesh", *n)));
     v
 }
