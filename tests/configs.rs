@@ -83,3 +83,37 @@ fn registry_names_deserialise() {
         }
     }
 }
+
+/// Each bad-mesh case of `RawMesh::validate` gives its message naming the file and element.
+#[test]
+fn bad_meshes_give_their_messages() {
+    use flem_core::mesh::{CellKind, RawCell, RawMesh, ValidationOptions};
+    let q = |n: [u32; 4]| RawCell { kind: CellKind::Q4, nodes: n };
+    let t = |n: [u32; 3]| RawCell { kind: CellKind::T3, nodes: [n[0], n[1], n[2], 0] };
+    let mesh = |points: Vec<[f64; 2]>, cells: Vec<RawCell>| RawMesh { source: "bad.msh".into(), points, cells, ..Default::default() };
+    let sq = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    // Clockwise: reoriented with a warning, or refused.
+    let mut m = mesh(sq.clone(), vec![q([0, 3, 2, 1])]);
+    let w = m.validate(ValidationOptions::Reorient).unwrap();
+    assert!(w[0].contains("bad.msh: element 0 was clockwise"), "{w:?}");
+    assert_eq!(m.cells[0].nodes, [1, 2, 3, 0]);
+    let e = mesh(sq.clone(), vec![q([0, 3, 2, 1])]).validate(ValidationOptions::Refuse).unwrap_err().to_string();
+    assert!(e.contains("bad.msh: element 0 is clockwise"), "{e}");
+    // Zero area.
+    let e = mesh(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], vec![t([0, 1, 2])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("element 0 has zero area"), "{e}");
+    // Duplicate points.
+    let mut pts = sq.clone();
+    pts.push([1.0, 1.0]);
+    let e = mesh(pts, vec![t([0, 1, 2]), t([0, 4, 3])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("points 2 and 4 are duplicates"), "{e}");
+    // Unreferenced point.
+    let mut pts = sq.clone();
+    pts.push([5.0, 5.0]);
+    let e = mesh(pts, vec![q([0, 1, 2, 3])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("point 4 is not used by any element"), "{e}");
+    // An edge shared by three elements.
+    let pts = vec![[0.0, 0.0], [1.0, 0.0], [0.5, 1.0], [0.5, -1.0], [0.5, 2.0]];
+    let e = mesh(pts, vec![t([0, 1, 2]), t([1, 0, 3]), t([0, 1, 4])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("shared by more than two elements"), "{e}");
+}
