@@ -4,6 +4,7 @@ use crate::ids::{ClusterId, EdgeId, PointId};
 use crate::model::Model;
 use crate::scene::CrackingCfg;
 use crate::topology::{SplitRecord, Topology};
+use crate::weibull::weibull_scale;
 use crate::traits::{principal, FailureCheck, FailureMode, FanView, LinkGeom, Principal};
 
 /// One applied split, for the split log.
@@ -21,34 +22,6 @@ pub struct SplitEvent {
     pub edges: Vec<EdgeId>,
     /// Nodal stress at the split, tension positive.
     pub stress: [f64; 3],
-}
-
-/// Weibull strength factor of a point, mean 1: F = lambda (-ln(1 - U))^(1/m) with
-/// lambda = 1 / Gamma(1 + 1/m) and U from a stateless hash of (seed, point) (splitmix64), so it
-/// depends on neither order nor thread count.
-pub fn weibull_scale(modulus: f64, seed: u64, point: u64) -> f64 {
-    let mut z = seed ^ point.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^= z >> 31;
-    let u = ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-    let lambda = 1.0 / gamma(1.0 + 1.0 / modulus);
-    lambda * (-(1.0 - u).ln()).powf(1.0 / modulus)
-}
-
-/// Lanczos approximation of the gamma function (x > 0), relative error < 1e-13.
-pub fn gamma(x: f64) -> f64 {
-    const G: [f64; 9] = [0.999_999_999_999_809_9, 676.520_368_121_885_1, -1_259.139_216_722_402_8, 771.323_428_777_653_1, -176.615_029_162_140_6, 12.507_343_278_686_905, -0.138_571_095_265_720_12, 9.984_369_578_019_572e-6, 1.505_632_735_149_311_6e-7];
-    if x < 0.5 {
-        return std::f64::consts::PI / ((std::f64::consts::PI * x).sin() * gamma(1.0 - x));
-    }
-    let x = x - 1.0;
-    let mut a = G[0];
-    let t = x + 7.5;
-    for (i, g) in G.iter().enumerate().skip(1) {
-        a += g / (x + i as f64);
-    }
-    (2.0 * std::f64::consts::PI).sqrt() * t.powf(x + 0.5) * (-t).exp() * a
 }
 
 /// Cracking state: strength scatter, buffers and the last failure index per cluster.

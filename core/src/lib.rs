@@ -12,6 +12,7 @@ pub mod ids;
 pub mod mesh;
 pub mod topology;
 pub mod traits;
+pub mod weibull;
 
 pub use error::{FlemError, Result};
 

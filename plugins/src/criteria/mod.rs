@@ -23,9 +23,7 @@ pub mod drucker_prager;
 pub mod hoek_brown;
 pub mod mohr_coulomb;
 pub mod rankine;
-pub mod weibull;
 
-pub use weibull::weibull_scale;
 
 use std::f64::consts::PI;
 

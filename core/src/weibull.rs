@@ -12,8 +12,8 @@
 //! threads. Large `m` gives little scatter (coefficient of variation about 1.28 / m).
 //! Dimensionless. A modulus that is not finite and > 0 gives 1 (no scatter), never a panic.
 //!
-//! A scene would select it as (the keys belong to the core's cracking table):
-//! `strength_scatter = { weibull_modulus = 10.0, seed = 1 }`.
+//! A scene selects it in its cracking table (every point's strengths are multiplied by its factor):
+//! `[cracking.weibull]` with `modulus = 10.0` and `seed = 1`.
 
 /// One step of SplitMix64 (Steele, Lea, Flood 2014): a bijective 64-bit mixer.
 pub fn splitmix64(x: u64) -> u64 {
