@@ -11,7 +11,7 @@
 //!
 //! How they are selected: `type = "name"` in the scene's `[cracking.criterion]` table (typetag).
 //! Units: any consistent stress unit (the paper uses kgf/cm^2); angles in config are degrees
-//! (`_deg`), radians inside. `scale` (strength scatter, see [`weibull`]) multiplies every
+//! (`_deg`), radians inside. `scale` (strength scatter, see [`flem_core::weibull`]) multiplies every
 //! strength of a criterion at a point.
 //!
 //! Shared conventions:
@@ -91,27 +91,6 @@ pub fn shear_planes(theta1: f64, phi: f64) -> [f64; 2] {
     }
 }
 
-/// Reads the ```toml blocks of a module's `//!` doc comment (for the snippet tests).
-#[cfg(test)]
-pub(crate) fn toml_blocks(src: &str) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut cur: Option<String> = None;
-    for line in src.lines() {
-        let Some(doc) = line.trim_start().strip_prefix("//!") else { continue };
-        let doc = doc.strip_prefix(' ').unwrap_or(doc);
-        match (&mut cur, doc.trim()) {
-            (None, "```toml") => cur = Some(String::new()),
-            (Some(_), "```") => out.extend(cur.take()),
-            (Some(s), _) => {
-                s.push_str(doc);
-                s.push('\n');
-            }
-            _ => {}
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -129,20 +108,8 @@ mod tests {
     /// validates. Reference: the docs themselves; exact (no tolerance).
     #[test]
     fn doc_toml_snippets_parse_and_validate() {
-        let mut names_seen = Vec::new();
-        for (file, src) in SOURCES {
-            let blocks = toml_blocks(src);
-            assert!(!blocks.is_empty(), "{file} has no ```toml block");
-            for b in blocks {
-                let t: toml::Table = toml::from_str(&b).unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
-                let c = t["cracking"]["criterion"].clone();
-                names_seen.push(c["type"].as_str().unwrap().to_string());
-                let crit: Box<dyn FailureCriterion> = c.try_into().unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
-                crit.validate().unwrap_or_else(|e| panic!("{file}: {e}"));
-            }
-        }
-        for n in NAMES {
-            assert!(names_seen.iter().any(|s| s == n), "no snippet for {n}");
+        for (file, crit) in crate::snippets::doc_snippets::<Box<dyn FailureCriterion>>(SOURCES, &["cracking", "criterion"], NAMES) {
+            crit.validate().unwrap_or_else(|e| panic!("{file}: {e}"));
         }
     }
 

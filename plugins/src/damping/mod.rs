@@ -120,3 +120,17 @@ impl Damping for NoDamping {
 }
 
 pub const NAMES: &[&str] = &["viscous", "local", "adaptive", "none"];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every ```toml block of this module's docs deserialises into a `Box<dyn Damping>` and
+    /// validates; every name has a snippet. Reference: the docs; exact.
+    #[test]
+    fn doc_toml_snippets_parse_and_validate() {
+        for (file, d) in crate::snippets::doc_snippets::<Box<dyn Damping>>(&[("damping/mod.rs", include_str!("mod.rs"))], &["solver", "damping"], &["viscous", "local", "adaptive"]) {
+            d.validate().unwrap_or_else(|e| panic!("{file}: {e}"));
+        }
+    }
+}

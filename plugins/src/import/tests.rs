@@ -383,3 +383,15 @@ fn a_panic_inside_a_third_party_parser_becomes_an_error() {
     let r: Result<(), String> = super::no_panic("the test parser", || panic!("boom"));
     assert_eq!(r.unwrap_err(), "the test parser failed on this (corrupt?) file: boom");
 }
+
+/// Every ```toml snippet of the importer docs deserialises and loads its file (paths relative
+/// to configs/, where scenes live). Reference: the docs and the shipped meshes; exact.
+#[test]
+fn doc_toml_snippets_load() {
+    let sources = [("import/mod.rs", include_str!("mod.rs")), ("import/gmsh.rs", include_str!("gmsh.rs")), ("import/vtk.rs", include_str!("vtk.rs"))];
+    let configs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    for (file, src) in crate::snippets::doc_snippets::<Box<dyn flem_core::mesh::MeshSource>>(&sources, &["mesh"], &["gmsh", "vtk"]) {
+        let m = src.load(&configs).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!(!m.cells.is_empty(), "{file}");
+    }
+}

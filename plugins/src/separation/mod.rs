@@ -148,7 +148,6 @@ pub(crate) mod fixture {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::criteria::toml_blocks;
     use flem_core::traits::SeparationRule;
 
     const SOURCES: &[(&str, &str)] = &[
@@ -161,20 +160,8 @@ mod tests {
     /// table deserializes into a `Box<dyn SeparationRule>` and validates. Exact.
     #[test]
     fn doc_toml_snippets_parse_and_validate() {
-        let mut seen = Vec::new();
-        for (file, src) in SOURCES {
-            let blocks = toml_blocks(src);
-            assert!(!blocks.is_empty(), "{file} has no ```toml block");
-            for b in blocks {
-                let t: toml::Table = toml::from_str(&b).unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
-                let s = t["cracking"]["separation"].clone();
-                seen.push(s["type"].as_str().unwrap().to_string());
-                let rule: Box<dyn SeparationRule> = s.try_into().unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
-                rule.validate().unwrap_or_else(|e| panic!("{file}: {e}"));
-            }
-        }
-        for n in NAMES {
-            assert!(seen.iter().any(|s| s == n), "no snippet for {n}");
+        for (file, rule) in crate::snippets::doc_snippets::<Box<dyn SeparationRule>>(SOURCES, &["cracking", "separation"], NAMES) {
+            rule.validate().unwrap_or_else(|e| panic!("{file}: {e}"));
         }
     }
 
