@@ -117,3 +117,23 @@ fn bad_meshes_give_their_messages() {
     let e = mesh(pts, vec![t([0, 1, 2]), t([1, 0, 3]), t([0, 1, 4])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
     assert!(e.contains("shared by more than two elements"), "{e}");
 }
+
+/// A diverging run (`dt` well above dt_crit, opted in) exits 1 with the step, dt and dt_crit,
+/// writes no snapshot, and its summary.json holds no NaN (JSON null where a value is not finite).
+#[test]
+fn diverging_run_stops_and_writes_nothing_non_finite() {
+    let dir = std::env::temp_dir().join(format!("flem-diverge-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(root().join("tests/bad_scenes/dt_too_large.toml")).unwrap();
+    let scene = dir.join("diverge.toml");
+    std::fs::write(&scene, text.replace("dt = 1.0", "dt = 1.0\nallow_unstable_dt = true\ndamping = { type = \"none\" }").replace("[[stage]]", "[[load]]\nname = \"p\"\ntype = \"point\"\nnodes = \"top_right\"\nvalue = [0.1, 0.0]\n\n[[stage]]") + "levels = { p = 1.0 }\ndynamic = true\nmax_steps = 100000\n").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", "--quiet", "--out"]).arg(dir.join("out")).arg(&scene).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("diverged at step") && err.contains("dt_crit"), "{err}");
+    let names: Vec<String> = std::fs::read_dir(dir.join("out")).unwrap().flatten().map(|e| e.file_name().to_string_lossy().to_string()).collect();
+    assert!(!names.iter().any(|n| n.ends_with(".vtu")), "{names:?}");
+    let summary = std::fs::read_to_string(dir.join("out/summary.json")).unwrap();
+    assert!(!summary.contains("NaN") && !summary.contains("inf"), "{summary}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

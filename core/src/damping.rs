@@ -4,7 +4,6 @@
 //!
 //! integrated implicitly in velocity (METHOD section 7):
 //! `v+ = ((1 - a dt/2) v- + dt (F - local |F| sign(v-)) / m) / (1 + a dt/2)`.
-//! Kinetic damping (velocity reset at a kinetic-energy peak) would use [`Damping::reset_velocities`].
 use std::fmt::Debug;
 
 use crate::traits::ParamError;
@@ -40,10 +39,6 @@ pub trait Damping: Debug + Send + Sync {
     fn reset(&mut self) {}
     /// Coefficients for the next step, given the stats of the previous one.
     fn coeffs(&mut self, stats: &StepStats) -> DampingCoeffs;
-    /// After a step: true asks the solver to zero every velocity (kinetic damping).
-    fn reset_velocities(&mut self, _stats: &StepStats) -> bool {
-        false
-    }
     /// Factor (<= 1) on the critical time step that this scheme needs.
     fn stability_factor(&self) -> f64 {
         1.0

@@ -39,12 +39,19 @@ pub fn prepare_dir(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-fn finite(v: f64) -> f64 {
+/// A CSV field: the number, or empty when it is not finite (not yet computed), never NaN.
+fn csv_num(v: f64) -> String {
     if v.is_finite() {
-        v
+        format!("{v:e}")
     } else {
-        0.0
+        String::new()
     }
+}
+
+/// Whether the state may be written (a diverged run stops before any snapshot; this is the
+/// guard that keeps NaN out of results whatever the caller does).
+fn state_is_finite(sim: &Simulation) -> bool {
+    sim.state.u.iter().chain(&sim.state.v).all(|a| a[0].is_finite() && a[1].is_finite())
 }
 
 /// The VTU of the current state: points are clusters (reference coordinates; `displacement`
@@ -80,7 +87,7 @@ pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
         region.push(regions.iter().position(|r| *r == blk.region()).unwrap_or(0) as i32);
         crack.push(0i32);
         let s = blk.mean_stress(i as usize, &sim.state.u);
-        stress.extend_from_slice(&[finite(s[0]), finite(s[1]), finite(s[2])]);
+        stress.extend_from_slice(&s);
     }
     for ei in 0..topo.edges.len() {
         let st = topo.crack_state(EdgeId::new(ei));
@@ -100,19 +107,19 @@ pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
             stress.extend_from_slice(&[0.0; 3]);
         }
     }
-    let vec2 = |v: &[[f64; 2]]| -> Vec<f64> { v.iter().flat_map(|a| [finite(a[0]), finite(a[1]), 0.0]).collect() };
+    let vec2 = |v: &[[f64; 2]]| -> Vec<f64> { v.iter().flat_map(|a| [a[0], a[1], 0.0]).collect() };
     let mut point = vec![
         Attribute::generic("displacement", 3).with_data(vec2(&sim.state.u)),
         Attribute::generic("velocity", 3).with_data(vec2(&sim.state.v)),
         Attribute::generic("point_id", 1).with_data(topo.cluster_point.iter().map(|p| p.0 as i64).collect::<Vec<i64>>()),
-        Attribute::generic("mass", 1).with_data(sim.state.mass.iter().map(|&m| finite(m)).collect::<Vec<f64>>()),
+        Attribute::generic("mass", 1).with_data(sim.state.mass.clone()),
     ];
     let mut corner = Vec::new();
     let mut nodal = Vec::new();
     m.nodal_stress(&sim.state.u, &mut corner, &mut nodal);
-    point.push(Attribute::generic("nodal_stress", 3).with_data(nodal.iter().flat_map(|s| s.map(finite)).collect::<Vec<f64>>()));
+    point.push(Attribute::generic("nodal_stress", 3).with_data(nodal.iter().flat_map(|s| *s).collect::<Vec<f64>>()));
     if let Some(cr) = &sim.cracking {
-        let mut idx: Vec<f64> = cr.index.iter().map(|&v| finite(v)).collect();
+        let mut idx: Vec<f64> = cr.index.clone();
         idx.resize(nc, 0.0);
         point.push(Attribute::generic("failure_index", 1).with_data(idx));
     }
@@ -207,7 +214,7 @@ impl OutputWriter {
             "dt_over_dt_crit": sim.dt / sim.stable.dt_crit,
             "dt_element_bound": sim.stable.dt_element_bound,
             "stages": sim.stages_done,
-            "energy": {"external_work": finite(l.external()), "kinetic": finite(l.kinetic), "strain": finite(l.strain), "damping": finite(l.dissipated()), "residual": finite(l.residual()), "relative_residual": finite(l.relative_residual())},
+            "energy": {"external_work": l.external(), "kinetic": l.kinetic, "strain": l.strain, "damping": l.dissipated(), "residual": l.residual(), "relative_residual": l.relative_residual()},
             "splits": sim.cracking.as_ref().map(|c| c.n_splits).unwrap_or(0),
             "crack_faces": {"separated_one_end": one, "separated_both_ends": two},
             "warnings": sim.warnings,
@@ -219,19 +226,24 @@ impl OutputWriter {
 impl Observer for OutputWriter {
     fn history(&mut self, sim: &Simulation, stage: usize) -> Result<()> {
         let l = &sim.ledger;
-        let _ = write!(self.history, "{},{:e},{}", sim.state.step, sim.state.time, stage);
-        for v in &sim.levels {
-            let _ = write!(self.history, ",{v:e}");
-        }
+        let _ = write!(self.history, "{},{},{}", sim.state.step, csv_num(sim.state.time), stage);
+        let mut fields: Vec<f64> = sim.levels.clone();
         for (_, p) in &self.probes {
             let c = sim.model.topo.point_clusters[*p][0].idx();
-            let _ = write!(self.history, ",{:e},{:e}", sim.state.u[c][0], sim.state.u[c][1]);
+            fields.extend_from_slice(&sim.state.u[c]);
         }
-        let _ = writeln!(self.history, ",{:e},{:e},{:e},{:e},{:e},{:e}", finite(l.external()), finite(l.kinetic), finite(l.strain), finite(l.dissipated()), finite(l.residual()), finite(sim.last_ratio));
+        fields.extend_from_slice(&[l.external(), l.kinetic, l.strain, l.dissipated(), l.residual(), sim.last_ratio]);
+        for v in fields {
+            let _ = write!(self.history, ",{}", csv_num(v));
+        }
+        self.history.push('\n');
         atomic_write(&self.dir.join("history.csv"), self.history.as_bytes())
     }
 
     fn snapshot(&mut self, sim: &Simulation, _stage: usize, label: &str) -> Result<()> {
+        if !state_is_finite(sim) {
+            return Err(FlemError::Other(format!("refusing to write snapshot \"{label}\": the state is not finite")));
+        }
         let name = format!("snapshot_{:04}_{label}.vtu", self.snapshots.len());
         let bytes = vtu_bytes(snapshot_vtk(sim), self.compress)?;
         atomic_write(&self.dir.join(&name), &bytes)?;

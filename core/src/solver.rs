@@ -136,8 +136,6 @@ pub struct Simulation {
     f_const: Vec<[f64; 2]>,
     stats: StepStats,
     coeffs: DampingCoeffs,
-    /// The next step starts from rest (after a kinetic-damping reset): half a kick.
-    restart: bool,
 }
 
 impl Simulation {
@@ -177,7 +175,6 @@ impl Simulation {
             f_const: Vec::new(),
             stats: StepStats::default(),
             coeffs: DampingCoeffs::default(),
-            restart: false,
             scene,
             model,
         };
@@ -333,7 +330,6 @@ impl Simulation {
         self.coeffs = self.scene.file.solver.damping.coeffs(&self.stats);
         let (a, beta) = (self.coeffs.viscous, self.coeffs.local);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
-        let kick = if std::mem::take(&mut self.restart) { 0.5 * dt } else { dt };
         let st = &mut self.state;
         let (mut w, mut dmp, mut pw, mut pd, mut ke, mut keh, mut ufi, mut umu, mut uf) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         for c in 0..st.u.len() {
@@ -347,7 +343,7 @@ impl Simulation {
                 if fix & (1 << d) == 0 {
                     let f = fe - fi;
                     let s = if vm > 0.0 { 1.0 } else if vm < 0.0 { -1.0 } else { 0.0 };
-                    vp = (c1 * vm + kick * (f - beta * f.abs() * s) / m) * c2;
+                    vp = (c1 * vm + dt * (f - beta * f.abs() * s) / m) * c2;
                     let fd = f - m * (vp - vm) / dt;
                     let va = 0.5 * (vm + vp) * dt;
                     w += fe * va;
@@ -379,18 +375,6 @@ impl Simulation {
         self.stats = StepStats { step: self.state.step, dt, omega_max: self.stable.omega_max, kinetic: keh, u_f_int: ufi, u_m_u: umu };
         if !keh.is_finite() || keh > 1e12 * self.ledger.external_work.abs().max(1e-300) && keh > 1e-200 {
             return Err(self.diverged(if keh.is_finite() { "the kinetic energy grew beyond 1e12 times the work done on the body" } else { "velocities became non-finite" }));
-        }
-        if self.scene.file.solver.damping.reset_velocities(&self.stats) {
-            self.ledger.damping += self.ledger.kinetic;
-            self.ledger.kinetic = 0.0;
-            self.restart = true;
-            for (c, v) in self.state.v.iter_mut().enumerate() {
-                for d in 0..2 {
-                    if self.state.fix[c] & (1 << d) == 0 {
-                        v[d] = 0.0;
-                    }
-                }
-            }
         }
         Ok(())
     }
