@@ -13,8 +13,8 @@ enum Kind {
     /// Pressure (`vector = None`) or traction on (element, local edge) faces.
     Edge { faces: Vec<(ElemId, u8)>, pressure: f64, traction: [f64; 2], follow: bool },
     Point { points: Vec<PointId>, value: [f64; 2] },
-    Velocity { points: Vec<PointId>, v: [Option<f64>; 2] },
-    Displacement { points: Vec<PointId>, u: [Option<f64>; 2] },
+    /// Prescribed velocity (`displacement = false`) or displacement of the given components.
+    Prescribed { points: Vec<PointId>, value: [Option<f64>; 2], displacement: bool },
 }
 
 #[derive(Clone, Debug)]
@@ -70,8 +70,8 @@ impl Loads {
                 }
                 LoadCfg::Traction { edges, value, .. } => Kind::Edge { faces: faces(edges)?, pressure: 0.0, traction: *value, follow: false },
                 LoadCfg::Point { nodes, value, .. } => Kind::Point { points: model.node_set(nodes, &key("nodes"), file)?, value: *value },
-                LoadCfg::Velocity { nodes, x, y, .. } => Kind::Velocity { points: model.node_set(nodes, &key("nodes"), file)?, v: [*x, *y] },
-                LoadCfg::Displacement { nodes, x, y, .. } => Kind::Displacement { points: model.node_set(nodes, &key("nodes"), file)?, u: [*x, *y] },
+                LoadCfg::Velocity { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: false },
+                LoadCfg::Displacement { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: true },
             };
             loads.push(Load { name: l.name().to_string(), kind });
         }
@@ -150,32 +150,19 @@ impl Loads {
         let mut vp = vec![[0.0; 2]; nc];
         let mut up = Vec::new();
         for (l, &lev) in self.loads.iter().zip(levels) {
-            match &l.kind {
-                Kind::Velocity { points, v } => {
-                    for p in points {
-                        for &c in &model.topo.point_clusters[p.idx()] {
-                            for d in 0..2 {
-                                if let Some(val) = v[d] {
-                                    fix[c.idx()] |= 1 << d;
-                                    vp[c.idx()][d] = lev * val;
-                                }
-                            }
+            let Kind::Prescribed { points, value, displacement } = &l.kind else { continue };
+            for p in points {
+                for &c in &model.topo.point_clusters[p.idx()] {
+                    for (d, val) in value.iter().enumerate() {
+                        let Some(val) = val else { continue };
+                        fix[c.idx()] |= 1 << d;
+                        if *displacement {
+                            up.push((c.idx(), d, lev * val));
+                        } else {
+                            vp[c.idx()][d] = lev * val;
                         }
                     }
                 }
-                Kind::Displacement { points, u } => {
-                    for p in points {
-                        for &c in &model.topo.point_clusters[p.idx()] {
-                            for d in 0..2 {
-                                if let Some(val) = u[d] {
-                                    fix[c.idx()] |= 1 << d;
-                                    up.push((c.idx(), d, lev * val));
-                                }
-                            }
-                        }
-                    }
-                }
-                _ => {}
             }
         }
         (fix, vp, up)

@@ -273,6 +273,18 @@ impl Simulation {
         let (fix, vp, up) = self.loads.constraints(&self.model, &self.levels);
         self.state.fix = fix;
         self.state.v_pres = vp;
+        // A prescribed velocity is imposed at once: the kinetic energy it adds is work done on
+        // the body (without it the ledger, and the divergence guard built on it, see energy
+        // appear from nothing).
+        let st = &mut self.state;
+        for c in 0..st.v.len() {
+            for d in 0..2 {
+                if st.fix[c] & (1 << d) != 0 && st.v[c][d] != st.v_pres[c][d] {
+                    self.ledger.external_work += 0.5 * st.mass[c] * (st.v_pres[c][d].powi(2) - st.v[c][d].powi(2));
+                    st.v[c][d] = st.v_pres[c][d];
+                }
+            }
+        }
         if !up.is_empty() {
             // A jump of prescribed displacement injects the change of strain energy at once.
             let before = self.strain_energy();
@@ -280,7 +292,6 @@ impl Simulation {
                 self.state.u[c][d] = val;
                 self.state.v[c][d] = 0.0;
             }
-            self.update_internal_forces();
             let after = self.strain_energy();
             self.ledger.external_work += after - before;
             self.ledger.strain = after;
@@ -293,10 +304,6 @@ impl Simulation {
         let mut f = std::mem::take(&mut self.f_const);
         self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
         self.f_const = f;
-    }
-
-    fn update_internal_forces(&mut self) {
-        self.model.internal_forces(&self.state.u, &mut self.state.f_int);
     }
 
     /// The external force at the current load levels, per cluster: the constant part (gravity,
