@@ -42,8 +42,6 @@ pub trait Block: Send + Sync {
     fn coords(&self, i: usize) -> &[[f64; 2]];
     /// Upper bound of the highest natural frequency of each element (Gershgorin on M^-1/2 K M^-1/2).
     fn max_omega_bound(&self) -> f64;
-    /// Smallest element size (sqrt of area) of the block.
-    fn min_size(&self) -> f64;
 }
 
 pub struct ElementBlock<S: Shape<N>, const N: usize> {
@@ -168,8 +166,5 @@ impl<S: Shape<N>, const N: usize> Block for ElementBlock<S, N> {
             }
         }
         best.sqrt()
-    }
-    fn min_size(&self) -> f64 {
-        self.x.iter().map(|x| element::area::<S, N>(x).sqrt()).fold(f64::INFINITY, f64::min)
     }
 }

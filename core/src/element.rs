@@ -48,10 +48,6 @@ impl Material {
             }
         }
     }
-    /// P-wave modulus of the idealisation (d11), for wave speeds.
-    pub fn p_modulus(&self) -> f64 {
-        self.dmat().d11
-    }
     /// Out-of-plane stress szz for a given in-plane stress (plane strain: nu (sxx + syy)).
     pub fn szz(&self, s: [f64; 3]) -> f64 {
         match self.plane {
@@ -188,11 +184,6 @@ pub fn lumped_mass<S: Shape<N>, const N: usize>(x: &[[f64; 2]; N], rho: f64, t: 
         }
     }
     m
-}
-
-/// Element area.
-pub fn area<S: Shape<N>, const N: usize>(x: &[[f64; 2]; N]) -> f64 {
-    S::GAUSS.iter().map(|&(xi, w)| w * gradients::<S, N>(x, xi).1).sum()
 }
 
 /// Element stiffness (2N x 2N, row-major, dofs ordered x0 y0 x1 y1 ...), built column by
