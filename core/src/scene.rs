@@ -101,8 +101,9 @@ pub struct SolverCfg {
     /// Accept a `dt` above the critical step with a warning instead of an error.
     #[serde(default)]
     pub allow_unstable_dt: bool,
-    #[serde(default = "default_damping")]
-    pub damping: Box<dyn Damping>,
+    /// Filled in by [`Scene::from_str`] with "adaptive" when the scene names none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<Box<dyn Damping>>,
     /// Unbalanced-force ratio at which a stage is in equilibrium.
     #[serde(default = "default_tol")]
     pub tolerance: f64,
@@ -134,9 +135,11 @@ fn one_usize() -> usize {
     1
 }
 
-/// The default damping when a scene names none: adaptive dynamic relaxation.
-fn default_damping() -> Box<dyn Damping> {
-    serde_json::from_str(r#"{"type": "adaptive"}"#).expect("the adaptive damping plugin is not linked into this binary")
+impl SolverCfg {
+    /// The damping scheme (always present once the scene is validated).
+    pub fn damping(&mut self) -> &mut dyn Damping {
+        self.damping.as_deref_mut().expect("Scene::from_str fills in the default damping")
+    }
 }
 
 impl Default for SolverCfg {
@@ -145,7 +148,7 @@ impl Default for SolverCfg {
             dt: None,
             dt_safety: default_safety(),
             allow_unstable_dt: false,
-            damping: default_damping(),
+            damping: None,
             tolerance: default_tol(),
             max_steps: default_max_steps(),
             ratio_every: default_ratio_every(),
@@ -328,7 +331,13 @@ impl Scene {
     /// Parses and validates scene text; `path` is used in messages, `base_dir` for relative paths.
     pub fn from_str(text: &str, path: &Path, base_dir: &Path) -> Result<Scene> {
         let name = path.display().to_string();
-        let file: SceneFile = toml::from_str(text).map_err(|e| parse_error(&name, text, e))?;
+        let mut file: SceneFile = toml::from_str(text).map_err(|e| parse_error(&name, text, e))?;
+        if file.solver.damping.is_none() {
+            // The default: adaptive dynamic relaxation (a plugin; an error, not a panic, when the
+            // binary does not link the plugin crate).
+            let d = toml::from_str("type = \"adaptive\"").map_err(|e| FlemError::config(&name, "solver.damping", format!("is not given and the default \"adaptive\" is not registered in this program ({e}); link flem-plugins or name a damping")))?;
+            file.solver.damping = Some(d);
+        }
         let scene = Scene { file, path: path.to_path_buf(), base_dir: base_dir.to_path_buf() };
         scene.validate()?;
         Ok(scene)
@@ -362,7 +371,7 @@ impl Scene {
         if s.threads != 1 {
             return Err(FlemError::config(&n, "solver.threads", format!("= {} is incorrect; only 1 is implemented so far", s.threads)));
         }
-        s.damping.validate().map_err(|e| FlemError::config(&n, format!("solver.damping.{}", e.key), e.msg))?;
+        s.damping.as_ref().map_or(Ok(()), |d| d.validate()).map_err(|e| FlemError::config(&n, format!("solver.damping.{}", e.key), e.msg))?;
         for d in 0..2 {
             range(&n, &format!("model.gravity[{d}]"), f.model.gravity[d], f64::MIN, true, f64::MAX, true)?;
         }

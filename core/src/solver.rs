@@ -258,7 +258,7 @@ impl Simulation {
         }
         let omega = lam.max(0.0).sqrt();
         let bound = self.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
-        let k = self.scene.file.solver.damping.stability_factor();
+        let k = self.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
         StableStep { dt_crit: if omega > 0.0 { k * 2.0 / omega } else { f64::INFINITY }, dt_element_bound: k * 2.0 / bound, omega_max: omega, iterations: it }
     }
 
@@ -297,7 +297,7 @@ impl Simulation {
             self.ledger.strain = after;
         }
         self.refresh_constant_force();
-        self.scene.file.solver.damping.reset();
+        self.scene.file.solver.damping().reset();
     }
 
     fn refresh_constant_force(&mut self) {
@@ -334,7 +334,7 @@ impl Simulation {
         if self.loads.has_follower {
             self.loads.add_follower_force(&self.model, &self.levels, &self.x0, &self.state.u, &mut self.state.f_ext);
         }
-        self.coeffs = self.scene.file.solver.damping.coeffs(&self.stats);
+        self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
         let (a, beta) = (self.coeffs.viscous, self.coeffs.local);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
         let st = &mut self.state;
