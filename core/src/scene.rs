@@ -267,6 +267,13 @@ pub struct CrackingCfg {
     /// stage relaxes again and checks again, until a check splits nothing.
     #[serde(default = "yes")]
     pub at_equilibrium: bool,
+    /// With `at_equilibrium`: also check when the stage has not come to rest, i.e. its best
+    /// unbalanced-force ratio has not halved within this many steps (default 10000; 0: off).
+    /// A fragment held by one node (a hinge left by a running crack) is a mechanism under
+    /// load control and never reaches equilibrium; without this its last node would never be
+    /// checked.
+    #[serde(default = "default_stall_steps")]
+    pub stall_steps: u64,
     /// At most this many splits per check (the most critical first).
     #[serde(default = "default_max_splits")]
     pub max_splits_per_check: usize,
@@ -277,6 +284,9 @@ pub struct CrackingCfg {
 
 fn default_check_every() -> u64 {
     10
+}
+fn default_stall_steps() -> u64 {
+    10_000
 }
 fn default_max_splits() -> usize {
     1
