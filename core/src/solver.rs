@@ -343,6 +343,14 @@ impl Simulation {
         self.scene.file.solver.damping().reset();
     }
 
+    /// Applies the load levels and constraints of stages `0..=i` without stepping (what a
+    /// static solve of stage `i` needs: levels, fixities, prescribed displacements).
+    pub fn set_stage_levels(&mut self, i: usize) {
+        for k in 0..=i.min(self.scene.file.stages.len().saturating_sub(1)) {
+            self.begin_stage(k);
+        }
+    }
+
     fn refresh_constant_force(&mut self) {
         let mut f = std::mem::take(&mut self.f_const);
         self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);

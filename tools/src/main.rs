@@ -9,6 +9,8 @@ use flem_core::scene::Scene;
 use flem_core::solver::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod chart;
+
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
 const DEFAULT_NAME: &str = "configs/default.toml";
@@ -36,6 +38,21 @@ enum Cmd {
     Check { scenes: Vec<PathBuf> },
     /// List the registered plugins (kind and name).
     Plugins,
+    /// The speed-accuracy chart: sweep damping, dt safety, tolerance and mesh refinement;
+    /// wall time against the error (vs the implicit solve, a refined reference, or an
+    /// analytic probe value); Pareto front marked. Writes chart.csv, chart.json and pictures.
+    Chart {
+        scene: PathBuf,
+        /// Output folder (default: out/<scene name>_chart).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// A small sweep (2 dampings x 1 safety x 2 tolerances x 2 refinements).
+        #[arg(long)]
+        quick: bool,
+        /// Analytic value of a probe's displacement: PROBE:x=VALUE or PROBE:y=VALUE.
+        #[arg(long)]
+        analytic: Option<chart::Analytic>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -45,6 +62,7 @@ fn main() -> ExitCode {
         None => run_default(),
         Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
         Some(Cmd::Check { scenes }) => check(&scenes),
+        Some(Cmd::Chart { scene, out, quick, analytic }) => chart::chart(&scene, out, quick, analytic),
         Some(Cmd::Plugins) => {
             for (kind, name) in flem_plugins::registry() {
                 println!("{kind:<12} {name}");
