@@ -10,6 +10,7 @@ use flem_core::solver::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod chart;
+mod stability;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
@@ -53,6 +54,16 @@ enum Cmd {
         #[arg(long)]
         analytic: Option<chart::Analytic>,
     },
+    /// The stability map: measured blow-up step against the prediction per mesh and damping,
+    /// steps to rest against the damping parameter, the implicit solver after separation.
+    Stability {
+        /// Output folder (default: out/stability).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Fewer cases and shorter runs.
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -63,6 +74,7 @@ fn main() -> ExitCode {
         Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Chart { scene, out, quick, analytic }) => chart::chart(&scene, out, quick, analytic),
+        Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Plugins) => {
             for (kind, name) in flem_plugins::registry() {
                 println!("{kind:<12} {name}");
