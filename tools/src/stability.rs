@@ -155,7 +155,8 @@ fn implicit_after_separation(rows: &mut Vec<Row>) -> Result<()> {
 pub fn markdown(rows: &[Row]) -> String {
     let mut s = String::from("| study | case | parameter | value | measured | outcome |\n|---|---|---|---|---|---|\n");
     for r in rows {
-        s += &format!("| {} | {} | {} | {} | {} | {} |\n", r.study, r.case, r.parameter, r.value, r.measured, r.outcome.replace('|', "/").replace('\n', " "));
+        let num = |x: f64| if x.fract() == 0.0 { format!("{x}") } else { format!("{x:.4}") };
+        s += &format!("| {} | {} | {} | {} | {} | {} |\n", r.study, r.case, r.parameter, num(r.value), num(r.measured), r.outcome.replace('|', "/").replace('\n', " "));
     }
     s
 }
