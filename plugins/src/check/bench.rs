@@ -5,7 +5,8 @@
 //! clamped, a traction on the right side).
 //!
 //! `ratio_cold` = our first solve / bare, `ratio_warm` = a second solve on the same topology
-//! (pattern and symbolic factorisation reused, as in the stages of a run) / bare. Each time is
+//! (pattern, symbolic and numeric factorisations reused, as between the stages of a run without
+//! splits: only the right-hand side is new) / bare. Each time is
 //! the best of `repeats` runs.
 use std::time::Instant;
 

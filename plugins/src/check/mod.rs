@@ -64,12 +64,16 @@ struct Cache {
     fingerprint: u64,
     pattern: Option<SymbolicSparseColMat<usize>>,
     symbolic: Option<SymbolicLlt<usize>>,
+    /// The assembled `K_ff` and its numeric factor, kept after a successful solve: `K` depends
+    /// only on what the fingerprint covers, so a later solve needs only a new right-hand side.
+    factor: Option<(SparseColMat<usize, f64>, Llt<usize, f64>)>,
     symbolic_count: usize,
 }
 
 /// Sparse direct solver of the linear static problem (faer's supernodal/simplicial Cholesky);
-/// keeps the sparsity pattern and the symbolic factorisation while the topology and fixities
-/// are unchanged.
+/// keeps the sparsity pattern, the symbolic and the numeric factorisation while the topology,
+/// fixities, geometry and materials are unchanged (a later stage then costs two triangular
+/// solves).
 ///
 /// ```toml
 /// [check]
@@ -100,7 +104,8 @@ impl CheckSolver for ImplicitSolver {
 pub struct Timings {
     /// Fragments, the rigid-motion test, dof numbering and the fingerprint.
     pub checks: f64,
-    /// Pattern (when not reused), element stiffnesses and scatter, right-hand side.
+    /// Pattern (when not reused), element stiffnesses and scatter, right-hand side (only the
+    /// right-hand side when the factor is reused).
     pub assembly: f64,
     /// Symbolic factorisation (0 when reused).
     pub symbolic: f64,
@@ -259,31 +264,53 @@ impl ImplicitSolver {
         }
         let fp = assemble::fingerprint(model, fix);
         let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-        if fp != cache.fingerprint || cache.pattern.is_none() || cache.symbolic.is_none() {
-            *cache = Cache { symbolic_count: cache.symbolic_count, ..Cache::default() };
+        if fp != cache.fingerprint {
+            *cache = Cache { symbolic_count: cache.symbolic_count, fingerprint: fp, ..Cache::default() };
         }
         let t1 = Instant::now();
         tm.checks = (t1 - t0).as_secs_f64();
-        if cache.pattern.is_none() {
-            cache.pattern = Some(assemble::pattern(model, &eq, n));
-        }
-        let (a, rhs) = assemble::values(model, &eq, cache.pattern.as_ref().expect("set above"), f_ext, u_prescribed);
-        let t2 = Instant::now();
-        tm.assembly = (t2 - t1).as_secs_f64();
-        if cache.symbolic.is_none() {
-            let sym = SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e:?}")))?;
-            cache.symbolic = Some(sym);
-            cache.fingerprint = fp;
-            cache.symbolic_count += 1;
-            tm.symbolic = t2.elapsed().as_secs_f64();
-        }
-        let sym = cache.symbolic.clone().expect("set above");
-        drop(cache);
-        let x = match solve_checked(sym, &a, &rhs, &mut tm) {
-            Ok(x) => x,
-            Err(None) => return Err(locate_singular(model, fix, &eq, &fr, &a)),
-            Err(Some(e)) => return Err(FlemError::Solve(format!("{PREFIX}: numeric factorisation failed: {e}"))),
+        // Cold: assemble and factorise (pattern and symbolic reused when present). Warm: the
+        // kept factor and a right-hand side from the internal-force kernel.
+        let (fresh, rhs) = if cache.factor.is_some() {
+            let rhs = assemble::rhs_by_forces(model, &eq, n, fix, f_ext, u_prescribed);
+            tm.assembly = t1.elapsed().as_secs_f64();
+            (None, rhs)
+        } else {
+            if cache.pattern.is_none() {
+                cache.pattern = Some(assemble::pattern(model, &eq, n));
+            }
+            let (a, rhs) = assemble::values(model, &eq, cache.pattern.as_ref().expect("set above"), f_ext, u_prescribed);
+            let t2 = Instant::now();
+            tm.assembly = (t2 - t1).as_secs_f64();
+            if cache.symbolic.is_none() {
+                let sym = SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e:?}")))?;
+                cache.symbolic = Some(sym);
+                cache.symbolic_count += 1;
+                tm.symbolic = t2.elapsed().as_secs_f64();
+            }
+            let sym = cache.symbolic.clone().expect("set above");
+            let llt = match factor(sym, &a, &mut tm) {
+                Ok(l) => l,
+                Err(None) => return Err(locate_singular(model, fix, &eq, &fr, &a)),
+                Err(Some(e)) => return Err(FlemError::Solve(format!("{PREFIX}: numeric factorisation failed: {e}"))),
+            };
+            (Some((a, llt)), rhs)
         };
+        let (a, llt) = match &fresh {
+            Some((a, l)) => (a, l),
+            None => {
+                let (a, l) = cache.factor.as_ref().expect("checked above");
+                (a, l)
+            }
+        };
+        let x = match refined_solve(llt, a, &rhs, &mut tm) {
+            Some(x) => x,
+            None => return Err(locate_singular(model, fix, &eq, &fr, a)),
+        };
+        if let Some(f) = fresh {
+            cache.factor = Some(f);
+        }
+        drop(cache);
         for c in 0..nc {
             for d in 0..2 {
                 let k = eq[2 * c + d];
@@ -322,24 +349,29 @@ fn sym_mul(a: &SparseColMat<usize, f64>, x: &[f64]) -> Vec<f64> {
     y
 }
 
-/// Numeric LLT, solve, one step of iterative refinement. `Err(None)` when the matrix is
-/// (numerically) singular: a non-positive pivot, a non-finite solution, or a refinement
-/// correction above 1e-6 of the solution (its size is about cond(K) x machine epsilon, so a
-/// mechanism whose pivot rounds to a tiny positive value is caught too).
-fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Result<Vec<f64>, Option<String>> {
+/// Numeric LLT on a (reused) symbolic factorisation. `Err(None)`: a non-positive pivot.
+fn factor(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, tm: &mut Timings) -> Result<Llt<usize, f64>, Option<String>> {
     let t0 = Instant::now();
-    let llt = match Llt::try_new_with_symbolic(sym, a.as_ref(), Side::Lower) {
-        Ok(l) => l,
-        Err(faer::sparse::linalg::LltError::Numeric(_)) => return Err(None),
-        Err(e) => return Err(Some(format!("{e:?}"))),
+    let r = match Llt::try_new_with_symbolic(sym, a.as_ref(), Side::Lower) {
+        Ok(l) => Ok(l),
+        Err(faer::sparse::linalg::LltError::Numeric(_)) => Err(None),
+        Err(e) => Err(Some(format!("{e:?}"))),
     };
+    tm.numeric = t0.elapsed().as_secs_f64();
+    r
+}
+
+/// Solve and one step of iterative refinement. `None` when the matrix is (numerically)
+/// singular: a non-finite solution, or a refinement correction above 1e-6 of the solution (its
+/// size is about cond(K) x machine epsilon, so a mechanism whose pivot rounds to a tiny
+/// positive value is caught too).
+fn refined_solve(llt: &Llt<usize, f64>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Option<Vec<f64>> {
     let t1 = Instant::now();
-    tm.numeric = (t1 - t0).as_secs_f64();
     let n = rhs.len();
     let x = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i]));
     let mut x: Vec<f64> = (0..n).map(|i| x[i]).collect();
     if !x.iter().all(|v| v.is_finite()) {
-        return Err(None);
+        return None;
     }
     let kx = sym_mul(a, &x);
     let dx = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i] - kx[i]));
@@ -351,9 +383,15 @@ fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f
     }
     tm.solve = t1.elapsed().as_secs_f64();
     if !nd.is_finite() || nd > 1e-6 * nx {
-        return Err(None);
+        return None;
     }
-    Ok(x)
+    Some(x)
+}
+
+/// Factor, solve, refine; `Err(None)` when singular (see [`factor`], [`refined_solve`]).
+fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Result<Vec<f64>, Option<String>> {
+    let llt = factor(sym, a, tm)?;
+    refined_solve(&llt, a, rhs, tm).ok_or(None)
 }
 
 /// After a failed factorisation: factorise each fragment's block alone and name the first that
