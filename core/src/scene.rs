@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::check::CheckCfg;
 use crate::damping::Damping;
 use crate::element::Plane;
 use crate::error::{FlemError, Result};
@@ -36,6 +37,9 @@ pub struct SceneFile {
     pub cracking: Option<CrackingCfg>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plugins: Option<PluginsCfg>,
+    /// `[check]`: compare each stage with the implicit solve (core/src/check.rs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check: Option<CheckCfg>,
 }
 
 /// `[plugins] load = ["path/to/libfoo.so"]`: dynamic plugin libraries loaded before the rest
@@ -348,6 +352,9 @@ impl Scene {
             let d = toml::from_str("type = \"adaptive\"").map_err(|e| FlemError::config(&name, "solver.damping", format!("is not given and the default \"adaptive\" is not registered in this program ({e}); link flem-plugins or name a damping")))?;
             file.solver.damping = Some(d);
         }
+        if let Some(c) = file.check.as_mut() {
+            c.fill_default(&name)?;
+        }
         let scene = Scene { file, path: path.to_path_buf(), base_dir: base_dir.to_path_buf() };
         scene.validate()?;
         Ok(scene)
@@ -440,6 +447,9 @@ impl Scene {
             if let Some(w) = &c.weibull {
                 range(&n, "cracking.weibull.modulus", w.modulus, 0.5, true, 1000.0, true)?;
             }
+        }
+        if let Some(c) = &f.check {
+            c.validate(&n)?;
         }
         Ok(())
     }

@@ -112,6 +112,10 @@ pub trait Observer {
         Ok(())
     }
     fn progress(&mut self, _p: &Progress) {}
+    /// After a stage has ended (its result is `sim.stages_done.last()`), after its snapshot.
+    fn stage_end(&mut self, _sim: &Simulation, _stage: usize) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// A do-nothing observer.
@@ -556,7 +560,7 @@ impl Simulation {
         if st.snapshot {
             obs.snapshot(self, i, &format!("stage{i}"))?;
         }
-        Ok(())
+        obs.stage_end(self, i)
     }
 
     /// Failure check: proposes and applies splits, then makes every per-cluster array follow.
