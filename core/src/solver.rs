@@ -75,7 +75,7 @@ pub struct StableStep {
 }
 
 /// Per-stage results.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct StageResult {
     pub name: String,
     pub steps: u64,
@@ -112,6 +112,44 @@ pub trait Observer {
         Ok(())
     }
     fn progress(&mut self, _p: &Progress) {}
+    /// Polled once per step: `true` stops the run after this step (a checkpoint, a snapshot
+    /// labelled "interrupted", then `FlemError::Interrupted`).
+    fn should_stop(&mut self, _sim: &Simulation) -> bool {
+        false
+    }
+    /// Polled once per step: `true` asks for a checkpoint now (e.g. a wall-clock interval).
+    fn checkpoint_due(&mut self, _sim: &Simulation) -> bool {
+        false
+    }
+    /// Saves a checkpoint (see `checkpoint.rs`): every `output.checkpoint_every` steps, when
+    /// `checkpoint_due`, at the end of every stage and on interruption.
+    fn checkpoint(&mut self, _sim: &Simulation, _pos: &StagePos) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// Where the stage loop is: enough to re-enter [`Simulation::run_from`] at step `stage_step`
+/// of stage `stage` with the loop's own counters.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StagePos {
+    pub stage: usize,
+    /// Steps done in this stage.
+    pub stage_step: u64,
+    /// Whether `begin_stage` (levels, constraints, damping reset) has been applied.
+    pub begun: bool,
+    /// Splits in this stage so far.
+    pub splits: usize,
+    /// The loop's last unbalanced ratio.
+    pub ratio: f64,
+    /// Wall time already spent in this stage (before an interruption).
+    pub wall_seconds: f64,
+}
+
+impl StagePos {
+    /// The start of stage `i`.
+    pub fn start(i: usize) -> Self {
+        StagePos { stage: i, stage_step: 0, begun: false, splits: 0, ratio: f64::INFINITY, wall_seconds: 0.0 }
+    }
 }
 
 /// A do-nothing observer.
@@ -133,9 +171,9 @@ pub struct Simulation {
     pub last_ratio: f64,
     /// x0 of every cluster.
     pub x0: Vec<[f64; 2]>,
-    f_const: Vec<[f64; 2]>,
-    stats: StepStats,
-    coeffs: DampingCoeffs,
+    pub(crate) f_const: Vec<[f64; 2]>,
+    pub(crate) stats: StepStats,
+    pub(crate) coeffs: DampingCoeffs,
 }
 
 impl Simulation {
@@ -300,7 +338,7 @@ impl Simulation {
         self.scene.file.solver.damping().reset();
     }
 
-    fn refresh_constant_force(&mut self) {
+    pub(crate) fn refresh_constant_force(&mut self) {
         let mut f = std::mem::take(&mut self.f_const);
         self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
         self.f_const = f;
@@ -421,16 +459,30 @@ impl Simulation {
 
     /// Runs every stage.
     pub fn run(&mut self, obs: &mut dyn Observer) -> Result<()> {
-        for i in 0..self.scene.file.stages.len() {
-            self.run_stage(i, obs)?;
+        self.run_from(StagePos::start(0), obs)
+    }
+
+    /// Runs from a position (a restored checkpoint's) to the end of the last stage.
+    pub fn run_from(&mut self, pos: StagePos, obs: &mut dyn Observer) -> Result<()> {
+        for i in pos.stage..self.scene.file.stages.len() {
+            self.run_stage_from(if i == pos.stage { pos.clone() } else { StagePos::start(i) }, obs)?;
         }
         Ok(())
     }
 
     /// Marches stage `i` to equilibrium (or its step limit, or its fixed step count when dynamic).
     pub fn run_stage(&mut self, i: usize, obs: &mut dyn Observer) -> Result<()> {
+        self.run_stage_from(StagePos::start(i), obs)
+    }
+
+    /// [`Self::run_stage`] entered at `pos` (re-entrant: a resumed run continues with the
+    /// loop's counters as they were).
+    pub fn run_stage_from(&mut self, pos: StagePos, obs: &mut dyn Observer) -> Result<()> {
         let t0 = std::time::Instant::now();
-        self.begin_stage(i);
+        let i = pos.stage;
+        if !pos.begun {
+            self.begin_stage(i);
+        }
         let st = self.scene.file.stages[i].clone();
         let sc = &self.scene.file.solver;
         let (max_steps, tol, every) = (st.max_steps.unwrap_or(sc.max_steps), st.tolerance.unwrap_or(sc.tolerance), sc.ratio_every);
@@ -442,11 +494,25 @@ impl Simulation {
             None => (0, false),
         };
         let n_stages = self.scene.file.stages.len();
-        let mut k = 0u64;
+        let ck_every = self.scene.file.output.checkpoint_every;
+        let k0 = pos.stage_step;
+        let mut k = k0;
         let mut converged = false;
-        let mut splits = 0usize;
-        let mut ratio = f64::INFINITY;
+        let mut splits = pos.splits;
+        let mut ratio = pos.ratio;
+        let here = |k: u64, splits: usize, ratio: f64| StagePos { stage: i, stage_step: k, begun: true, splits, ratio, wall_seconds: pos.wall_seconds + t0.elapsed().as_secs_f64() };
         while k < max_steps {
+            if k > k0 {
+                // Once per step, between two steps (the state is whole here).
+                let stop = obs.should_stop(self);
+                if stop || (ck_every > 0 && self.state.step % ck_every == 0) || obs.checkpoint_due(self) {
+                    obs.checkpoint(self, &here(k, splits, ratio))?;
+                }
+                if stop {
+                    obs.snapshot(self, i, "interrupted")?;
+                    return Err(FlemError::Interrupted { step: self.state.step, stage: i, stage_step: k });
+                }
+            }
             self.step()?;
             k += 1;
             if check_every > 0 && k % check_every == 0 {
@@ -487,7 +553,7 @@ impl Simulation {
             steps: k,
             converged,
             final_ratio: ratio,
-            wall_seconds: t0.elapsed().as_secs_f64(),
+            wall_seconds: pos.wall_seconds + t0.elapsed().as_secs_f64(),
             time: self.state.time,
             splits,
             energy_residual: self.ledger.relative_residual(),
@@ -495,6 +561,13 @@ impl Simulation {
         obs.history(self, i)?;
         if st.snapshot {
             obs.snapshot(self, i, &format!("stage{i}"))?;
+        }
+        obs.checkpoint(self, &StagePos::start(i + 1))?;
+        if obs.should_stop(self) {
+            if !st.snapshot {
+                obs.snapshot(self, i, "interrupted")?;
+            }
+            return Err(FlemError::Interrupted { step: self.state.step, stage: i + 1, stage_step: 0 });
         }
         Ok(())
     }
