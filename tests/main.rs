@@ -2,6 +2,7 @@
 //! Every verification test names its reference and tolerance.
 mod common;
 mod configs;
+mod ckpt;
 mod cracking;
 mod interop;
 mod verification;
