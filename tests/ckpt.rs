@@ -341,12 +341,12 @@ fn check_all_whole(dir: &Path, hash: u64, round: usize) -> usize {
 /// A child `flem run` killed with SIGKILL at random moments, again and again (resuming from
 /// its checkpoints in between): after every kill, every file in the folder is whole (old or new
 /// version, never truncated), and the run finally completes with results identical to an
-/// uninterrupted run. Output is made very frequent (a history row every 2 steps, a snapshot
-/// every 100) so that kills land during writes.
+/// uninterrupted run. Output is made very frequent (a history row every 10 steps, a snapshot
+/// every 500, a checkpoint every 250) so that kills land during writes.
 #[test]
 fn sigkill_during_output_leaves_every_file_whole() {
-    let text = std::fs::read_to_string(notch_path()).unwrap().replace("history_every = 50\ncheckpoint_every = 1000", "history_every = 2\nsnapshot_every = 100\ncheckpoint_every = 250");
-    assert!(text.contains("history_every = 2"));
+    let text = std::fs::read_to_string(notch_path()).unwrap().replace("history_every = 50\ncheckpoint_every = 1000", "history_every = 10\nsnapshot_every = 500\ncheckpoint_every = 250");
+    assert!(text.contains("history_every = 10"));
     let (ref_dir, dir) = (tmp("kill-ref"), tmp("kill"));
     std::fs::create_dir_all(&dir).unwrap();
     let sp = dir.with_extension("toml");
@@ -354,6 +354,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
     let sps = sp.to_str().unwrap();
     let r = flem_run(&["run", sps, "--quiet", "--out", ref_dir.to_str().unwrap()]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    flem_plugins::link();
     let hash = checkpoint::scene_hash(&Simulation::new(flem_core::scene::Scene::from_file(&sp).unwrap()).unwrap());
     let seed = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos() as u64;
     eprintln!("sigkill test: random seed {seed}");
@@ -380,6 +381,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
             break;
         }
     }
+    eprintln!("sigkill test: {kills} kills");
     assert!(kills >= 3, "the run finished before it could be killed enough ({kills} kills)");
     let resume = !checkpoint::list(&dir).unwrap().is_empty();
     let mut args = vec!["run", sps, "--quiet", "--out", dir.to_str().unwrap()];

@@ -563,10 +563,9 @@ impl Simulation {
             obs.snapshot(self, i, &format!("stage{i}"))?;
         }
         obs.checkpoint(self, &StagePos::start(i + 1))?;
-        if obs.should_stop(self) {
-            if !st.snapshot {
-                obs.snapshot(self, i, "interrupted")?;
-            }
+        // The last step of a stage is polled here (the run is complete after the last stage).
+        if i + 1 < n_stages && obs.should_stop(self) {
+            obs.snapshot(self, i, "interrupted")?;
             return Err(FlemError::Interrupted { step: self.state.step, stage: i + 1, stage_step: 0 });
         }
         Ok(())
