@@ -4,4 +4,5 @@ mod common;
 mod configs;
 mod cracking;
 mod interop;
+mod paper;
 mod verification;

@@ -241,6 +241,13 @@ pub struct OutputCfg {
     /// zlib-compress VTU arrays.
     #[serde(default)]
     pub compress: bool,
+    /// Also write a snapshot after every failure check that split something (the frames of a
+    /// running crack, as the paper's figure 11).
+    #[serde(default)]
+    pub snapshot_on_split: bool,
+    /// Draw the pictures (PNG and SVG in `plots/`, as `flem plot`) at the end of `flem run`.
+    #[serde(default)]
+    pub plots: bool,
 }
 
 fn default_hist() -> u64 {
@@ -249,7 +256,7 @@ fn default_hist() -> u64 {
 
 impl Default for OutputCfg {
     fn default() -> Self {
-        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false }
+        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false, snapshot_on_split: false, plots: false }
     }
 }
 

@@ -10,8 +10,9 @@ use flem_core::solver::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
-const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
-const DEFAULT_NAME: &str = "configs/default.toml";
+/// The paper's opening model (issue 8): a notched plate cracking in tension, pictures in plots/.
+const DEFAULT_SCENE: &str = include_str!("../../configs/paper/opening.toml");
+const DEFAULT_NAME: &str = "configs/paper/opening.toml";
 
 #[derive(Parser)]
 #[command(name = "flem", version, about = "FLEM: the flow element method with cracking")]
@@ -31,7 +32,13 @@ enum Cmd {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Draw the pictures at the end (as `flem plot`; also when the scene sets output.plots).
+        #[arg(long)]
+        plot: bool,
     },
+    /// Draw a finished run's pictures (PNG and SVG) into RUN_DIR/plots: deformed mesh frames,
+    /// crack sequence, load-displacement curve.
+    Plot { run_dir: PathBuf },
     /// Validate a scene (and build its mesh) without running it; exit 1 with the message on error.
     Check { scenes: Vec<PathBuf> },
     /// List the registered plugins (kind and name).
@@ -43,7 +50,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
         None => run_default(),
-        Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
+        Some(Cmd::Run { scene, out, quiet, plot }) => load(&scene).and_then(|s| run(s, out, quiet, plot)),
+        Some(Cmd::Plot { run_dir }) => plot(&run_dir),
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Plugins) => {
             for (kind, name) in flem_plugins::registry() {
@@ -66,9 +74,9 @@ fn load(path: &Path) -> Result<Scene> {
 }
 
 fn run_default() -> Result<()> {
-    let scene = Scene::from_str(DEFAULT_SCENE, Path::new(DEFAULT_NAME), Path::new("configs"))?;
+    let scene = Scene::from_str(DEFAULT_SCENE, Path::new(DEFAULT_NAME), Path::new("configs/paper"))?;
     eprintln!("flem: no scene given, running the default scene {DEFAULT_NAME} (see `flem --help`)");
-    run(scene, None, false)
+    run(scene, None, false, false)
 }
 
 fn check(scenes: &[PathBuf]) -> Result<()> {
@@ -83,12 +91,13 @@ fn check(scenes: &[PathBuf]) -> Result<()> {
     Ok(())
 }
 
-fn run(scene: Scene, out: Option<PathBuf>, quiet: bool) -> Result<()> {
+fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, plot_flag: bool) -> Result<()> {
     let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
     // Fail on an unwritable folder before any step is computed.
     flem_core::output::prepare_dir(&out)?;
     let t0 = std::time::Instant::now();
+    let plots = plot_flag || scene.file.output.plots;
     let mut sim = Simulation::new(scene)?;
     for w in &sim.warnings {
         eprintln!("warning: {w}");
@@ -119,5 +128,14 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool) -> Result<()> {
         eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
     }
     eprintln!("energy residual {:.2e} of the work done; wall time {:.2} s; results in {}", sim.ledger.relative_residual(), t0.elapsed().as_secs_f64(), out.display());
+    if plots {
+        plot(&out)?;
+    }
+    Ok(())
+}
+
+fn plot(dir: &Path) -> Result<()> {
+    let rep = flem_plot::plot_run(dir).with_context(|| format!("drawing the pictures of {}", dir.display()))?;
+    eprintln!("{} pictures (PNG + SVG) in {} (displacements x {})", rep.files.len(), dir.join("plots").display(), rep.mag);
     Ok(())
 }
