@@ -176,7 +176,8 @@ pub fn fmt_num(v: f64) -> String {
     if v == v.round() && v.abs() < 1e6 {
         format!("{}", v as i64)
     } else {
-        format!("{v:.4}")
+        let t = format!("{v:.4}");
+        t.trim_end_matches('0').trim_end_matches('.').to_string()
     }
 }
 
@@ -199,8 +200,12 @@ pub fn curve<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, xla
         .y_label_area_size(80)
         .build_cartesian_2d((x0 - dx)..(x1 + dx), (y0 - dy)..(y1 + dy))
         .map_err(err)?;
-    chart.configure_mesh().x_desc(xlabel).y_desc(ylabel).label_style(("sans-serif", 15)).axis_desc_style(("sans-serif", 17)).draw().map_err(err)?;
-    chart.draw_series(LineSeries::new(line.iter().copied(), BLUE.stroke_width(2))).map_err(err)?.label("history").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    chart.configure_mesh().disable_x_mesh().disable_y_mesh().x_desc(xlabel).y_desc(ylabel).label_style(("sans-serif", 15)).axis_desc_style(("sans-serif", 17)).draw().map_err(err)?;
+    let faint = RGBColor(120, 150, 230);
+    chart.draw_series(LineSeries::new(line.iter().copied(), faint.stroke_width(1))).map_err(err)?.label("history (relaxation path)").legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], faint.stroke_width(1)));
+    // The static curve: the unloaded state, then the stage ends in equilibrium.
+    let path: Vec<(f64, f64)> = std::iter::once((0.0, 0.0)).chain(ends.iter().filter(|e| e.2).map(|e| (e.0, e.1))).collect();
+    chart.draw_series(LineSeries::new(path, BLACK.stroke_width(2))).map_err(err)?.label("equilibrium states").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
     chart.draw_series(ends.iter().filter(|e| e.2).map(|e| Circle::new((e.0, e.1), 5, BLACK.filled()))).map_err(err)?.label("stage end, in equilibrium").legend(|(x, y)| Circle::new((x + 10, y), 5, BLACK.filled()));
     chart.draw_series(ends.iter().filter(|e| !e.2).map(|e| Circle::new((e.0, e.1), 5, OPEN.stroke_width(2)))).map_err(err)?.label("stage end, step limit (no equilibrium)").legend(|(x, y)| Circle::new((x + 10, y), 5, OPEN.stroke_width(2)));
     chart.configure_series_labels().position(SeriesLabelPosition::LowerRight).background_style(WHITE.mix(0.85)).border_style(BLACK).label_font(("sans-serif", 15)).draw().map_err(err)?;

@@ -53,6 +53,9 @@ pub fn render(stem: &Path, (w, h): (u32, u32), f: impl Fn(&DrawingArea<BitMapBac
         let mut enc = png::Encoder::new(&mut png_bytes, w, h);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::Best);
+        enc.set_filter(png::FilterType::Paeth);
+        enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
         let mut wr = enc.write_header().map_err(|e| fail("png", err(e)))?;
         wr.write_image_data(&buf).map_err(|e| fail("png", err(e)))?;
     }
