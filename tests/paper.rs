@@ -234,3 +234,15 @@ fn paper_plot_writes_frames_sequence_and_curve() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `flem plot` on a folder that is not a run: a clear error naming results.pvd, no picture and
+/// no plots/ folder written. Reference: the error contract (HELPERS: bad input names the file).
+#[test]
+fn paper_plot_refuses_a_folder_without_results() {
+    let dir = std::env::temp_dir().join(format!("flem_paper_noplot_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = flem_plot::plot_run(&dir).unwrap_err().to_string();
+    assert!(e.contains("results.pvd") && e.contains("run folder"), "{e}");
+    assert!(!dir.join("plots").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
