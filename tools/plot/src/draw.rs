@@ -144,9 +144,9 @@ pub fn frame<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, s: &Snapshot, in
     let text = |area: &DrawingArea<DB, Shift>, t: &str, x: i32, y: i32| area.draw(&Text::new(t.to_string(), (x, y), font.clone())).map_err(err);
     text(&bottom, &info.heading, 12, 4)?;
     let scale = if info.stress_ref > 0.0 { format!("; stress cross arm {:.3e} = {:.2} length units", info.stress_ref, info.stress_len) } else { String::new() };
-    text(&bottom, &format!("{}   displacements x {}{}", info.loads, fmt_num(mag), if info.compact { String::new() } else { scale }), 12, 4 + fs as i32 + 4)?;
+    text(&bottom, &format!("{}   displacements x {}{}", info.loads, fmt_num(mag), if info.compact { String::new() } else { scale }), 12, 4 + fs + 4)?;
     if !info.compact {
-        let y = 4 + 2 * (fs as i32 + 8) + 6;
+        let y = 4 + 2 * (fs + 8) + 6;
         let mut x = 12;
         let items: [(&str, RGBColor, u32, bool); 5] = [("initial", GREY, 1, true), ("deformed", BLACK, 2, false), ("joined edge", JOINED, 1, true), ("separated (both ends)", OPEN, 4, false), ("separated (one end)", HALF, 4, false)];
         for (label, col, wid, dashed) in items {
@@ -160,9 +160,9 @@ pub fn frame<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, s: &Snapshot, in
                 bottom.draw(&PathElement::new(vec![(x, y + 8), (x + 36, y + 8)], col.stroke_width(wid))).map_err(err)?;
             }
             text(&bottom, label, x + 42, y)?;
-            x += 42 + (label.len() as i32) * (fs as i32) * 55 / 100 + 24;
+            x += 42 + (label.len() as i32) * (fs) * 55 / 100 + 24;
         }
-        let y2 = y + fs as i32 + 10;
+        let y2 = y + fs + 10;
         bottom.draw(&PathElement::new(vec![(12, y2 + 8), (48, y2 + 8)], TENSION.stroke_width(2))).map_err(err)?;
         text(&bottom, "principal stress, tension", 54, y2)?;
         bottom.draw(&PathElement::new(vec![(300, y2 + 8), (336, y2 + 8)], COMPRESSION.stroke_width(2))).map_err(err)?;
