@@ -6,4 +6,5 @@ mod configs;
 mod ckpt;
 mod cracking;
 mod interop;
+mod paper;
 mod verification;
