@@ -295,6 +295,20 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     let pts = sweep(&scene, &text, &sw, analytic.as_ref())?;
     flem_core::output::atomic_write(&out.join("chart.csv"), csv(&pts).as_bytes())?;
     flem_core::output::atomic_write(&out.join("chart.json"), serde_json::to_string_pretty(&pts)?.as_bytes())?;
-    eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());
+    let kind = pts.iter().find(|p| p.method == "explicit").map_or("implicit", |p| p.error_kind());
+    let label = match kind {
+        "analytic" => "relative error vs analytic",
+        "reference" => "rel. L2 error vs refined implicit",
+        _ => "rel. L2 error vs implicit (same mesh)",
+    };
+    let cp: Vec<flem_plot::charts::ChartPoint> = pts
+        .iter()
+        .filter_map(|p| {
+            let series = if p.method == "implicit" { "implicit (faer)".to_string() } else { format!("{} x{}", p.damping, p.refine) };
+            p.error().map(|e| flem_plot::charts::ChartPoint { series, wall_seconds: p.wall_seconds, error: e, pareto: p.pareto })
+        })
+        .collect();
+    flem_plot::charts::speed_accuracy(&out.join("chart"), &format!("speed vs accuracy: {}", scene.file.title), label, &cp)?;
+    eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json, chart.png, chart.svg in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());
     Ok(())
 }

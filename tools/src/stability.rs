@@ -179,6 +179,15 @@ pub fn run(out: Option<PathBuf>, quick: bool) -> Result<()> {
     flem_core::output::atomic_write(&out.join("stability.csv"), csv(&rows).as_bytes())?;
     flem_core::output::atomic_write(&out.join("stability.json"), serde_json::to_string_pretty(&rows)?.as_bytes())?;
     flem_core::output::atomic_write(&out.join("stability.md"), markdown(&rows).as_bytes())?;
-    eprintln!("{} rows: stability.csv, stability.json, stability.md in {}", rows.len(), out.display());
+    let mut d = flem_plot::charts::StabilityData::default();
+    for r in &rows {
+        match r.study.as_str() {
+            "explicit_dt" => d.thresholds.push((r.case.clone(), r.measured)),
+            "damping" if r.case != "adaptive" => d.damping.push((r.case.clone(), r.value, r.measured, r.outcome == "at rest")),
+            _ => {}
+        }
+    }
+    flem_plot::charts::stability(&out.join("stability"), &d)?;
+    eprintln!("{} rows: stability.csv, stability.json, stability.md, stability.png, stability.svg in {}", rows.len(), out.display());
     Ok(())
 }

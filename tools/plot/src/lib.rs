@@ -12,6 +12,7 @@
 //! Text uses DejaVu Sans, bundled (`fonts/DejaVuSans.ttf`, Bitstream Vera licence with public
 //! domain DejaVu changes: `fonts/LICENSE-DejaVu.txt`) and registered with plotters' `ab_glyph`
 //! feature, so no system font or library is needed.
+pub mod charts;
 pub mod draw;
 pub mod run;
 
