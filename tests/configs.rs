@@ -166,5 +166,8 @@ fn chart_sweeps_and_marks_the_pareto_front() {
         assert!(num(r, 9) < 1e-4, "explicit vs implicit at tol 1e-7: {r:?}");
     }
     assert!(rows.iter().any(|r| r[12] == "true"));
+    let png = std::fs::read(dir.join("chart.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000, "chart.png");
+    assert!(std::fs::read_to_string(dir.join("chart.svg")).unwrap().contains("Pareto front"));
     let _ = std::fs::remove_dir_all(&dir);
 }
