@@ -296,10 +296,10 @@ pub struct CrackingCfg {
     #[serde(default = "yes")]
     pub at_equilibrium: bool,
     /// With `at_equilibrium`: also check when the stage has not come to rest, i.e. its best
-    /// unbalanced-force ratio has not halved within this many steps (default 10000; 0: off).
-    /// A fragment held by one node (a hinge left by a running crack) is a mechanism under
-    /// load control and never reaches equilibrium; without this its last node would never be
-    /// checked.
+    /// unbalanced-force ratio has not halved within this many steps (default 0: off). A
+    /// fragment held by one node (a hinge left by a running crack) is a mechanism under load
+    /// control and never reaches equilibrium, so its last node is never checked without this;
+    /// with it, the checks see the transient states of that mechanism (not static ones).
     #[serde(default = "default_stall_steps")]
     pub stall_steps: u64,
     /// At most this many splits per check (the most critical first).
@@ -314,7 +314,7 @@ fn default_check_every() -> u64 {
     10
 }
 fn default_stall_steps() -> u64 {
-    10_000
+    0
 }
 fn default_max_splits() -> usize {
     1

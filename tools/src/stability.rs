@@ -138,7 +138,7 @@ fn implicit_after_separation(rows: &mut Vec<Row>) -> Result<()> {
     // A plate with a pre-cut side notch over 3/4 of its width and a weak ligament (Rankine,
     // sigma_t = 0.5 under a traction of 1): the crack runs and leaves the top part held by a
     // hinge (or free): a mechanism, which the explicit run carries on with.
-    let text = "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 2.0\nnx = 4\nny = 4\nnotch = { side = \"left\", y = 1.0, depth = 1.5 }\n[model]\nseparated = [\"notch\"]\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[[support]]\nnodes = \"bottom\"\nfix = \"xy\"\n[[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"top\"\nvalue = [0.0, 1.0]\n[cracking]\n[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 0.5\n[cracking.separation]\ntype = \"sigma1_nearest\"\n[[stage]]\nlevels = { pull = 1.0 }\nmax_steps = 60000\n";
+    let text = "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 2.0\nnx = 4\nny = 4\nnotch = { side = \"left\", y = 1.0, depth = 1.5 }\n[model]\nseparated = [\"notch\"]\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[[support]]\nnodes = \"bottom\"\nfix = \"xy\"\n[[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"top\"\nvalue = [0.0, 1.0]\n[cracking]\nstall_steps = 10000\n[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 0.5\n[cracking.separation]\ntype = \"sigma1_nearest\"\n[[stage]]\nlevels = { pull = 1.0 }\nmax_steps = 60000\n";
     let mut s = Simulation::new(scene(text)?)?;
     s.run(&mut NoOutput)?;
     let frags = s.model.topo.fragments().1;
