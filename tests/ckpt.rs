@@ -359,7 +359,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
     let seed = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos() as u64;
     eprintln!("sigkill test: random seed {seed}");
     let mut rng = seed;
-    let mut kills = 0;
+    let (mut kills, mut checked) = (0, 0);
     for round in 0..12 {
         let resume = !checkpoint::list(&dir).unwrap().is_empty();
         let mut args = vec!["run", sps, "--quiet", "--out", dir.to_str().unwrap()];
@@ -368,20 +368,21 @@ fn sigkill_during_output_leaves_every_file_whole() {
         }
         let mut child = Command::new(FLEM).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
         rng = flem_core::weibull::splitmix64(rng);
-        std::thread::sleep(Duration::from_millis(30 + rng % 400));
+        std::thread::sleep(Duration::from_millis(60 + rng % 400));
         let done = child.try_wait().unwrap().is_some();
         if !done {
             child.kill().unwrap();
             kills += 1;
         }
         child.wait().unwrap();
-        let n = check_all_whole(&dir, hash, round);
-        assert!(n > 0, "round {round}: nothing written");
+        // A kill before the first write leaves nothing: legitimate, counted below.
+        checked += check_all_whole(&dir, hash, round);
         if done {
             break;
         }
     }
-    eprintln!("sigkill test: {kills} kills");
+    eprintln!("sigkill test: {kills} kills, {checked} files checked whole");
+    assert!(checked >= 10, "too few files written to check ({checked})");
     assert!(kills >= 3, "the run finished before it could be killed enough ({kills} kills)");
     let resume = !checkpoint::list(&dir).unwrap().is_empty();
     let mut args = vec!["run", sps, "--quiet", "--out", dir.to_str().unwrap()];

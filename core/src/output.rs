@@ -239,7 +239,10 @@ impl OutputWriter {
             let _ = write!(history, ",{n}_ux,{n}_uy");
         }
         history.push_str(",external_work,kinetic,strain,damping,energy_residual,unbalanced_ratio\n");
-        let w = OutputWriter { dir: dir.to_path_buf(), snapshots: Vec::new(), history, splits: String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"), compress: sim.scene.file.output.compress, probes, quiet: false, on_progress: None, stop: None, last_checkpoint: None, ck_seq: 0, ck_keep: sim.scene.file.output.checkpoint_keep, ck_seconds: sim.scene.file.output.checkpoint_seconds, ck_time: std::time::Instant::now(), scene_hash: crate::checkpoint::scene_hash(sim) };
+        // A new run in a folder holding an older run's checkpoints numbers its own after them,
+        // so that they are the newest (and the old ones get pruned); `resume` renumbers.
+        let ck_seq = crate::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
+        let w = OutputWriter { dir: dir.to_path_buf(), snapshots: Vec::new(), history, splits: String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"), compress: sim.scene.file.output.compress, probes, quiet: false, on_progress: None, stop: None, last_checkpoint: None, ck_seq, ck_keep: sim.scene.file.output.checkpoint_keep, ck_seconds: sim.scene.file.output.checkpoint_seconds, ck_time: std::time::Instant::now(), scene_hash: crate::checkpoint::scene_hash(sim) };
         atomic_write(&dir.join("scene.resolved.toml"), sim.scene.resolved_toml().as_bytes())?;
         Ok(w)
     }
