@@ -4,4 +4,5 @@ mod common;
 mod configs;
 mod cracking;
 mod interop;
+mod parallel;
 mod verification;

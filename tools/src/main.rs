@@ -9,6 +9,8 @@ use flem_core::scene::Scene;
 use flem_core::solver::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod bench;
+
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
 const DEFAULT_NAME: &str = "configs/default.toml";
@@ -36,6 +38,34 @@ enum Cmd {
     Check { scenes: Vec<PathBuf> },
     /// List the registered plugins (kind and name).
     Plugins,
+    /// Benchmarks, printed as JSON on stdout.
+    Bench {
+        #[command(subcommand)]
+        what: BenchWhat,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchWhat {
+    /// Explicit step throughput: bare kernel (ns per element-update, 1 and N threads, Q4/T3),
+    /// memory per element, full step against the bare step, failure checks every k steps.
+    Step {
+        /// Element counts of the kernel runs (2 x 1 rectangle).
+        #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000,1000000")]
+        sizes: Vec<usize>,
+        /// Thread counts (0: one per core).
+        #[arg(long, value_delimiter = ',', default_value = "1,2")]
+        threads: Vec<usize>,
+        /// Element kinds: q4, t3.
+        #[arg(long, value_delimiter = ',', default_value = "q4,t3")]
+        kinds: Vec<String>,
+        /// Element counts of the full-step and failure-check runs.
+        #[arg(long, value_delimiter = ',', default_value = "10000,100000")]
+        step_sizes: Vec<usize>,
+        /// Seconds spent per timing (median of 5 batches).
+        #[arg(long, default_value_t = 1.0)]
+        min_time: f64,
+    },
 }
 
 fn main() -> ExitCode {
@@ -45,6 +75,7 @@ fn main() -> ExitCode {
         None => run_default(),
         Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
         Some(Cmd::Check { scenes }) => check(&scenes),
+        Some(Cmd::Bench { what: BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time } }) => bench_step(sizes, threads, kinds, step_sizes, min_time),
         Some(Cmd::Plugins) => {
             for (kind, name) in flem_plugins::registry() {
                 println!("{kind:<12} {name}");
@@ -59,6 +90,20 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_sizes: Vec<usize>, min_time: f64) -> Result<()> {
+    let kinds = kinds
+        .iter()
+        .map(|k| match k.as_str() {
+            "q4" => Ok(flem_core::mesh::CellKind::Q4),
+            "t3" => Ok(flem_core::mesh::CellKind::T3),
+            other => anyhow::bail!("--kinds: \"{other}\" is incorrect; it must be q4 or t3"),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    anyhow::ensure!(min_time > 0.0 && min_time.is_finite(), "--min-time = {min_time} is incorrect; it must be > 0");
+    anyhow::ensure!(sizes.iter().chain(&step_sizes).all(|&n| (8..=16_000_000).contains(&n)), "--sizes/--step-sizes: each must be in [8, 16000000]");
+    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes })
 }
 
 fn load(path: &Path) -> Result<Scene> {
