@@ -53,6 +53,10 @@ pub trait Block: Send + Sync {
     fn max_omega_bound(&self) -> f64;
 }
 
+/// Blocks smaller than this run on the calling thread (waking the pool costs more than it
+/// saves; the result is the same either way).
+const PAR_MIN_ELEMS: usize = 4096;
+
 pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     pub region: String,
     pub mat: Material,
@@ -146,7 +150,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         let shared = SharedForces::new(f);
         for colour in &self.sched.colours {
             match pool {
-                Some(pool) if colour.len() > 1 => {
+                Some(pool) if colour.len() > 1 && self.len() >= PAR_MIN_ELEMS => {
                     use rayon::prelude::*;
                     pool.install(|| colour.par_iter().for_each(|&k| self.run_chunk(k as usize, u, shared)));
                 }

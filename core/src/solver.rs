@@ -162,10 +162,13 @@ impl NodeCtx<'_> {
     #[inline]
     fn update(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; 9] {
         let (dt, c1, c2, beta) = (self.dt, self.c1, self.c2, self.beta);
+        let inv_dt = 1.0 / dt;
         let (mut w, mut dmp, mut pw, mut pd, mut ke, mut keh, mut ufi, mut umu, mut uf) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         for (i, (uc, vc)) in u.iter_mut().zip(v.iter_mut()).enumerate() {
             let c = c0 + i;
             let m = self.mass[c];
+            // One division per node instead of two per dof (the ledger stays exact to round-off).
+            let dt_m = dt / m;
             let fix = self.fix[c];
             for d in 0..2 {
                 let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
@@ -175,8 +178,8 @@ impl NodeCtx<'_> {
                 if fix & (1 << d) == 0 {
                     let f = fe - fi;
                     let s = if vm > 0.0 { 1.0 } else if vm < 0.0 { -1.0 } else { 0.0 };
-                    vp = (c1 * vm + dt * (f - beta * f.abs() * s) / m) * c2;
-                    let fd = f - m * (vp - vm) / dt;
+                    vp = (c1 * vm + dt_m * (f - beta * f.abs() * s)) * c2;
+                    let fd = f - m * (vp - vm) * inv_dt;
                     let va = 0.5 * (vm + vp) * dt;
                     w += fe * va;
                     dmp += fd * va;

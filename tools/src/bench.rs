@@ -32,23 +32,34 @@ pub struct StepOpts {
     pub step_sizes: Vec<usize>,
 }
 
-/// Median seconds per call of `f`: 5 batches of at least `min_time / 5` each.
-fn time_per_call(min_time: f64, mut f: impl FnMut()) -> f64 {
+/// CPU seconds used so far by every thread of this process (Linux `/proc/self/task/*/schedstat`,
+/// nanosecond resolution; 0 elsewhere). On a shared machine the wall time counts the time other
+/// processes hold the cores; the CPU time does not.
+fn cpu_seconds() -> f64 {
+    let Ok(dir) = std::fs::read_dir("/proc/self/task") else { return 0.0 };
+    dir.filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("schedstat")).ok())
+        .filter_map(|s| s.split_whitespace().next()?.parse::<f64>().ok())
+        .sum::<f64>()
+        * 1e-9
+}
+
+/// Median (wall, CPU) seconds per call of `f`: 5 batches of at least `min_time / 5` each.
+fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
     f();
     let t0 = Instant::now();
     f();
     let one = t0.elapsed().as_secs_f64().max(1e-9);
     let reps = ((min_time / 5.0 / one).ceil() as usize).max(1);
-    let mut batches: Vec<f64> = (0..5)
+    let mut batches: Vec<(f64, f64)> = (0..5)
         .map(|_| {
-            let t = Instant::now();
+            let (t, c) = (Instant::now(), cpu_seconds());
             for _ in 0..reps {
                 f();
             }
-            t.elapsed().as_secs_f64() / reps as f64
+            (t.elapsed().as_secs_f64() / reps as f64, (cpu_seconds() - c) / reps as f64)
         })
         .collect();
-    batches.sort_by(f64::total_cmp);
+    batches.sort_by(|a, b| a.0.total_cmp(&b.0));
     batches[2]
 }
 
@@ -92,7 +103,7 @@ fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts) -> Result<Val
     let mut per_thread = Vec::new();
     for &t in &o.threads {
         m.set_threads(t)?;
-        let s = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
+        let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
         m.internal_forces(&u, &mut f);
         let identical = match &reference {
             None => {
@@ -101,7 +112,7 @@ fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts) -> Result<Val
             }
             Some(r) => r.iter().zip(&f).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits()),
         };
-        per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "bit_identical_to_first": identical}));
+        per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "cpu_ns_per_elem_update": cpu * 1e9 / ne as f64, "bit_identical_to_first": identical}));
     }
     let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
     // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
@@ -133,16 +144,17 @@ fn sim(text: &str) -> Result<Simulation> {
     Ok(Simulation::new(Scene::from_str(text, Path::new("<bench scene>"), Path::new("."))?)?)
 }
 
-/// Seconds per step of a whole dynamic stage of `steps` steps (best of 3 runs).
-fn stage_time(text: &str, steps: u64) -> Result<f64> {
-    let mut best = f64::INFINITY;
+/// (wall, CPU) seconds per step of a whole dynamic stage of `steps` steps (best of 3 runs each).
+fn stage_time(text: &str, steps: u64) -> Result<(f64, f64)> {
+    let (mut wall, mut cpu) = (f64::INFINITY, f64::INFINITY);
     for _ in 0..3 {
         let mut s = sim(text)?;
-        let t = Instant::now();
+        let (t, c) = (Instant::now(), cpu_seconds());
         s.run_stage(0, &mut NoOutput)?;
-        best = best.min(t.elapsed().as_secs_f64() / steps as f64);
+        wall = wall.min(t.elapsed().as_secs_f64() / steps as f64);
+        cpu = cpu.min((cpu_seconds() - c) / steps as f64);
     }
-    Ok(best)
+    Ok((wall, cpu))
 }
 
 /// Full step against the bare kernel and a bare step; failure checks every k steps.
@@ -150,12 +162,12 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
     let mut s = sim(&scene_text(nx, ny, kind, threads, 1, None))?;
     let ne = s.model.n_elems() as f64;
     s.run_stage(0, &mut NoOutput)?;
-    let step = time_per_call(o.min_time, || s.step().expect("bench scene is stable"));
+    let (step, step_cpu) = time_per_call(o.min_time, || s.step().expect("bench scene is stable"));
     let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
-    let kernel = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
+    let (kernel, kernel_cpu) = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
     // The bare explicit step: kernel plus the textbook update (no damping, no ledger).
     let (mut bu, mut bv, fe, m, fix, dt) = (s.state.u.clone(), s.state.v.clone(), s.state.f_ext.clone(), s.state.mass.clone(), s.state.fix.clone(), s.dt);
-    let bare = time_per_call(o.min_time, || {
+    let (bare, bare_cpu) = time_per_call(o.min_time, || {
         s.model.internal_forces(&bu, &mut f);
         for c in 0..bu.len() {
             for d in 0..2 {
@@ -168,24 +180,32 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
     });
     let n_steps = ((2.0 * o.min_time / step).ceil() as u64).clamp(200, 100_000);
     let n_steps = n_steps.div_ceil(100) * 100;
-    let stage = stage_time(&scene_text(nx, ny, kind, threads, n_steps, None), n_steps)?;
+    let (stage, stage_cpu) = stage_time(&scene_text(nx, ny, kind, threads, n_steps, None), n_steps)?;
     let mut checks = Vec::new();
     for k in [1u64, 10, 100] {
         let t = stage_time(&scene_text(nx, ny, kind, threads, n_steps, Some(k)), n_steps)?;
         checks.push((k, t));
     }
-    let per_check = checks[0].1 - stage;
+    // The share a check every k steps should cost, from the cost of one check (k = 1 run).
+    let per_check = checks[0].1 .0 - stage;
+    let per_check_cpu = checks[0].1 .1 - stage_cpu;
     let checks: Vec<Value> = checks
         .iter()
-        .map(|&(k, t)| json!({"every": k, "us_per_step": t * 1e6, "overhead": t / stage - 1.0, "share_predicted": per_check / (k as f64 * stage)}))
+        .map(|&(k, (t, c))| {
+            json!({"every": k, "us_per_step": t * 1e6, "overhead": t / stage - 1.0, "share_predicted": per_check / (k as f64 * stage),
+                   "cpu_us_per_step": c * 1e6, "cpu_overhead": c / stage_cpu - 1.0, "cpu_share_predicted": per_check_cpu / (k as f64 * stage_cpu)})
+        })
         .collect();
     Ok(json!({
         "kind": kind_name(kind), "elements": ne, "threads": s.model.threads(), "dt": s.dt, "stage_steps": n_steps,
         "ns_per_elem": {"kernel": kernel * 1e9 / ne, "bare_step": bare * 1e9 / ne, "step": step * 1e9 / ne, "stage": stage * 1e9 / ne},
+        "cpu_stage_over_bare_step": stage_cpu / bare_cpu,
+        "cpu_ns_per_elem": {"kernel": kernel_cpu * 1e9 / ne, "bare_step": bare_cpu * 1e9 / ne, "step": step_cpu * 1e9 / ne},
         "step_over_kernel": step / kernel,
+        "cpu_step_over_bare_step": step_cpu / bare_cpu,
         "step_over_bare_step": step / bare,
         "stage_over_bare_step": stage / bare,
-        "failure_check": {"us_per_check": per_check * 1e6, "every_k": checks},
+        "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks},
     }))
 }
 
