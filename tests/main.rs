@@ -7,4 +7,5 @@ mod ckpt;
 mod cracking;
 mod interop;
 mod paper;
+mod parallel;
 mod verification;

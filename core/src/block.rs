@@ -3,8 +3,9 @@
 //! dispatch per element and no allocation inside a step.
 use std::marker::PhantomData;
 
-use crate::element::{self, Dmat, Material, Shape};
+use crate::element::{self, Dmat, Material};
 use crate::ids::ElemId;
+use crate::kernel::{Blocked, Schedule, SharedForces, LANES};
 use crate::mesh::CellKind;
 
 /// A batch of elements of one kind and one material, seen by the solver.
@@ -25,7 +26,15 @@ pub trait Block: Send + Sync {
     fn remap(&mut self, i: usize, a: usize, cluster: u32);
     /// `f[c] += F_int` of every element, with `u` the cluster displacements.
     fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]);
-    /// `f[c] += F_int` for the local elements in `range` only (parallel split of a block).
+    /// `f[c] += F_int` of every element with the blocked kernel, the chunks of each colour
+    /// spread over `pool` when given; the result does not depend on the pool (see `kernel`).
+    fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>);
+    /// Builds the blocked kernel data and the parallel schedule (after the last `push`).
+    fn prepare(&mut self, n_clusters: usize);
+    /// Bytes held by the block (geometry, connectivity, kernel data, schedule).
+    fn memory_bytes(&self) -> usize;
+    /// `f[c] += F_int` for the local elements in `range` only, element by element with the
+    /// reference kernel `element::internal_force` (tests compare the blocked kernel with it).
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]);
     /// `m[c] += ` lumped mass of every element.
     fn add_mass(&self, m: &mut [f64]);
@@ -44,19 +53,57 @@ pub trait Block: Send + Sync {
     fn max_omega_bound(&self) -> f64;
 }
 
-pub struct ElementBlock<S: Shape<N>, const N: usize> {
+/// Blocks smaller than this run on the calling thread (waking the pool costs more than it
+/// saves; the result is the same either way).
+const PAR_MIN_ELEMS: usize = 4096;
+
+pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     pub region: String,
     pub mat: Material,
     pub d: Dmat,
     pub elems: Vec<ElemId>,
     pub x: Vec<[[f64; 2]; N]>,
     pub conn: Vec<[u32; N]>,
+    /// Blocked kernel data, one pack per `LANES` elements (built by `prepare`).
+    packs: Vec<S::Pack>,
+    /// D with thickness and Gauss weight folded in.
+    dk: [f64; 3],
+    sched: Schedule,
     _s: PhantomData<S>,
 }
 
-impl<S: Shape<N>, const N: usize> ElementBlock<S, N> {
+impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     pub fn new(region: String, mat: Material) -> Self {
-        ElementBlock { region, d: mat.dmat(), mat, elems: Vec::new(), x: Vec::new(), conn: Vec::new(), _s: PhantomData }
+        let d = mat.dmat();
+        ElementBlock { region, d, dk: S::scaled_d(&d, mat.thickness), mat, elems: Vec::new(), x: Vec::new(), conn: Vec::new(), packs: Vec::new(), sched: Schedule::default(), _s: PhantomData }
+    }
+
+    /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.
+    #[inline(always)]
+    fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        let cp = self.sched.chunk_packs;
+        let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
+        let mut ug = [[[0.0; LANES]; 2]; N];
+        let mut fg = [[[0.0; LANES]; 2]; N];
+        for p in p0..p1 {
+            let e0 = p * LANES;
+            let conn = &self.conn[e0..(e0 + LANES).min(self.conn.len())];
+            for (l, c) in conn.iter().enumerate() {
+                for a in 0..N {
+                    let ua = u[c[a] as usize];
+                    ug[a][0][l] = ua[0];
+                    ug[a][1][l] = ua[1];
+                }
+            }
+            S::forces(&self.packs[p], &self.dk, &ug, &mut fg);
+            for (l, c) in conn.iter().enumerate() {
+                for a in 0..N {
+                    // SAFETY: chunks running at the same time belong to one colour and write
+                    // disjoint clusters (Schedule::build).
+                    unsafe { f.add(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
+                }
+            }
+        }
     }
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
         self.elems.push(e);
@@ -70,7 +117,7 @@ impl<S: Shape<N>, const N: usize> ElementBlock<S, N> {
     }
 }
 
-impl<S: Shape<N>, const N: usize> Block for ElementBlock<S, N> {
+impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
     fn kind(&self) -> CellKind {
         S::KIND
     }
@@ -96,7 +143,32 @@ impl<S: Shape<N>, const N: usize> Block for ElementBlock<S, N> {
         self.conn[i][a] = cluster;
     }
     fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
-        self.add_internal_forces_range(0..self.len(), u, f)
+        self.add_internal_forces_pool(u, f, None)
+    }
+    fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
+        assert_eq!(self.packs.len(), self.len().div_ceil(LANES), "ElementBlock::prepare was not called after the last push");
+        let shared = SharedForces::new(f);
+        for colour in &self.sched.colours {
+            match pool {
+                Some(pool) if colour.len() > 1 && self.len() >= PAR_MIN_ELEMS => {
+                    use rayon::prelude::*;
+                    pool.install(|| colour.par_iter().for_each(|&k| self.run_chunk(k as usize, u, shared)));
+                }
+                _ => colour.iter().for_each(|&k| self.run_chunk(k as usize, u, shared)),
+            }
+        }
+    }
+    fn prepare(&mut self, n_clusters: usize) {
+        self.packs = self.x.chunks(LANES).map(S::pack).collect();
+        self.sched = Schedule::build(&self.conn, n_clusters);
+    }
+    fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.elems.capacity() * size_of::<ElemId>()
+            + self.x.capacity() * size_of::<[[f64; 2]; N]>()
+            + self.conn.capacity() * size_of::<[u32; N]>()
+            + self.packs.capacity() * size_of::<S::Pack>()
+            + self.sched.colours.iter().map(|c| c.capacity() * 4).sum::<usize>()
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         let t = self.mat.thickness;

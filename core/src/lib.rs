@@ -11,6 +11,7 @@ pub mod damping;
 pub mod element;
 pub mod error;
 pub mod ids;
+pub mod kernel;
 pub mod mesh;
 pub mod topology;
 pub mod traits;

@@ -14,6 +14,9 @@ pub struct Model {
     /// (block, local index) of every element.
     pub elem_slot: Vec<(u32, u32)>,
     pub plane: Plane,
+    /// Worker threads of the element loop and the node update (`solver.threads`); `None`: one
+    /// thread, no pool. Results do not depend on it (see `kernel`).
+    pub pool: Option<std::sync::Arc<rayon::ThreadPool>>,
 }
 
 impl Model {
@@ -59,12 +62,15 @@ impl Model {
                 blocks.push(Box::new(t3));
             }
         }
+        for blk in blocks.iter_mut() {
+            blk.prepare(topo.n_clusters());
+        }
         for (b, blk) in blocks.iter().enumerate() {
             for (i, e) in blk.elems().iter().enumerate() {
                 elem_slot[e.idx()] = (b as u32, i as u32);
             }
         }
-        Ok(Model { mesh, topo, blocks, elem_slot, plane })
+        Ok(Model { mesh, topo, blocks, elem_slot, plane, pool: None })
     }
 
     /// Points of a named node set; the error names the set and the groups that exist.
@@ -114,12 +120,24 @@ impl Model {
         self.topo.n_elems()
     }
 
-    /// Internal forces of every block into `f` (zeroed first).
+    /// Internal forces of every block into `f` (zeroed first), on the model's pool if any.
     pub fn internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
         for b in &self.blocks {
-            b.add_internal_forces(u, f);
+            b.add_internal_forces_pool(u, f, self.pool.as_deref());
         }
+    }
+
+    /// Uses `threads` worker threads (0: one per available core; 1: no pool).
+    pub fn set_threads(&mut self, threads: usize) -> std::result::Result<(), rayon::ThreadPoolBuildError> {
+        let n = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
+        self.pool = if n <= 1 { None } else { Some(std::sync::Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build()?)) };
+        Ok(())
+    }
+
+    /// Threads in use (1 without a pool).
+    pub fn threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
     }
 
     /// Lumped mass of every cluster.

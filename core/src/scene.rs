@@ -117,8 +117,8 @@ pub struct SolverCfg {
     /// Steps between evaluations of the unbalanced-force ratio.
     #[serde(default = "default_ratio_every")]
     pub ratio_every: u64,
-    /// Worker threads for the element loop. Only 1 is implemented yet (the parallel step with a
-    /// deterministic scatter is issue 9); other values are refused.
+    /// Worker threads of the element loop and the node update (0: one per available core).
+    /// Results are bit-identical whatever the number (deterministic scatter, see `kernel`).
     #[serde(default = "one_usize")]
     pub threads: usize,
 }
@@ -409,8 +409,8 @@ impl Scene {
         if s.ratio_every == 0 {
             return Err(FlemError::config(&n, "solver.ratio_every", "= 0 is incorrect; it must be >= 1"));
         }
-        if s.threads != 1 {
-            return Err(FlemError::config(&n, "solver.threads", format!("= {} is incorrect; only 1 is implemented so far", s.threads)));
+        if s.threads > 1024 {
+            return Err(FlemError::config(&n, "solver.threads", format!("= {} is incorrect; it must be in [0, 1024] (0: one per core)", s.threads)));
         }
         s.damping.as_ref().map_or(Ok(()), |d| d.validate()).map_err(|e| FlemError::config(&n, format!("solver.damping.{}", e.key), e.msg))?;
         for d in 0..2 {

@@ -183,6 +183,71 @@ pub struct Simulation {
     pub(crate) stable_vec: Vec<[f64; 2]>,
     pub(crate) stats: StepStats,
     pub(crate) coeffs: DampingCoeffs,
+    /// Ledger sums of each node chunk of the last step.
+    partials: Vec<[f64; 9]>,
+}
+
+/// Nodes per chunk of the node update (fixed: the ledger sums must not depend on threads).
+const NODE_CHUNK: usize = 4096;
+
+/// What the node update reads.
+struct NodeCtx<'a> {
+    mass: &'a [f64],
+    fix: &'a [u8],
+    f_int: &'a [[f64; 2]],
+    f_ext: &'a [[f64; 2]],
+    v_pres: &'a [[f64; 2]],
+    dt: f64,
+    c1: f64,
+    c2: f64,
+    beta: f64,
+}
+
+impl NodeCtx<'_> {
+    /// Central-difference update of the clusters `c0..c0 + u.len()`; returns the ledger sums
+    /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf]` of the chunk.
+    #[inline]
+    fn update(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; 9] {
+        let (dt, c1, c2, beta) = (self.dt, self.c1, self.c2, self.beta);
+        let inv_dt = 1.0 / dt;
+        let (mut w, mut dmp, mut pw, mut pd, mut ke, mut keh, mut ufi, mut umu, mut uf) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for (i, (uc, vc)) in u.iter_mut().zip(v.iter_mut()).enumerate() {
+            let c = c0 + i;
+            let m = self.mass[c];
+            // One division per node instead of two per dof (the ledger stays exact to round-off).
+            let dt_m = dt / m;
+            let fix = self.fix[c];
+            for d in 0..2 {
+                let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
+                let ud = uc[d];
+                uf += ud * fi;
+                let vp;
+                if fix & (1 << d) == 0 {
+                    let f = fe - fi;
+                    let s = if vm > 0.0 { 1.0 } else if vm < 0.0 { -1.0 } else { 0.0 };
+                    vp = (c1 * vm + dt_m * (f - beta * f.abs() * s)) * c2;
+                    let fd = f - m * (vp - vm) * inv_dt;
+                    let va = 0.5 * (vm + vp) * dt;
+                    w += fe * va;
+                    dmp += fd * va;
+                    pw += 0.5 * fe * vp * dt;
+                    pd += 0.5 * fd * vp * dt;
+                    ufi += ud * fi;
+                    umu += m * ud * ud;
+                } else {
+                    vp = self.v_pres[c][d];
+                    let va = 0.5 * (vm + vp) * dt;
+                    w += fi * va;
+                    pw += 0.5 * fi * vp * dt;
+                }
+                ke += 0.5 * m * vm * vp;
+                keh += 0.5 * m * vp * vp;
+                vc[d] = vp;
+                uc[d] = ud + dt * vp;
+            }
+        }
+        [w, dmp, pw, pd, ke, keh, ufi, umu, uf]
+    }
 }
 
 impl Simulation {
@@ -223,10 +288,12 @@ impl Simulation {
             stable_vec: Vec::new(),
             stats: StepStats::default(),
             coeffs: DampingCoeffs::default(),
+            partials: Vec::new(),
             scene,
             model,
         };
         sim.warnings.append(&mut warnings);
+        sim.model.set_threads(sim.scene.file.solver.threads).map_err(|e| FlemError::config(&file, "solver.threads", format!("= {}: the thread pool could not be started: {e}", sim.scene.file.solver.threads)))?;
         sim.apply_constraints_bits();
         (sim.stable, sim.stable_vec) = sim.power_iteration(None);
         sim.dt = sim.choose_dt(&file)?;
@@ -433,40 +500,32 @@ impl Simulation {
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
         let (a, beta) = (self.coeffs.viscous, self.coeffs.local);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
-        let st = &mut self.state;
-        let (mut w, mut dmp, mut pw, mut pd, mut ke, mut keh, mut ufi, mut umu, mut uf) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for c in 0..st.u.len() {
-            let m = st.mass[c];
-            let fix = st.fix[c];
-            for d in 0..2 {
-                let (fe, fi, vm) = (st.f_ext[c][d], st.f_int[c][d], st.v[c][d]);
-                let ud = st.u[c][d];
-                uf += ud * fi;
-                let vp;
-                if fix & (1 << d) == 0 {
-                    let f = fe - fi;
-                    let s = if vm > 0.0 { 1.0 } else if vm < 0.0 { -1.0 } else { 0.0 };
-                    vp = (c1 * vm + dt * (f - beta * f.abs() * s) / m) * c2;
-                    let fd = f - m * (vp - vm) / dt;
-                    let va = 0.5 * (vm + vp) * dt;
-                    w += fe * va;
-                    dmp += fd * va;
-                    pw += 0.5 * fe * vp * dt;
-                    pd += 0.5 * fd * vp * dt;
-                    ufi += ud * fi;
-                    umu += m * ud * ud;
-                } else {
-                    vp = st.v_pres[c][d];
-                    let va = 0.5 * (vm + vp) * dt;
-                    w += fi * va;
-                    pw += 0.5 * fi * vp * dt;
-                }
-                ke += 0.5 * m * vm * vp;
-                keh += 0.5 * m * vp * vp;
-                st.v[c][d] = vp;
-                st.u[c][d] = ud + dt * vp;
+        // Node update in fixed chunks; the ledger sums are added chunk by chunk in chunk order,
+        // so they do not depend on the number of threads.
+        let State { u, v, f_int, f_ext, mass, fix, v_pres, .. } = &mut self.state;
+        let ctx = NodeCtx { mass, fix, f_int, f_ext, v_pres, dt, c1, c2, beta };
+        let n_chunks = u.len().div_ceil(NODE_CHUNK);
+        if self.partials.len() != n_chunks {
+            self.partials.resize(n_chunks, [0.0; 9]);
+        }
+        match self.model.pool.as_deref() {
+            Some(pool) if n_chunks > 1 => {
+                use rayon::prelude::*;
+                let par = u.par_chunks_mut(NODE_CHUNK).zip(v.par_chunks_mut(NODE_CHUNK)).zip(self.partials.par_iter_mut()).enumerate();
+                pool.install(|| par.for_each(|(k, ((u, v), s))| *s = ctx.update(k * NODE_CHUNK, u, v)));
+            }
+            _ => {
+                let seq = u.chunks_mut(NODE_CHUNK).zip(v.chunks_mut(NODE_CHUNK)).zip(self.partials.iter_mut()).enumerate();
+                seq.for_each(|(k, ((u, v), s))| *s = ctx.update(k * NODE_CHUNK, u, v));
             }
         }
+        let mut sum = [0.0; 9];
+        for p in &self.partials {
+            for (s, x) in sum.iter_mut().zip(p) {
+                *s += x;
+            }
+        }
+        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf] = sum;
         self.ledger.external_work += w;
         self.ledger.damping += dmp;
         self.ledger.pending_ext = pw;

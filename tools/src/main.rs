@@ -16,6 +16,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 mod chart;
 mod stability;
+mod bench;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 /// The paper's opening model (issue 8): a notched plate cracking in tension, pictures in plots/.
@@ -107,6 +108,25 @@ enum BenchWhat {
         #[arg(long, default_value_t = 2)]
         repeats: usize,
     },
+    /// Explicit step throughput: bare kernel (ns per element-update, 1 and N threads, Q4/T3),
+    /// memory per element, full step against the bare step, failure checks every k steps.
+    Step {
+        /// Element counts of the kernel runs (2 x 1 rectangle).
+        #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000,1000000")]
+        sizes: Vec<usize>,
+        /// Thread counts (0: one per core).
+        #[arg(long, value_delimiter = ',', default_value = "1,2")]
+        threads: Vec<usize>,
+        /// Element kinds: q4, t3.
+        #[arg(long, value_delimiter = ',', default_value = "q4,t3")]
+        kinds: Vec<String>,
+        /// Element counts of the full-step and failure-check runs.
+        #[arg(long, value_delimiter = ',', default_value = "10000,100000")]
+        step_sizes: Vec<usize>,
+        /// Seconds spent per timing (median of 5 batches).
+        #[arg(long, default_value_t = 1.0)]
+        min_time: f64,
+    },
 }
 
 fn main() -> ExitCode {
@@ -139,6 +159,20 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_sizes: Vec<usize>, min_time: f64) -> Result<()> {
+    let kinds = kinds
+        .iter()
+        .map(|k| match k.as_str() {
+            "q4" => Ok(flem_core::mesh::CellKind::Q4),
+            "t3" => Ok(flem_core::mesh::CellKind::T3),
+            other => anyhow::bail!("--kinds: \"{other}\" is incorrect; it must be q4 or t3"),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    anyhow::ensure!(min_time > 0.0 && min_time.is_finite(), "--min-time = {min_time} is incorrect; it must be > 0");
+    anyhow::ensure!(sizes.iter().chain(&step_sizes).all(|&n| (8..=16_000_000).contains(&n)), "--sizes/--step-sizes: each must be in [8, 16000000]");
+    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes })
 }
 
 fn load(path: &Path) -> Result<Scene> {
@@ -311,6 +345,7 @@ fn bench(what: BenchWhat) -> Result<()> {
             let b = flem_plugins::check::bench::bench_implicit(&dofs, repeats)?;
             println!("{}", serde_json::to_string_pretty(&b)?);
         }
+        BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time } => bench_step(sizes, threads, kinds, step_sizes, min_time)?,
     }
     Ok(())
 }

@@ -1,0 +1,239 @@
+//! `flem bench step`: explicit step throughput (issue 9), printed as one JSON object.
+//!
+//! Measured in one process, so every ratio compares figures of the same run:
+//! Sizes are element counts on a 2 x 1 rectangle, `nx = sqrt(2 n)` (T3: two per cell), so
+//! 2048, 32768, 524288 are exactly the peers' meshes n = 64, 256, 1024 (../shared/peers).
+//! - the bare kernel (`Model::internal_forces`: the blocked element loop and its scatter) in
+//!   element-updates per second and ns per element-update, Q4 and T3, at each size, for each
+//!   thread count, with the check that forces are bit-identical to one thread;
+//! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state);
+//! - the full `Simulation::step` against the bare kernel and against a bare central-difference
+//!   step (kernel + the textbook update loop written here), and a whole stage (`run_stage`,
+//!   which adds the unbalanced-force ratio every `ratio_every` steps);
+//! - failure checks every k steps (a cracking scene whose strength is never reached, so the
+//!   checks run and nothing splits) against the share `t_check / (k t_step)` they should cost.
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Result;
+use flem_core::element::Plane;
+use flem_core::mesh::{CellKind, Rectangle, ValidationOptions};
+use flem_core::model::Model;
+use flem_core::scene::{MaterialCfg, Scene};
+use flem_core::solver::{NoOutput, Simulation};
+use serde_json::{json, Value};
+
+/// Options of `flem bench step`.
+pub struct StepOpts {
+    pub sizes: Vec<usize>,
+    pub threads: Vec<usize>,
+    pub kinds: Vec<CellKind>,
+    pub min_time: f64,
+    pub step_sizes: Vec<usize>,
+}
+
+/// CPU seconds used so far by every thread of this process (Linux `/proc/self/task/*/schedstat`,
+/// nanosecond resolution; 0 elsewhere). On a shared machine the wall time counts the time other
+/// processes hold the cores; the CPU time does not.
+fn cpu_seconds() -> f64 {
+    let Ok(dir) = std::fs::read_dir("/proc/self/task") else { return 0.0 };
+    dir.filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("schedstat")).ok())
+        .filter_map(|s| s.split_whitespace().next()?.parse::<f64>().ok())
+        .sum::<f64>()
+        * 1e-9
+}
+
+/// Median (wall, CPU) seconds per call of `f`: 5 batches of at least `min_time / 5` each.
+fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
+    f();
+    let t0 = Instant::now();
+    f();
+    let one = t0.elapsed().as_secs_f64().max(1e-9);
+    let reps = ((min_time / 5.0 / one).ceil() as usize).max(1);
+    let mut batches: Vec<(f64, f64)> = (0..5)
+        .map(|_| {
+            let (t, c) = (Instant::now(), cpu_seconds());
+            for _ in 0..reps {
+                f();
+            }
+            (t.elapsed().as_secs_f64() / reps as f64, (cpu_seconds() - c) / reps as f64)
+        })
+        .collect();
+    batches.sort_by(|a, b| a.0.total_cmp(&b.0));
+    batches[2]
+}
+
+/// `nx x ny` for about `n` elements on a 2 x 1 rectangle (T3: two per cell).
+fn grid_for(n: usize, kind: CellKind) -> (usize, usize) {
+    let cells = if kind == CellKind::T3 { n / 2 } else { n } as f64;
+    let nx = (2.0 * cells).sqrt().round().max(2.0) as usize;
+    (nx, (nx / 2).max(1))
+}
+
+fn kind_name(k: CellKind) -> &'static str {
+    match k {
+        CellKind::Q4 => "q4",
+        CellKind::T3 => "t3",
+    }
+}
+
+fn model(nx: usize, ny: usize, kind: CellKind) -> Result<Model> {
+    let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, kind).build()?;
+    mesh.validate(ValidationOptions::Reorient)?;
+    mesh.derive_node_sets();
+    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0 };
+    Ok(Model::new(mesh, &[mat], Plane::Strain, "<bench>")?)
+}
+
+/// Kernel throughput of one mesh for each thread count.
+fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts) -> Result<Value> {
+    let mut m = model(nx, ny, kind)?;
+    let (ne, nc) = (m.n_elems(), m.topo.n_clusters());
+    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+    let u: Vec<[f64; 2]> = (0..nc)
+        .map(|_| {
+            std::array::from_fn(|_| {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                1e-3 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+            })
+        })
+        .collect();
+    let mut f = vec![[0.0; 2]; nc];
+    let mut reference: Option<Vec<[f64; 2]>> = None;
+    let mut per_thread = Vec::new();
+    for &t in &o.threads {
+        m.set_threads(t)?;
+        let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
+        m.internal_forces(&u, &mut f);
+        let identical = match &reference {
+            None => {
+                reference = Some(f.clone());
+                true
+            }
+            Some(r) => r.iter().zip(&f).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits()),
+        };
+        per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "cpu_ns_per_elem_update": cpu * 1e9 / ne as f64, "bit_identical_to_first": identical}));
+    }
+    let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
+    // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
+    let node_bytes = nc * (5 * 16 + 8 + 1);
+    let kernel_bytes = match kind {
+        CellKind::Q4 => <flem_core::element::Q4 as flem_core::kernel::Blocked<4>>::BYTES_PER_ELEM,
+        CellKind::T3 => <flem_core::element::T3 as flem_core::kernel::Blocked<3>>::BYTES_PER_ELEM,
+    };
+    Ok(json!({
+        "kind": kind_name(kind), "nx": nx, "ny": ny, "elements": ne, "clusters": nc,
+        "kernel": per_thread,
+        "memory_bytes_per_element": {"kernel_packs": kernel_bytes, "block_total": block as f64 / ne as f64, "node_state": node_bytes as f64 / ne as f64, "block_plus_node_state": (block + node_bytes) as f64 / ne as f64},
+    }))
+}
+
+fn scene_text(nx: usize, ny: usize, kind: CellKind, threads: usize, steps: u64, cracking: Option<u64>) -> String {
+    let mut s = format!(
+        "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = {nx}\nny = {ny}\nelement = \"{}\"\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[solver]\nthreads = {threads}\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [1.0, 0.0]\n[[stage]]\nlevels = {{ pull = 1.0 }}\ndynamic = true\nmax_steps = {steps}\nsnapshot = false\n",
+        kind_name(kind)
+    );
+    if let Some(k) = cracking {
+        // A strength never reached: the checks run in full, nothing splits.
+        s += &format!("[cracking]\nat_equilibrium = false\ncheck_every = {k}\n[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 1e30\n[cracking.separation]\ntype = \"sigma1_nearest\"\n");
+    }
+    s
+}
+
+fn sim(text: &str) -> Result<Simulation> {
+    Ok(Simulation::new(Scene::from_str(text, Path::new("<bench scene>"), Path::new("."))?)?)
+}
+
+/// (wall, CPU) seconds per step of a whole dynamic stage of `steps` steps (best of 3 runs each).
+fn stage_time(text: &str, steps: u64) -> Result<(f64, f64)> {
+    let (mut wall, mut cpu) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..3 {
+        let mut s = sim(text)?;
+        let (t, c) = (Instant::now(), cpu_seconds());
+        s.run_stage(0, &mut NoOutput)?;
+        wall = wall.min(t.elapsed().as_secs_f64() / steps as f64);
+        cpu = cpu.min((cpu_seconds() - c) / steps as f64);
+    }
+    Ok((wall, cpu))
+}
+
+/// Full step against the bare kernel and a bare step; failure checks every k steps.
+fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts) -> Result<Value> {
+    let mut s = sim(&scene_text(nx, ny, kind, threads, 1, None))?;
+    let ne = s.model.n_elems() as f64;
+    s.run_stage(0, &mut NoOutput)?;
+    let (step, step_cpu) = time_per_call(o.min_time, || s.step().expect("bench scene is stable"));
+    let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
+    let (kernel, kernel_cpu) = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
+    // The bare explicit step: kernel plus the textbook update (no damping, no ledger).
+    let (mut bu, mut bv, fe, m, fix, dt) = (s.state.u.clone(), s.state.v.clone(), s.state.f_ext.clone(), s.state.mass.clone(), s.state.fix.clone(), s.dt);
+    let (bare, bare_cpu) = time_per_call(o.min_time, || {
+        s.model.internal_forces(&bu, &mut f);
+        for c in 0..bu.len() {
+            for d in 0..2 {
+                if fix[c] & (1 << d) == 0 {
+                    bv[c][d] += dt * (fe[c][d] - f[c][d]) / m[c];
+                    bu[c][d] += dt * bv[c][d];
+                }
+            }
+        }
+    });
+    let n_steps = ((2.0 * o.min_time / step).ceil() as u64).clamp(200, 100_000);
+    let n_steps = n_steps.div_ceil(100) * 100;
+    let (stage, stage_cpu) = stage_time(&scene_text(nx, ny, kind, threads, n_steps, None), n_steps)?;
+    let mut checks = Vec::new();
+    for k in [1u64, 10, 100] {
+        let t = stage_time(&scene_text(nx, ny, kind, threads, n_steps, Some(k)), n_steps)?;
+        checks.push((k, t));
+    }
+    // The share a check every k steps should cost, from the cost of one check (k = 1 run).
+    let per_check = checks[0].1 .0 - stage;
+    let per_check_cpu = checks[0].1 .1 - stage_cpu;
+    let checks: Vec<Value> = checks
+        .iter()
+        .map(|&(k, (t, c))| {
+            json!({"every": k, "us_per_step": t * 1e6, "overhead": t / stage - 1.0, "share_predicted": per_check / (k as f64 * stage),
+                   "cpu_us_per_step": c * 1e6, "cpu_overhead": c / stage_cpu - 1.0, "cpu_share_predicted": per_check_cpu / (k as f64 * stage_cpu)})
+        })
+        .collect();
+    Ok(json!({
+        "kind": kind_name(kind), "elements": ne, "threads": s.model.threads(), "dt": s.dt, "stage_steps": n_steps,
+        "ns_per_elem": {"kernel": kernel * 1e9 / ne, "bare_step": bare * 1e9 / ne, "step": step * 1e9 / ne, "stage": stage * 1e9 / ne},
+        "cpu_stage_over_bare_step": stage_cpu / bare_cpu,
+        "cpu_ns_per_elem": {"kernel": kernel_cpu * 1e9 / ne, "bare_step": bare_cpu * 1e9 / ne, "step": step_cpu * 1e9 / ne},
+        "step_over_kernel": step / kernel,
+        "cpu_step_over_bare_step": step_cpu / bare_cpu,
+        "step_over_bare_step": step / bare,
+        "stage_over_bare_step": stage / bare,
+        "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks},
+    }))
+}
+
+pub fn step(o: &StepOpts) -> Result<()> {
+    let mut kernels = Vec::new();
+    for &kind in &o.kinds {
+        for &n in &o.sizes {
+            let (nx, ny) = grid_for(n, kind);
+            kernels.push(kernel_case(nx, ny, kind, o)?);
+            eprintln!("bench: kernel {} {} elements done", kind_name(kind), kernels.last().unwrap()["elements"]);
+        }
+    }
+    let mut steps = Vec::new();
+    for &kind in &o.kinds {
+        for &n in o.step_sizes.iter() {
+            let (nx, ny) = grid_for(n, kind);
+            for &t in &o.threads {
+                steps.push(step_case(nx, ny, kind, t, o)?);
+                eprintln!("bench: step {} {n} elements, {t} threads done", kind_name(kind));
+            }
+        }
+    }
+    let out = json!({
+        "bench": "step",
+        "cpus": std::thread::available_parallelism().map_or(1, |n| n.get()),
+        "kernel": kernels,
+        "step": steps,
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
