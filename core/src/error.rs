@@ -18,6 +18,9 @@ pub enum FlemError {
     /// The implicit check solver could not solve.
     #[error("{0}")]
     Solve(String),
+    /// A dynamic plugin library that cannot be used (core/src/dynload).
+    #[error("plugin library {file}: {msg}")]
+    Plugin { file: String, msg: String },
     /// Anything else, with its context.
     #[error("{0}")]
     Other(String),
