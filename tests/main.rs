@@ -3,5 +3,6 @@
 mod common;
 mod configs;
 mod cracking;
+mod dynplug;
 mod interop;
 mod verification;

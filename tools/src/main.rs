@@ -9,6 +9,8 @@ use flem_core::scene::Scene;
 use flem_core::solver::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod bench_dyncall;
+
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
 const DEFAULT_NAME: &str = "configs/default.toml";
@@ -34,8 +36,27 @@ enum Cmd {
     },
     /// Validate a scene (and build its mesh) without running it; exit 1 with the message on error.
     Check { scenes: Vec<PathBuf> },
-    /// List the registered plugins (kind and name).
-    Plugins,
+    /// List the built-in plugins (kind and name) and the dynamic ones loaded with --load or by a
+    /// scene's `[plugins] load`, with the file each came from.
+    Plugins {
+        /// A plugin library to load (repeatable).
+        #[arg(long)]
+        load: Vec<PathBuf>,
+        /// A scene whose `[plugins] load` libraries to load.
+        scene: Option<PathBuf>,
+    },
+    /// Benchmarks (JSON on stdout).
+    Bench {
+        #[command(subcommand)]
+        what: BenchWhat,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchWhat {
+    /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
+    /// one and against the whole step.
+    Dyncall(bench_dyncall::Args),
 }
 
 fn main() -> ExitCode {
@@ -45,12 +66,8 @@ fn main() -> ExitCode {
         None => run_default(),
         Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
         Some(Cmd::Check { scenes }) => check(&scenes),
-        Some(Cmd::Plugins) => {
-            for (kind, name) in flem_plugins::registry() {
-                println!("{kind:<12} {name}");
-            }
-            Ok(())
-        }
+        Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
+        Some(Cmd::Bench { what: BenchWhat::Dyncall(a) }) => bench_dyncall::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
@@ -59,6 +76,23 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn plugins(libs: &[PathBuf], scene: Option<&Path>) -> Result<()> {
+    for l in libs {
+        flem_core::dynload::load_library(l)?;
+    }
+    if let Some(p) = scene {
+        let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+        flem_core::dynload::load_scene_plugins(&text, &p.display().to_string(), p.parent().unwrap_or(Path::new("")))?;
+    }
+    for (kind, name) in flem_plugins::registry() {
+        println!("{kind:<12} {name}");
+    }
+    for p in flem_core::dynload::loaded() {
+        println!("{:<12} {:<24} loaded from {} (FLEM core {}, {})", p.kind, p.name, p.file.display(), p.core_version, p.rustc_version);
+    }
+    Ok(())
 }
 
 fn load(path: &Path) -> Result<Scene> {
