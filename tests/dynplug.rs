@@ -76,7 +76,7 @@ fn tension_scene(plugins: &str, criterion: &str, separation: &str) -> String {
     let base = std::fs::read_to_string(root().join("configs/verification/tension_crack.toml")).unwrap();
     let start = base.find("[cracking.criterion]").unwrap();
     let end = base.find("[[stage]]").unwrap();
-    format!("{plugins}\n{}[cracking.criterion]\n{criterion}\n\n[cracking.separation]\n{separation}\n\n{}", &base[..start], &base[end..])
+    format!("{}[cracking.criterion]\n{criterion}\n\n[cracking.separation]\n{separation}\n\n{}\n{plugins}", &base[..start], &base[end..])
 }
 
 fn load_line(lib: &Path) -> String {
