@@ -26,7 +26,10 @@ struct Libs {
 
 /// Builds plugins/example and plugins/testlib once, with the cargo, target folder and profile
 /// of this test binary (target/<profile>/deps/flem_tests-*), and finds the shared libraries in
-/// cargo's JSON messages rather than guessing file names.
+/// cargo's JSON messages rather than guessing file names. `--workspace --lib --examples` gives
+/// the dependencies the same features as `cargo test --workspace`, so their compiled artifacts
+/// are reused: only the two small crates compile (a few seconds), not a second copy of the
+/// dependency tree.
 fn libs() -> &'static Libs {
     static LIBS: OnceLock<Libs> = OnceLock::new();
     LIBS.get_or_init(|| {
@@ -40,7 +43,7 @@ fn libs() -> &'static Libs {
         };
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let out = Command::new(cargo)
-            .args(["build", "--quiet", "--message-format=json", "-p", "flem-plugin-example", "-p", "flem-plugin-testlib", "--lib", "--examples", "--profile", profile, "--target-dir"])
+            .args(["build", "--quiet", "--message-format=json", "--workspace", "--lib", "--examples", "--profile", profile, "--target-dir"])
             .arg(target_dir)
             .current_dir(root())
             .output()

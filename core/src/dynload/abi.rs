@@ -17,7 +17,8 @@ use std::ffi::c_void;
 
 use crate::traits::{FailureCheck, FailureMode, Principal};
 
-/// Version of this ABI (the layout of everything after the descriptor header).
+/// Version of this ABI (the layout of everything after the descriptor header). Bump it, and
+/// the symbol name, whenever any type of this module changes.
 pub const ABI_VERSION: u32 = 1;
 /// The exported entry point: `extern "C" fn() -> *const Descriptor`.
 pub const ENTRY_SYMBOL: &str = "flem_plugin_entry_v1";
@@ -89,7 +90,8 @@ unsafe impl Send for Descriptor {}
 pub type CreateFn = unsafe extern "C" fn(params_json: RStr, out: *mut *mut c_void, err: *mut ErrorOut) -> i32;
 /// Frees an instance made by `create`.
 pub type DestroyFn = unsafe extern "C" fn(instance: *mut c_void);
-/// Criterion batch: `n` points in, `n` checks out.
+/// Criterion batch: `n` points in, `n` checks out (on [`STATUS_OK`] every output is written;
+/// the host does not initialise them).
 pub type CheckBatchFn = unsafe extern "C" fn(instance: *const c_void, n: usize, p: *const CPrincipal, scale: *const f64, out: *mut CFailureCheck, err: *mut ErrorOut) -> i32;
 /// Separation rule: writes up to `cap` edge ids and their count, or returns [`STATUS_NONE`].
 pub type ProposeFn = unsafe extern "C" fn(instance: *const c_void, fan: *const CFan, failure: *const CFailureCheck, out_edges: *mut u32, cap: usize, out_len: *mut usize, err: *mut ErrorOut) -> i32;
@@ -195,8 +197,8 @@ pub struct CFan {
 }
 
 /// Capacity of [`ErrorOut::key`] and [`ErrorOut::msg`] (longer text is cut at a char boundary).
-pub const KEY_CAP: usize = 128;
-pub const MSG_CAP: usize = 1024;
+pub const KEY_CAP: usize = 64;
+pub const MSG_CAP: usize = 512;
 
 /// An error written by the plugin into host memory: the parameter key (may be empty) and the
 /// message.
