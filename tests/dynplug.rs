@@ -229,3 +229,51 @@ fn cli_lists_loaded_plugins_and_survives_a_panic() {
     assert!(err.contains("error: criterion \"example_panic\"") && err.contains("asked to panic in check"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The code blocks of a markdown text (or of a `//!` doc) in the given language.
+fn blocks(text: &str, lang: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut cur: Option<String> = None;
+    for line in text.lines() {
+        let l = line.trim_start().strip_prefix("//!").map(|l| l.strip_prefix(' ').unwrap_or(l)).unwrap_or(line);
+        match (&mut cur, l.trim()) {
+            (None, t) if t == format!("```{lang}") => cur = Some(String::new()),
+            (Some(_), "```") => out.extend(cur.take()),
+            (Some(s), _) => {
+                s.push_str(l);
+                s.push('\n');
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+/// docs/plugins.md is tested by the example: its Rust blocks appear verbatim in
+/// plugins/example/src/lib.rs, and every scene snippet (there and in the example's docs) loads
+/// the library by the path it shows (resolved against the built library's folder) and
+/// validates with the tension scene.
+#[test]
+fn docs_are_the_tested_example() {
+    let doc = std::fs::read_to_string(root().join("docs/plugins.md")).unwrap();
+    let src = std::fs::read_to_string(root().join("plugins/example/src/lib.rs")).unwrap();
+    let rust = blocks(&doc, "rust");
+    assert!(rust.len() >= 2);
+    for b in &rust {
+        assert!(src.contains(b.as_str()), "docs/plugins.md shows code that plugins/example/src/lib.rs does not have:\n{b}");
+    }
+    let lib = &libs().example;
+    let mut n = 0;
+    for (file, text) in [("docs/plugins.md", &doc), ("plugins/example/src/lib.rs", &src)] {
+        for b in blocks(text, "toml").into_iter().filter(|b| b.contains("[cracking.criterion]")) {
+            let t: toml::Table = toml::from_str(&b).unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
+            let shown = t["plugins"]["load"][0].as_str().unwrap();
+            assert!(shown.ends_with(lib.file_name().unwrap().to_str().unwrap()), "{file}: {shown}");
+            let c = &t["cracking"];
+            let scene = tension_scene(&format!("[plugins]\nload = [{:?}]\n", lib.display().to_string()), &toml::to_string(&c["criterion"]).unwrap(), &toml::to_string(&c["separation"]).unwrap());
+            scene_in(&scene, &root()).unwrap_or_else(|e| panic!("{file}: {e}"));
+            n += 1;
+        }
+    }
+    assert_eq!(n, 2, "one scene snippet in each file");
+}
