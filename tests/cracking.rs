@@ -7,11 +7,13 @@ use crate::common::{root, scene};
 
 /// Collects split events.
 #[derive(Default)]
-struct Log(Vec<(usize, flem_core::cracking::SplitEvent)>, usize);
+struct Log(Vec<(usize, flem_core::cracking::SplitEvent)>, usize, Vec<usize>);
 impl Observer for Log {
-    fn splits(&mut self, _s: &Simulation, _r: &SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+    fn splits(&mut self, s: &Simulation, _r: &SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
         let stage = self.1;
         self.0.extend(ev.iter().cloned().map(|e| (stage, e)));
+        let frags = s.model.topo.fragments().1;
+        self.2.extend(ev.iter().map(|_| frags));
         Ok(())
     }
     fn snapshot(&mut self, _s: &Simulation, stage: usize, _l: &str) -> flem_core::Result<()> {
@@ -85,4 +87,115 @@ fn notch_is_separated_from_the_start() {
     assert_eq!(topo.point_clusters[tip].len(), 1);
     assert!(!topo.fan(topo.point_clusters[tip][0]).is_closed(), "the tip's fan is open");
     sim.run(&mut NoOutput).unwrap();
+}
+
+/// Uniaxial compression, plane stress, Mohr-Coulomb with the tension branch off (c = 1,
+/// phi = 30 deg): the specimen fails in shear at UCS = 2 c cos(phi) / (1 - sin(phi)) = 3.4641
+/// (reference: the analytic uniaxial strength of Mohr-Coulomb; tolerance 5 %, tested as no
+/// split at 0.97 UCS and a first split at 1.03 UCS with the nodal stress within 5 % of UCS).
+/// The faces are inclined as each rule says, on a T3 mesh whose edges run at 0, 45 and 90
+/// degrees: the true shear planes lie at 90 +- (45 - phi/2) = 60 and 120 degrees, so
+/// `shear_plane_nearest` cuts the 45-degree diagonals (15 degrees away, against 30 for the
+/// vertical), while the paper's `sigma1_nearest` cuts along sigma1 (vertical, compression
+/// positive).
+#[test]
+fn uniaxial_compression_fails_in_shear_at_ucs() {
+    let (c, phi) = (1.0f64, 30f64.to_radians());
+    let ucs = 2.0 * c * phi.cos() / (1.0 - phi.sin());
+    for (rule, want) in [("shear_plane_nearest", "diagonal"), ("sigma1_nearest", "vertical")] {
+        let text = format!(
+            "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 4.0\nnx = 4\nny = 8\nelement = \"t3\"\n[model]\nplane = \"stress\"\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ntolerance = 1e-7\n\
+             [[support]]\nnodes = \"bottom\"\nfix = \"y\"\n[[support]]\nnodes = \"bottom_left\"\nfix = \"xy\"\n\
+             [[load]]\nname = \"push\"\ntype = \"traction\"\nedges = \"top\"\nvalue = [0.0, -1.0]\n\
+             [cracking]\nmax_splits_per_check = 1\n[cracking.criterion]\ntype = \"mohr_coulomb\"\ncohesion = {c}\nfriction_angle_deg = 30.0\ntensile_strength = 1.0\ntension = false\n[cracking.separation]\ntype = \"{rule}\"\n\
+             [[stage]]\nname = \"below\"\nlevels = {{ push = {} }}\n[[stage]]\nname = \"above\"\nlevels = {{ push = {} }}\nmax_steps = 3000\n",
+            0.97 * ucs,
+            1.03 * ucs
+        );
+        let mut sim = Simulation::new(scene(&text)).unwrap();
+        let mut log = Log::default();
+        sim.run(&mut log).unwrap();
+        assert!(log.0.iter().all(|(st, _)| *st == 1), "{rule}: split below UCS: {:?}", log.0.first());
+        let first = &log.0.first().unwrap_or_else(|| panic!("{rule}: no split above UCS")).1;
+        assert_eq!(first.mode, flem_core::traits::FailureMode::Shear);
+        let s = first.stress;
+        let p = flem_core::traits::principal(s, 0.0);
+        assert!((p.s1 - p.s3 - ucs).abs() < 0.05 * ucs && p.s3.abs() < 0.05 * ucs, "{rule}: first split at s1 = {}, s3 = {} (UCS {ucs})", p.s1, p.s3);
+        println!("{rule}: first split at s1 - s3 = {:.4} = {:.4} UCS, {} splits", p.s1 - p.s3, (p.s1 - p.s3) / ucs, log.0.len());
+        for (_, e) in &log.0 {
+            for ed in &e.edges {
+                let q = sim.model.topo.edges[ed.idx()].points;
+                let (a, b) = (sim.model.mesh.points[q[0].idx()], sim.model.mesh.points[q[1].idx()]);
+                let (dx, dy) = ((a[0] - b[0]).abs(), (a[1] - b[1]).abs());
+                let kind = if dx < 1e-12 { "vertical" } else if (dx - dy).abs() < 1e-12 { "diagonal" } else { "other" };
+                assert_eq!(kind, want, "{rule}: cut edge {a:?}-{b:?}");
+            }
+        }
+    }
+}
+
+fn notched_plate(stages: &str, cracking: bool) -> String {
+    let crack = if cracking { "[cracking]\nmax_splits_per_check = 1\n[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 1.0\n[cracking.separation]\ntype = \"sigma1_nearest\"\n" } else { "" };
+    format!(
+        "[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 2.0\nnx = 16\nny = 8\nnotch = {{ side = \"left\", y = 1.0, depth = 1.0 }}\n[model]\nplane = \"strain\"\nseparated = [\"notch\"]\n\
+         [[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ntolerance = 1e-8\n\
+         [[support]]\nnodes = \"bottom\"\nfix = \"y\"\n[[support]]\nnodes = \"bottom_left\"\nfix = \"xy\"\n\
+         [[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"top\"\nvalue = [0.0, 1.0]\n{crack}{stages}"
+    )
+}
+
+/// A notched plate in tension (plane strain, 16 x 8 Q4, a pre-separated side notch of a
+/// quarter of the width at mid-height, Rankine sigma_t = 1). Reference: p_crit, the load at
+/// which the elastic nodal stress at the notch tip reaches sigma_t, from an elastic run at unit
+/// load (linearity: p_crit = sigma_t / sigma1_tip(1)). Tolerance 3 %: no split at 0.97 p_crit;
+/// at 1.03 p_crit the first split is at the tip, on the horizontal edge ahead of it
+/// (perpendicular to the load), and the crack runs through the ligament: every point of the
+/// ligament line is split and the plate ends in two fragments.
+#[test]
+fn notched_plate_cracks_from_the_tip_at_p_crit() {
+    let mut el = Simulation::new(scene(&notched_plate("[[stage]]\nlevels = { pull = 1.0 }\n", false))).unwrap();
+    el.run(&mut NoOutput).unwrap();
+    let tip = el.model.mesh.node_sets["notch_tip"][0] as usize;
+    let (mut corner, mut nodal) = (Vec::new(), Vec::new());
+    el.model.nodal_stress(&el.state.u, &mut corner, &mut nodal);
+    let ct = el.model.topo.point_clusters[tip][0].idx();
+    let s1 = -flem_core::traits::principal(nodal[ct], el.model.material_of(flem_core::ids::ElemId::new(0)).szz(nodal[ct])).s3;
+    let p_crit = 1.0 / s1;
+    println!("notch tip: sigma1 = {s1:.4} per unit traction, p_crit = {p_crit:.4} sigma_t");
+    assert!(s1 > 1.5, "the notch concentrates stress (sigma1 = {s1})");
+
+    let stages = format!("[[stage]]\nname = \"below\"\nlevels = {{ pull = {} }}\n[[stage]]\nname = \"above\"\nlevels = {{ pull = {} }}\nmax_steps = 80000\n", 0.97 * p_crit, 1.03 * p_crit);
+    let mut sim = Simulation::new(scene(&notched_plate(&stages, true))).unwrap();
+    let mut log = Log::default();
+    sim.run(&mut log).unwrap();
+    assert!(log.0.iter().all(|(st, _)| *st == 1), "split below p_crit: {:?}", log.0.first());
+    let first = &log.0.first().expect("no split at 1.03 p_crit").1;
+    assert_eq!(first.point.idx(), tip, "the first split is at the notch tip");
+    let p = flem_core::traits::principal(first.stress, 0.0);
+    assert!((-p.s3 - 1.03).abs() < 0.03, "nodal sigma1 at the first split {} (1.03 expected)", -p.s3);
+    let mesh = &sim.model.mesh;
+    let topo = &sim.model.topo;
+    for ed in &first.edges {
+        let q = topo.edges[ed.idx()].points;
+        let (a, b) = (mesh.points[q[0].idx()], mesh.points[q[1].idx()]);
+        assert!(a[1] == 1.0 && b[1] == 1.0 && a[0].max(b[0]) > 1.0, "first cut edge {a:?}-{b:?} is not ahead of the tip");
+    }
+    let ligament: Vec<usize> = (0..mesh.points.len()).filter(|&i| mesh.points[i][1] == 1.0 && mesh.points[i][0] >= 1.0).collect();
+    assert_eq!(ligament.len(), 13);
+    let unsplit: Vec<[f64; 2]> = ligament.iter().filter(|&&i| topo.point_clusters[i].len() < 2).map(|&i| mesh.points[i]).collect();
+    assert!(unsplit.is_empty(), "ligament points not split: {unsplit:?} ({} splits)", log.0.len());
+    assert_eq!(topo.fragments().1, 2, "the crack separates the plate in two");
+    // Until the plate is in two, every split is on the ligament line (after that the freed
+    // half is a mechanism under load control and its release waves may crack the rest).
+    let through = log.2.iter().position(|&f| f >= 2).expect("never in two fragments");
+    for (_, e) in &log.0[..=through] {
+        assert_eq!(mesh.points[e.point.idx()][1], 1.0, "split off the ligament line before the plate separated: {:?}", mesh.points[e.point.idx()]);
+    }
+    println!("{} splits to separate the plate ({} after)", through + 1, log.0.len() - through - 1);
+    // The stable step follows the splits (warm-started power iteration) and agrees with a
+    // cold estimate on the split mesh (reference: independent restart; tolerance 1e-3), and
+    // the step in use stays below it.
+    let cold = sim.estimate_stable_step().dt_crit;
+    assert!((sim.stable.dt_crit - cold).abs() < 1e-3 * cold, "dt_crit after splits {} vs cold {}", sim.stable.dt_crit, cold);
+    assert!(sim.dt <= sim.stable.dt_crit);
 }

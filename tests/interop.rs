@@ -117,3 +117,48 @@ fn gmsh_files_read_as_meshio_reads_them() {
         assert_eq!(regions, surf, "{}", f.display());
     }
 }
+
+/// End to end as a user does it: `flem run` on a scene over a gmsh mesh (and on a cracking
+/// scene), then the run directory opened by meshio through results.pvd (and by pyvista/VTK
+/// where it installs: `bash .ci/run` tries). Reference: the same scene run in-process, whose
+/// final displacements must come back bit for bit; every PVD entry must exist and read.
+#[test]
+fn gmsh_scene_runs_end_to_end_and_opens_in_meshio() {
+    for (scene_path, n_stages, cracks) in [("configs/meshes/gmsh_bar.toml", 1, false), ("configs/verification/tension_crack.toml", 2, true)] {
+        let dir = std::env::temp_dir().join(format!("flem-e2e-{}-{}", std::process::id(), n_stages));
+        let _ = std::fs::remove_dir_all(&dir);
+        let out = Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", root().join(scene_path).to_str().unwrap(), "--out", dir.to_str().unwrap(), "--quiet"]).output().unwrap();
+        assert!(out.status.success(), "{scene_path}: {}", String::from_utf8_lossy(&out.stderr));
+        let v = run_py(&[root().join("tests/python/read_run.py").to_str().unwrap(), dir.to_str().unwrap()]);
+        let ds = v["datasets"].as_array().unwrap();
+        assert_eq!(ds.len(), n_stages, "{scene_path}: one snapshot per stage");
+        // the same scene in-process
+        flem_plugins::link();
+        let sc = flem_core::scene::Scene::from_file(&root().join(scene_path)).unwrap();
+        let mut s = flem_core::solver::Simulation::new(sc).unwrap();
+        s.run(&mut NoOutput).unwrap();
+        let last = &ds[n_stages - 1];
+        let disp = last["point_data"]["displacement"].as_array().unwrap();
+        assert_eq!(disp.len(), s.model.topo.n_clusters(), "{scene_path}");
+        for (c, d) in disp.iter().enumerate() {
+            assert_eq!([d[0].as_f64().unwrap(), d[1].as_f64().unwrap()], s.state.u[c], "{scene_path}: cluster {c}");
+        }
+        assert_eq!(last["timestep"].as_f64().unwrap(), s.state.time);
+        assert_eq!(last["cells"].get("line").is_some(), cracks, "{scene_path}: crack lines");
+        match v["pyvista"].as_object() {
+            Some(pv) => {
+                let blocks = pv["blocks"].as_array().unwrap();
+                assert_eq!(blocks.len(), n_stages);
+                let b = &blocks[n_stages - 1];
+                assert_eq!(b["points"].as_u64().unwrap() as usize, s.model.topo.n_clusters());
+                let d = b["displacement"].as_array().unwrap();
+                for (c, d) in d.iter().enumerate() {
+                    assert_eq!(d[0].as_f64().unwrap(), s.state.u[c][0], "pyvista, {scene_path}: cluster {c}");
+                }
+                println!("{scene_path}: meshio and pyvista {} read {} snapshots", pv["version"], blocks.len());
+            }
+            None => println!("{scene_path}: meshio read it; {}", v["pyvista_error"]),
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

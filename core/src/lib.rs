@@ -5,6 +5,7 @@
 //! [`scene::Scene`] (validated TOML) drives a [`solver::Simulation`] through stages; results go
 //! out through [`output`].
 pub mod block;
+pub mod check;
 pub mod damping;
 pub mod dynload;
 pub mod element;

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::check::CheckCfg;
 use crate::damping::Damping;
 use crate::element::Plane;
 use crate::error::{FlemError, Result};
@@ -36,6 +37,9 @@ pub struct SceneFile {
     pub cracking: Option<CrackingCfg>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plugins: Option<PluginsCfg>,
+    /// `[check]`: compare each stage with the implicit solve (core/src/check.rs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check: Option<CheckCfg>,
 }
 
 /// `[plugins] load = ["path/to/libfoo.so"]`: dynamic plugin libraries loaded before the rest
@@ -270,6 +274,13 @@ pub struct CrackingCfg {
     /// stage relaxes again and checks again, until a check splits nothing.
     #[serde(default = "yes")]
     pub at_equilibrium: bool,
+    /// With `at_equilibrium`: also check when the stage has not come to rest, i.e. its best
+    /// unbalanced-force ratio has not halved within this many steps (default 10000; 0: off).
+    /// A fragment held by one node (a hinge left by a running crack) is a mechanism under
+    /// load control and never reaches equilibrium; without this its last node would never be
+    /// checked.
+    #[serde(default = "default_stall_steps")]
+    pub stall_steps: u64,
     /// At most this many splits per check (the most critical first).
     #[serde(default = "default_max_splits")]
     pub max_splits_per_check: usize,
@@ -280,6 +291,9 @@ pub struct CrackingCfg {
 
 fn default_check_every() -> u64 {
     10
+}
+fn default_stall_steps() -> u64 {
+    10_000
 }
 fn default_max_splits() -> usize {
     1
@@ -341,6 +355,9 @@ impl Scene {
             // binary does not link the plugin crate).
             let d = toml::from_str("type = \"adaptive\"").map_err(|e| FlemError::config(&name, "solver.damping", format!("is not given and the default \"adaptive\" is not registered in this program ({e}); link flem-plugins or name a damping")))?;
             file.solver.damping = Some(d);
+        }
+        if let Some(c) = file.check.as_mut() {
+            c.fill_default(&name)?;
         }
         let scene = Scene { file, path: path.to_path_buf(), base_dir: base_dir.to_path_buf() };
         scene.validate()?;
@@ -435,6 +452,9 @@ impl Scene {
             if let Some(w) = &c.weibull {
                 range(&n, "cracking.weibull.modulus", w.modulus, 0.5, true, 1000.0, true)?;
             }
+        }
+        if let Some(c) = &f.check {
+            c.validate(&n)?;
         }
         Ok(())
     }

@@ -112,6 +112,10 @@ pub trait Observer {
         Ok(())
     }
     fn progress(&mut self, _p: &Progress) {}
+    /// After a stage has ended (its result is `sim.stages_done.last()`), after its snapshot.
+    fn stage_end(&mut self, _sim: &Simulation, _stage: usize) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// A do-nothing observer.
@@ -134,6 +138,8 @@ pub struct Simulation {
     /// x0 of every cluster.
     pub x0: Vec<[f64; 2]>,
     f_const: Vec<[f64; 2]>,
+    /// Eigenvector of the last stable-step estimate (warm start after splits).
+    stable_vec: Vec<[f64; 2]>,
     stats: StepStats,
     coeffs: DampingCoeffs,
 }
@@ -173,6 +179,7 @@ impl Simulation {
             last_ratio: f64::NAN,
             x0,
             f_const: Vec::new(),
+            stable_vec: Vec::new(),
             stats: StepStats::default(),
             coeffs: DampingCoeffs::default(),
             scene,
@@ -180,7 +187,7 @@ impl Simulation {
         };
         sim.warnings.append(&mut warnings);
         sim.apply_constraints_bits();
-        sim.stable = sim.estimate_stable_step();
+        (sim.stable, sim.stable_vec) = sim.power_iteration(None);
         sim.dt = sim.choose_dt(&file)?;
         Ok(sim)
     }
@@ -207,6 +214,12 @@ impl Simulation {
 
     /// Highest natural frequency by power iteration on `M^-1/2 K M^-1/2` over free dofs.
     pub fn estimate_stable_step(&self) -> StableStep {
+        self.power_iteration(None).0
+    }
+
+    /// Power iteration from `start` (a previous eigenvector, warm start after splits) or from a
+    /// fixed pseudo-random vector; returns the estimate and the eigenvector.
+    fn power_iteration(&self, start: Option<Vec<[f64; 2]>>) -> (StableStep, Vec<[f64; 2]>) {
         let n = self.state.mass.len();
         let fix = &self.state.fix;
         let sqm: Vec<f64> = self.state.mass.iter().map(|m| m.sqrt()).collect();
@@ -217,6 +230,16 @@ impl Simulation {
                 seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
                 if fix[c] & (1 << d) == 0 {
                     xc[d] = ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5;
+                }
+            }
+        }
+        if let Some(s) = start {
+            // Warm start, with a little of the random vector so no mode is missed.
+            for (c, xc) in x.iter_mut().enumerate() {
+                for d in 0..2 {
+                    if fix[c] & (1 << d) == 0 {
+                        xc[d] = s[c][d] + 1e-3 * xc[d];
+                    }
                 }
             }
         }
@@ -259,7 +282,31 @@ impl Simulation {
         let omega = lam.max(0.0).sqrt();
         let bound = self.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
         let k = self.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
-        StableStep { dt_crit: if omega > 0.0 { k * 2.0 / omega } else { f64::INFINITY }, dt_element_bound: k * 2.0 / bound, omega_max: omega, iterations: it }
+        (StableStep { dt_crit: if omega > 0.0 { k * 2.0 / omega } else { f64::INFINITY }, dt_element_bound: k * 2.0 / bound, omega_max: omega, iterations: it }, x)
+    }
+
+    /// After splits: the highest frequency can rise (a split node keeps only part of its mass
+    /// and of its stiffness), so the stable step is estimated again, warm-started from the last
+    /// eigenvector. If it fell below `dt`, `dt` follows (`dt_safety x dt_crit`) with a warning.
+    fn update_stable_step(&mut self, rec: &SplitRecord) {
+        let mut start = std::mem::take(&mut self.stable_vec);
+        if start.is_empty() {
+            start = self.power_iteration(None).1;
+        } else {
+            for nc in &rec.new_clusters {
+                let v = start[nc.parent.idx()];
+                start.push(v);
+            }
+        }
+        let (st, x) = self.power_iteration(Some(start));
+        self.stable_vec = x;
+        self.stable = st;
+        let s = &self.scene.file.solver;
+        if self.dt > st.dt_crit && !s.allow_unstable_dt {
+            let new = s.dt_safety * st.dt_crit;
+            self.warnings.push(format!("step {}: after a split the critical step fell to {:e}; dt lowered from {:e} to {new:e}", self.state.step, st.dt_crit, self.dt));
+            self.dt = new;
+        }
     }
 
     /// Sets the load levels of stage `i` and imposes its constraints.
@@ -298,6 +345,14 @@ impl Simulation {
         }
         self.refresh_constant_force();
         self.scene.file.solver.damping().reset();
+    }
+
+    /// Applies the load levels and constraints of stages `0..=i` without stepping (what a
+    /// static solve of stage `i` needs: levels, fixities, prescribed displacements).
+    pub fn set_stage_levels(&mut self, i: usize) {
+        for k in 0..=i.min(self.scene.file.stages.len().saturating_sub(1)) {
+            self.begin_stage(k);
+        }
     }
 
     fn refresh_constant_force(&mut self) {
@@ -436,12 +491,13 @@ impl Simulation {
         let (max_steps, tol, every) = (st.max_steps.unwrap_or(sc.max_steps), st.tolerance.unwrap_or(sc.tolerance), sc.ratio_every);
         let hist_every = self.scene.file.output.history_every;
         let snap_every = self.scene.file.output.snapshot_every;
-        let (check_every, check_at_eq) = match self.scene.file.cracking.as_ref() {
-            Some(c) if c.at_equilibrium => (0, true),
-            Some(c) => (c.check_every, false),
-            None => (0, false),
+        let (check_every, check_at_eq, stall_steps) = match self.scene.file.cracking.as_ref() {
+            Some(c) if c.at_equilibrium => (0, true, c.stall_steps),
+            Some(c) => (c.check_every, false, 0),
+            None => (0, false, 0),
         };
-        let n_stages = self.scene.file.stages.len();
+        // Stall detection (at_equilibrium mode): the best ratio and the step it was last halved.
+        let (mut best, mut best_step) = (f64::INFINITY, 0u64);        let n_stages = self.scene.file.stages.len();
         let mut k = 0u64;
         let mut converged = false;
         let mut splits = 0usize;
@@ -455,6 +511,14 @@ impl Simulation {
             if k % every == 0 || k == max_steps {
                 ratio = self.unbalanced_ratio();
                 self.last_ratio = ratio;
+                if ratio < 0.5 * best {
+                    (best, best_step) = (ratio, k);
+                }
+                if check_at_eq && stall_steps > 0 && !st.dynamic && k - best_step >= stall_steps {
+                    // Not coming to rest (a mechanism): check anyway, then watch again.
+                    splits += self.check_failure(obs)?;
+                    (best, best_step) = (ratio, k);
+                }
                 if !st.dynamic && ratio < tol && k >= 2 * every {
                     if check_at_eq {
                         let n = self.check_failure(obs)?;
@@ -496,7 +560,7 @@ impl Simulation {
         if st.snapshot {
             obs.snapshot(self, i, &format!("stage{i}"))?;
         }
-        Ok(())
+        obs.stage_end(self, i)
     }
 
     /// Failure check: proposes and applies splits, then makes every per-cluster array follow.
@@ -532,6 +596,7 @@ impl Simulation {
         st.fix = fix;
         st.v_pres = vpres;
         self.refresh_constant_force();
+        self.update_stable_step(rec);
     }
 }
 

@@ -398,3 +398,79 @@ impl Topology {
         (frag, n as usize)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Rectangle;
+    use crate::mesh::CellKind;
+
+    /// The point at (1, 1) of a 2 x 2 rectangle of unit cells, its cluster and its edge to `q`.
+    fn centre(kind: CellKind) -> (Topology, RawMesh, PointId) {
+        let mesh = Rectangle::new(2.0, 2.0, 2, 2, kind).build().unwrap();
+        let p = mesh.points.iter().position(|x| x[0] == 1.0 && x[1] == 1.0).unwrap();
+        (Topology::new(&mesh), mesh, PointId::new(p))
+    }
+
+    fn edge_to(t: &Topology, m: &RawMesh, p: PointId, q: [f64; 2]) -> EdgeId {
+        let qi = m.points.iter().position(|x| *x == q).unwrap();
+        t.edge_between(p, PointId::new(qi)).unwrap()
+    }
+
+    /// A structured interior point of four Q4 ends as four independent copies: the horizontal
+    /// line splits it in two (top and bottom pairs), then each half is cut along its vertical
+    /// edge. Reference: construction (four elements, four copies, every link cut).
+    #[test]
+    fn a_point_can_end_as_four_independent_copies() {
+        let (mut t, m, p) = centre(CellKind::Q4);
+        let c = t.point_clusters[p.idx()][0];
+        assert!(t.fan(c).is_closed());
+        assert_eq!(t.fan(c).copies.len(), 4);
+        let (l, r) = (edge_to(&t, &m, p, [0.0, 1.0]), edge_to(&t, &m, p, [2.0, 1.0]));
+        // one link alone does not divide a closed fan: nothing changes
+        assert!(t.cut(c, &[l], true).is_empty());
+        let rec = t.cut(c, &[l, r], true);
+        assert_eq!(rec.new_clusters.len(), 1);
+        assert_eq!(rec.cut_edges.len(), 2);
+        let (d, u) = (edge_to(&t, &m, p, [1.0, 0.0]), edge_to(&t, &m, p, [1.0, 2.0]));
+        for cl in t.point_clusters[p.idx()].clone() {
+            let fan = t.fan(cl);
+            assert!(!fan.is_closed());
+            assert_eq!((fan.copies.len(), fan.links.len()), (2, 1));
+            let e = fan.links[0].edge;
+            assert!(e == d || e == u);
+            assert_eq!(t.cut(cl, &[e], true).new_clusters.len(), 1);
+        }
+        let cl = &t.point_clusters[p.idx()];
+        assert_eq!(cl.len(), 4);
+        for &c in cl {
+            let fan = t.fan(c);
+            assert_eq!((fan.copies.len(), fan.links.len()), (1, 0), "cluster {c:?}");
+        }
+        // every copy at p in its own cluster, and every edge through p cut at p
+        for e in [l, r, d, u] {
+            assert!(t.is_separated_at(e, p));
+        }
+        assert_eq!(t.n_clusters(), t.n_points + 3);
+    }
+
+    /// A T3 fan of six elements (the centre of a 2 x 2 diagonal-split square) cut along the
+    /// horizontal line splits in two non-empty parts of three copies each; the diagonal line
+    /// (45 degrees) splits it 3 + 3 as well, the vertical line 3 + 3. Reference: construction
+    /// (each line through the centre has three triangles on each side).
+    #[test]
+    fn t3_fan_of_six_splits_in_two_non_empty_parts() {
+        for line in [[[0.0, 1.0], [2.0, 1.0]], [[0.0, 0.0], [2.0, 2.0]], [[1.0, 0.0], [1.0, 2.0]]] {
+            let (mut t, m, p) = centre(CellKind::T3);
+            let c = t.point_clusters[p.idx()][0];
+            let fan = t.fan(c);
+            assert!(fan.is_closed());
+            assert_eq!((fan.copies.len(), fan.links.len()), (6, 6));
+            let rec = t.cut(c, &[edge_to(&t, &m, p, line[0]), edge_to(&t, &m, p, line[1])], true);
+            assert_eq!(rec.new_clusters.len(), 1, "line {line:?}");
+            let parts: Vec<usize> = t.point_clusters[p.idx()].iter().map(|&c| t.fan(c).copies.len()).collect();
+            assert_eq!(parts, vec![3, 3], "line {line:?}");
+            assert_eq!(t.fragments().1, 1, "a split at one point leaves the body whole");
+        }
+    }
+}

@@ -4,12 +4,16 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use flem_core::check::{CheckCfg, Comparer};
 use flem_core::output::OutputWriter;
+use flem_core::solver::NoOutput;
 use flem_core::scene::Scene;
 use flem_core::solver::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod bench_dyncall;
+mod chart;
+mod stability;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
@@ -45,7 +49,40 @@ enum Cmd {
         /// A scene whose `[plugins] load` libraries to load.
         scene: Option<PathBuf>,
     },
-    /// Benchmarks (JSON on stdout).
+    /// The speed-accuracy chart: sweep damping, dt safety, tolerance and mesh refinement;
+    /// wall time against the error (vs the implicit solve, a refined reference, or an
+    /// analytic probe value); Pareto front marked. Writes chart.csv, chart.json and pictures.
+    Chart {
+        scene: PathBuf,
+        /// Output folder (default: out/<scene name>_chart).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// A small sweep (2 dampings x 1 safety x 2 tolerances x 2 refinements).
+        #[arg(long)]
+        quick: bool,
+        /// Analytic value of a probe's displacement: PROBE:x=VALUE or PROBE:y=VALUE.
+        #[arg(long)]
+        analytic: Option<chart::Analytic>,
+    },
+    /// The stability map: measured blow-up step against the prediction per mesh and damping,
+    /// steps to rest against the damping parameter, the implicit solver after separation.
+    Stability {
+        /// Output folder (default: out/stability).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Fewer cases and shorter runs.
+        #[arg(long)]
+        quick: bool,
+    },
+    /// Run a scene and, after every stage, the implicit check solve on the same model: per-stage
+    /// VTU with both fields and their differences, and compare.json, into --out.
+    Compare {
+        scene: PathBuf,
+        /// Output folder (default: out/<scene name>_compare).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Benchmarks; each prints JSON.
     Bench {
         #[command(subcommand)]
         what: BenchWhat,
@@ -54,6 +91,16 @@ enum Cmd {
 
 #[derive(Subcommand)]
 enum BenchWhat {
+    /// The implicit check solver (assembly, factorisation, solve) against faer's bare Cholesky
+    /// on the same matrix, on structured Q4 meshes.
+    Implicit {
+        /// Target numbers of dofs, comma separated.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1e4, 1e5, 5e5])]
+        dofs: Vec<f64>,
+        /// Repetitions per size (the best time is kept).
+        #[arg(long, default_value_t = 2)]
+        repeats: usize,
+    },
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
     Dyncall(bench_dyncall::Args),
@@ -66,8 +113,11 @@ fn main() -> ExitCode {
         None => run_default(),
         Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
         Some(Cmd::Check { scenes }) => check(&scenes),
+        Some(Cmd::Chart { scene, out, quick, analytic }) => chart::chart(&scene, out, quick, analytic),
+        Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
+        Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
+        Some(Cmd::Bench { what }) => bench(what),
         Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
-        Some(Cmd::Bench { what: BenchWhat::Dyncall(a) }) => bench_dyncall::run(&a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
@@ -145,7 +195,16 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool) -> Result<()> {
         b2.set_prefix(format!("stage {}/{}", p.stage + 1, p.n_stages));
         b2.set_message(format!("step {} dt {:.2e} ratio {:.2e} (tol {:.0e})", p.step, p.dt, p.ratio, p.tolerance));
     }));
-    let r = sim.run(&mut w);
+    let r = if sim.scene.file.check.is_some() {
+        // [check]: the implicit comparison after every stage, compare.json beside the results.
+        let mut c = Comparer::new(&mut w, &out)?;
+        let r = sim.run(&mut c);
+        bar.finish_and_clear();
+        eprint!("{}", flem_core::check::table(&c.rows));
+        r
+    } else {
+        sim.run(&mut w)
+    };
     bar.finish_and_clear();
     w.write_summary(&sim, t0.elapsed().as_secs_f64()).with_context(|| "writing summary.json")?;
     r?;
@@ -153,5 +212,42 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool) -> Result<()> {
         eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
     }
     eprintln!("energy residual {:.2e} of the work done; wall time {:.2} s; results in {}", sim.ledger.relative_residual(), t0.elapsed().as_secs_f64(), out.display());
+    Ok(())
+}
+
+/// `flem compare`: the scene's stages with the comparison after each (the scene's `[check]`, or
+/// its defaults when the scene has none). Exit 1 when an implicit solve failed.
+fn compare(mut scene: Scene, out: Option<PathBuf>) -> Result<()> {
+    let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_compare")));
+    flem_core::output::prepare_dir(&out)?;
+    if scene.file.check.is_none() {
+        scene.file.check = Some(CheckCfg::with_defaults(&scene.path.display().to_string())?);
+    }
+    let mut sim = Simulation::new(scene)?;
+    for w in &sim.warnings {
+        eprintln!("warning: {w}");
+    }
+    let mut quiet = NoOutput;
+    let mut c = Comparer::new(&mut quiet, &out)?;
+    c.on_row = Some(Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit)));
+    let r = sim.run(&mut c);
+    print!("{}", flem_core::check::table(&c.rows));
+    r?;
+    println!("results in {}", out.join("compare.json").display());
+    let failed: Vec<&str> = c.rows.iter().filter(|r| r.implicit_error.is_some()).map(|r| r.name.as_str()).collect();
+    anyhow::ensure!(failed.is_empty(), "the implicit solve failed at stage(s) {failed:?} (see above and compare.json)");
+    Ok(())
+}
+
+fn bench(what: BenchWhat) -> Result<()> {
+    match what {
+        BenchWhat::Implicit { dofs, repeats } => {
+            anyhow::ensure!(dofs.iter().all(|&d| d.is_finite() && (8.0..=1e8).contains(&d)), "--dofs: every value must be in [8, 1e8]");
+            let b = flem_plugins::check::bench::bench_implicit(&dofs, repeats)?;
+            println!("{}", serde_json::to_string_pretty(&b)?);
+        }
+        BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
+    }
     Ok(())
 }

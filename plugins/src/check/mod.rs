@@ -14,10 +14,22 @@
 //! Units are those of the scene (consistent units: force / length^2 for the modulus, force per
 //! unit thickness for nodal forces, length for displacements); the solver adds none.
 //!
-//! faer 0.24 calls: `SparseColMat::try_new_from_triplets` (lower triangle only, duplicates
-//! summed), `SymbolicLlt::try_new(a.symbolic(), Side::Lower)` (kept and reused while the pattern
-//! — number of clusters, fixity bits, connectivity — is unchanged),
-//! `Llt::try_new_with_symbolic(sym.clone(), a.as_ref(), Side::Lower)` and `Llt::solve`.
+//! faer 0.24 calls: the lower triangle of `K_ff` is assembled on a pattern built from the
+//! cluster graph (`assemble.rs`: `SymbolicSparseColMat::new_checked`, values scattered in place;
+//! not `try_new_from_triplets`, whose sort cost as much as the factorisation),
+//! `SymbolicLlt::try_new(a.symbolic(), Side::Lower)`; the pattern and the symbolic factorisation
+//! are kept and reused while the fingerprint (number of clusters, fixity bits, connectivity) is
+//! unchanged; `Llt::try_new_with_symbolic(sym.clone(), a.as_ref(), Side::Lower)` and `Llt::solve`.
+//! `flem bench implicit` (`bench.rs`) times this path against faer's bare Cholesky.
+//!
+//! Selected in a scene by the `[check]` section (core/src/check.rs), which compares every
+//! stage's FLEM equilibrium with this solve:
+//!
+//! ```toml
+//! [check]
+//! solver = { type = "faer_cholesky" }
+//! tolerance = 1e-6
+//! ```
 //!
 //! Singular systems: a fragment (elements joined through shared clusters, after separation)
 //! whose prescribed dofs cannot stop its three rigid motions (two translations, one rotation) is
@@ -29,25 +41,78 @@
 //! solution whose one step of iterative refinement changes it by more than 1e-6 relative (a
 //! hinge's pivot can round to a tiny positive value instead of failing: the correction is then
 //! O(1)).
-use std::collections::hash_map::DefaultHasher;
-use std::hash::{Hash, Hasher};
+use std::sync::Mutex;
+use std::time::Instant;
 
 use faer::prelude::*;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use faer::Side;
+use flem_core::check::CheckSolver;
 use flem_core::model::Model;
 use flem_core::solver::Simulation;
 use flem_core::FlemError;
+use serde::{Deserialize, Serialize};
 
-/// Sparse direct solver of the linear static problem; keeps the symbolic factorisation.
+mod assemble;
+pub mod bench;
+
+/// What the solver keeps between calls while the fingerprint is unchanged.
 #[derive(Default)]
-pub struct ImplicitSolver {
-    symbolic: Option<SymbolicLlt<usize>>,
-    /// Hash of (number of clusters, fixity bits, connectivity) the symbolic factorisation is for.
+struct Cache {
+    /// Hash of (number of clusters, fixity bits, connectivity) the data below is for.
     fingerprint: u64,
-    /// How many symbolic factorisations were computed (for tests and diagnostics).
-    pub symbolic_count: usize,
+    pattern: Option<SymbolicSparseColMat<usize>>,
+    symbolic: Option<SymbolicLlt<usize>>,
+    /// The assembled `K_ff` and its numeric factor, kept after a successful solve: `K` depends
+    /// only on what the fingerprint covers, so a later solve needs only a new right-hand side.
+    factor: Option<(SparseColMat<usize, f64>, Llt<usize, f64>)>,
+    symbolic_count: usize,
+}
+
+/// Sparse direct solver of the linear static problem (faer's supernodal/simplicial Cholesky);
+/// keeps the sparsity pattern, the symbolic and the numeric factorisation while the topology,
+/// fixities, geometry and materials are unchanged (a later stage then costs two triangular
+/// solves).
+///
+/// ```toml
+/// [check]
+/// solver = { type = "faer_cholesky" }
+/// ```
+#[derive(Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImplicitSolver {
+    #[serde(skip)]
+    cache: Mutex<Cache>,
+}
+
+impl std::fmt::Debug for ImplicitSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ImplicitSolver").finish_non_exhaustive()
+    }
+}
+
+#[typetag::serde(name = "faer_cholesky")]
+impl CheckSolver for ImplicitSolver {
+    fn solve(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>, FlemError> {
+        self.solve_timed(model, fix, f_ext, u_prescribed).map(|(u, _)| u)
+    }
+}
+
+/// Wall time of each phase of one solve, seconds.
+#[derive(Copy, Clone, Debug, Default, Serialize)]
+pub struct Timings {
+    /// Fragments, the rigid-motion test, dof numbering and the fingerprint.
+    pub checks: f64,
+    /// Pattern (when not reused), element stiffnesses and scatter, right-hand side (only the
+    /// right-hand side when the factor is reused).
+    pub assembly: f64,
+    /// Symbolic factorisation (0 when reused).
+    pub symbolic: f64,
+    pub numeric: f64,
+    /// Triangular solves, with one step of iterative refinement.
+    pub solve: f64,
+    pub total: f64,
 }
 
 const PREFIX: &str = "the implicit check solver cannot solve";
@@ -166,9 +231,21 @@ impl ImplicitSolver {
         Self::default()
     }
 
+    /// How many symbolic factorisations were computed (for tests and diagnostics).
+    pub fn symbolic_count(&self) -> usize {
+        self.cache.lock().unwrap_or_else(|e| e.into_inner()).symbolic_count
+    }
+
     /// Solves `K u = f_ext` with the dofs flagged in `fix` (bit 1 = x, bit 2 = y) prescribed to
     /// `u_prescribed`. Returns the displacement of every cluster.
-    pub fn solve(&mut self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>, FlemError> {
+    pub fn solve(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>, FlemError> {
+        self.solve_timed(model, fix, f_ext, u_prescribed).map(|(u, _)| u)
+    }
+
+    /// [`ImplicitSolver::solve`] with the time of each phase.
+    pub fn solve_timed(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<(Vec<[f64; 2]>, Timings), FlemError> {
+        let t0 = Instant::now();
+        let mut tm = Timings::default();
         let nc = model.topo.n_clusters();
         if fix.len() != nc || f_ext.len() != nc || u_prescribed.len() != nc {
             return Err(FlemError::Solve(format!(
@@ -183,21 +260,57 @@ impl ImplicitSolver {
         let (eq, n) = number_dofs(fix);
         let mut u: Vec<[f64; 2]> = (0..nc).map(|c| [if fix[c] & 1 != 0 { u_prescribed[c][0] } else { 0.0 }, if fix[c] & 2 != 0 { u_prescribed[c][1] } else { 0.0 }]).collect();
         if n == 0 {
-            return Ok(u);
+            return Ok((u, tm));
         }
-        let (a, rhs, fp) = assemble(model, fix, &eq, n, f_ext, u_prescribed)?;
-        if fp != self.fingerprint || self.symbolic.is_none() {
-            let sym = SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e:?}")))?;
-            self.symbolic = Some(sym);
-            self.fingerprint = fp;
-            self.symbolic_count += 1;
+        let fp = assemble::fingerprint(model, fix);
+        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        if fp != cache.fingerprint {
+            *cache = Cache { symbolic_count: cache.symbolic_count, fingerprint: fp, ..Cache::default() };
         }
-        let sym = self.symbolic.clone().expect("set above");
-        let x = match solve_checked(sym, &a, &rhs) {
-            Ok(x) => x,
-            Err(None) => return Err(locate_singular(model, fix, &eq, &fr, &a)),
-            Err(Some(e)) => return Err(FlemError::Solve(format!("{PREFIX}: numeric factorisation failed: {e}"))),
+        let t1 = Instant::now();
+        tm.checks = (t1 - t0).as_secs_f64();
+        // Cold: assemble and factorise (pattern and symbolic reused when present). Warm: the
+        // kept factor and a right-hand side from the internal-force kernel.
+        let (fresh, rhs) = if cache.factor.is_some() {
+            let rhs = assemble::rhs_by_forces(model, &eq, n, fix, f_ext, u_prescribed);
+            tm.assembly = t1.elapsed().as_secs_f64();
+            (None, rhs)
+        } else {
+            if cache.pattern.is_none() {
+                cache.pattern = Some(assemble::pattern(model, &eq, n));
+            }
+            let (a, rhs) = assemble::values(model, &eq, cache.pattern.as_ref().expect("set above"), f_ext, u_prescribed);
+            let t2 = Instant::now();
+            tm.assembly = (t2 - t1).as_secs_f64();
+            if cache.symbolic.is_none() {
+                let sym = SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e:?}")))?;
+                cache.symbolic = Some(sym);
+                cache.symbolic_count += 1;
+                tm.symbolic = t2.elapsed().as_secs_f64();
+            }
+            let sym = cache.symbolic.clone().expect("set above");
+            let llt = match factor(sym, &a, &mut tm) {
+                Ok(l) => l,
+                Err(None) => return Err(locate_singular(model, fix, &eq, &fr, &a)),
+                Err(Some(e)) => return Err(FlemError::Solve(format!("{PREFIX}: numeric factorisation failed: {e}"))),
+            };
+            (Some((a, llt)), rhs)
         };
+        let (a, llt) = match &fresh {
+            Some((a, l)) => (a, l),
+            None => {
+                let (a, l) = cache.factor.as_ref().expect("checked above");
+                (a, l)
+            }
+        };
+        let x = match refined_solve(llt, a, &rhs, &mut tm) {
+            Some(x) => x,
+            None => return Err(locate_singular(model, fix, &eq, &fr, a)),
+        };
+        if let Some(f) = fresh {
+            cache.factor = Some(f);
+        }
+        drop(cache);
         for c in 0..nc {
             for d in 0..2 {
                 let k = eq[2 * c + d];
@@ -206,60 +319,17 @@ impl ImplicitSolver {
                 }
             }
         }
-        Ok(u)
+        tm.total = t0.elapsed().as_secs_f64();
+        Ok((u, tm))
     }
-}
 
-type Assembled = (SparseColMat<usize, f64>, Vec<f64>, u64);
-
-/// Lower-triangle triplets of `K_ff`, the right-hand side `f_f - K_fp u_p`, and the pattern hash.
-fn assemble(model: &Model, fix: &[u8], eq: &[usize], n: usize, f_ext: &[[f64; 2]], u_p: &[[f64; 2]]) -> Result<Assembled, FlemError> {
-    let mut h = DefaultHasher::new();
-    fix.len().hash(&mut h);
-    fix.hash(&mut h);
-    let mut rhs = vec![0.0; n];
-    for (c, f) in f_ext.iter().enumerate() {
-        for d in 0..2 {
-            if eq[2 * c + d] != usize::MAX {
-                rhs[eq[2 * c + d]] += f[d];
-            }
-        }
+    /// The assembled `K_ff` (lower triangle) and right-hand side, as `solve` builds them
+    /// (for the benchmark: faer's bare Cholesky runs on the same matrix).
+    pub fn assembled(model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> (SparseColMat<usize, f64>, Vec<f64>) {
+        let (eq, n) = number_dofs(fix);
+        let pat = assemble::pattern(model, &eq, n);
+        assemble::values(model, &eq, &pat, f_ext, u_prescribed)
     }
-    let mut trip = Vec::new();
-    let mut k = Vec::new();
-    for blk in &model.blocks {
-        let nn = blk.nodes_per_elem();
-        let nd = 2 * nn;
-        k.resize(nd * nd, 0.0);
-        for i in 0..blk.len() {
-            blk.stiffness(i, &mut k);
-            let conn = blk.conn(i);
-            conn.hash(&mut h);
-            for r in 0..nd {
-                let gr = 2 * conn[r / 2] as usize + r % 2;
-                let er = eq[gr];
-                if er == usize::MAX {
-                    continue;
-                }
-                for s in 0..nd {
-                    let gs = 2 * conn[s / 2] as usize + s % 2;
-                    let es = eq[gs];
-                    let v = k[r * nd + s];
-                    if es == usize::MAX {
-                        rhs[er] -= v * u_p[gs / 2][gs % 2];
-                    } else if er >= es {
-                        trip.push(Triplet::new(er, es, v));
-                    }
-                }
-            }
-        }
-    }
-    // Every free dof on the diagonal (a free dof of a cluster without element stays visible).
-    for i in 0..n {
-        trip.push(Triplet::new(i, i, 0.0));
-    }
-    let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip).map_err(|e| FlemError::Solve(format!("{PREFIX}: assembly failed: {e:?}")))?;
-    Ok((a, rhs, h.finish()))
 }
 
 /// `y = K x` with `K` stored as its lower triangle.
@@ -279,21 +349,29 @@ fn sym_mul(a: &SparseColMat<usize, f64>, x: &[f64]) -> Vec<f64> {
     y
 }
 
-/// Numeric LLT, solve, one step of iterative refinement. `Err(None)` when the matrix is
-/// (numerically) singular: a non-positive pivot, a non-finite solution, or a refinement
-/// correction above 1e-6 of the solution (its size is about cond(K) x machine epsilon, so a
-/// mechanism whose pivot rounds to a tiny positive value is caught too).
-fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f64]) -> Result<Vec<f64>, Option<String>> {
-    let llt = match Llt::try_new_with_symbolic(sym, a.as_ref(), Side::Lower) {
-        Ok(l) => l,
-        Err(faer::sparse::linalg::LltError::Numeric(_)) => return Err(None),
-        Err(e) => return Err(Some(format!("{e:?}"))),
+/// Numeric LLT on a (reused) symbolic factorisation. `Err(None)`: a non-positive pivot.
+fn factor(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, tm: &mut Timings) -> Result<Llt<usize, f64>, Option<String>> {
+    let t0 = Instant::now();
+    let r = match Llt::try_new_with_symbolic(sym, a.as_ref(), Side::Lower) {
+        Ok(l) => Ok(l),
+        Err(faer::sparse::linalg::LltError::Numeric(_)) => Err(None),
+        Err(e) => Err(Some(format!("{e:?}"))),
     };
+    tm.numeric = t0.elapsed().as_secs_f64();
+    r
+}
+
+/// Solve and one step of iterative refinement. `None` when the matrix is (numerically)
+/// singular: a non-finite solution, or a refinement correction above 1e-6 of the solution (its
+/// size is about cond(K) x machine epsilon, so a mechanism whose pivot rounds to a tiny
+/// positive value is caught too).
+fn refined_solve(llt: &Llt<usize, f64>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Option<Vec<f64>> {
+    let t1 = Instant::now();
     let n = rhs.len();
     let x = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i]));
     let mut x: Vec<f64> = (0..n).map(|i| x[i]).collect();
     if !x.iter().all(|v| v.is_finite()) {
-        return Err(None);
+        return None;
     }
     let kx = sym_mul(a, &x);
     let dx = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i] - kx[i]));
@@ -303,10 +381,17 @@ fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f
         x[i] += dx[i];
         nx = nx.max(x[i].abs());
     }
+    tm.solve = t1.elapsed().as_secs_f64();
     if !nd.is_finite() || nd > 1e-6 * nx {
-        return Err(None);
+        return None;
     }
-    Ok(x)
+    Some(x)
+}
+
+/// Factor, solve, refine; `Err(None)` when singular (see [`factor`], [`refined_solve`]).
+fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Result<Vec<f64>, Option<String>> {
+    let llt = factor(sym, a, tm)?;
+    refined_solve(&llt, a, rhs, tm).ok_or(None)
 }
 
 /// After a failed factorisation: factorise each fragment's block alone and name the first that
@@ -354,7 +439,7 @@ fn locate_singular(model: &Model, fix: &[u8], eq: &[usize], fr: &Fragments, a: &
             .ok()
             .and_then(|b| {
                 let s = SymbolicLlt::try_new(b.symbolic(), Side::Lower).ok()?;
-                solve_checked(s, &b, &(0..m).map(|i| (i % 7) as f64 + 1.0).collect::<Vec<_>>()).ok()
+                solve_checked(s, &b, &(0..m).map(|i| (i % 7) as f64 + 1.0).collect::<Vec<_>>(), &mut Timings::default()).ok()
             })
             .is_some();
         if !ok {
@@ -406,6 +491,26 @@ mod tests {
     /// Patch test (form B): boundary points prescribed to u = A x + b on a distorted mesh; the
     /// solve reproduces the field at every interior point. Reference: the exact linear field.
     /// Tolerance 1e-12 relative to the largest displacement.
+    /// The doc snippet parses as a `[check]` table and its solver, called through the
+    /// `CheckSolver` trait, solves a clamped bar (reference: the inherent `solve`; identical bits).
+    #[test]
+    fn doc_snippet_parses_and_solves_through_the_trait() {
+        crate::link();
+        let got = crate::snippets::doc_snippets::<flem_core::check::CheckCfg>(&[("check/mod.rs", include_str!("mod.rs"))], &["check"], &[]);
+        let s = sim("[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = 4\nny = 2\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[[stage]]\n");
+        let fix: Vec<u8> = s.x0.iter().map(|x| if x[0] == 0.0 { 3 } else { 0 }).collect();
+        let f: Vec<[f64; 2]> = s.x0.iter().map(|x| if x[0] == 2.0 { [0.0, -1.0] } else { [0.0; 2] }).collect();
+        let zero = vec![[0.0; 2]; f.len()];
+        let want = ImplicitSolver::new().solve(&s.model, &fix, &f, &zero).unwrap();
+        for (file, cfg) in got {
+            let solver = cfg.solver.unwrap_or_else(|| panic!("{file}: no solver"));
+            assert!(format!("{solver:?}").contains("ImplicitSolver"), "{file}");
+            let u = solver.solve(&s.model, &fix, &f, &zero).unwrap();
+            assert_eq!(u, want, "{file}: the trait call and the inherent solve differ");
+            assert!(want.iter().any(|v| v[1] < 0.0));
+        }
+    }
+
     #[test]
     fn patch_test_linear_field_interior() {
         for kind in ["q4", "t3"] {
@@ -554,7 +659,7 @@ mod tests {
         let top = m.topo.point_clusters[id(2, 4) as usize][0].idx();
         f[top] = [0.0, 1.0];
         let zero = vec![[0.0; 2]; nc];
-        let mut solver = ImplicitSolver::new();
+        let solver = ImplicitSolver::new();
         let e = solver.solve(&m, &fix, &f, &zero).unwrap_err().to_string();
         eprintln!("{e}");
         assert!(e.contains("fragment 1 (elements 8, 9, 10, ...; 8 elements"), "{e}");
@@ -590,7 +695,7 @@ mod tests {
         let mut f = vec![[0.0; 2]; nc];
         f[m.topo.point_clusters[5][0].idx()] = [1.0, 0.0];
         let zero = vec![[0.0; 2]; nc];
-        let mut solver = ImplicitSolver::new();
+        let solver = ImplicitSolver::new();
         match solver.solve(&m, &fix, &f, &zero) {
             Err(e) => {
                 let e = e.to_string();
@@ -602,10 +707,10 @@ mod tests {
         // Support the second square too: solvable, and the same pattern reuses the symbolic.
         fix[m.topo.point_clusters[4][0].idx()] = 3;
         let u1 = solver.solve(&m, &fix, &f, &zero).unwrap();
-        let n1 = solver.symbolic_count;
+        let n1 = solver.symbolic_count();
         f[m.topo.point_clusters[5][0].idx()] = [2.0, 0.0];
         let u2 = solver.solve(&m, &fix, &f, &zero).unwrap();
-        assert_eq!(solver.symbolic_count, n1, "symbolic factorisation not reused");
+        assert_eq!(solver.symbolic_count(), n1, "symbolic factorisation not reused");
         assert!((u2[m.topo.point_clusters[5][0].idx()][0] - 2.0 * u1[m.topo.point_clusters[5][0].idx()][0]).abs() < 1e-12);
     }
 }

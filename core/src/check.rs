@@ -1,0 +1,321 @@
+//! The implicit check (METHOD.md section 10): the [`CheckSolver`] trait that plugins implement
+//! (the built-in one is faer's sparse Cholesky, `type = "faer_cholesky"`), the `[check]` scene
+//! section, and the FLEM-vs-implicit comparison run after every stage.
+//!
+//! After a stage reaches equilibrium, the check solver solves the linear static problem of the
+//! *same* model: the current clusters (after any split), the current fixities and prescribed
+//! displacements, and the external force at the stage's load levels
+//! ([`Simulation::external_force`]; follower pressures on the reference configuration, so the
+//! two agree only while displacements are small). The comparison measures, over clusters,
+//!
+//! ```text
+//! rel_l2_displacement        = |u_flem - u_imp|_2 / |u_imp|_2
+//! max_abs_displacement_error = max_c,d |u_flem - u_imp|
+//! rel_l2_nodal_stress        = |s_flem - s_imp|_2 / |s_imp|_2   (nodal stress, METHOD section 3)
+//! ```
+//!
+//! and writes per stage one VTU (`compare_NNNN_<stage>.vtu`: the snapshot fields, whose
+//! `displacement` and `nodal_stress` are FLEM's, plus `displacement_implicit`,
+//! `nodal_stress_implicit`, `displacement_difference` and `nodal_stress_difference`, each
+//! FLEM minus implicit) and `compare.json` (rewritten atomically after every stage). A ratio
+//! whose denominator is zero, or any non-finite number, is written as `null`, never as NaN.
+//!
+//! ```toml
+//! [check]                                # every key optional
+//! solver = { type = "faer_cholesky" }    # the check solver plugin (default)
+//! tolerance = 1e-6                       # bound on both relative L2 differences
+//! vtu = true                             # write compare_NNNN_<stage>.vtu per stage
+//! ```
+use std::fmt::Debug;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use vtkio::model::{Attribute, DataSet, Piece};
+
+use crate::cracking::SplitEvent;
+use crate::error::{FlemError, Result};
+use crate::model::Model;
+use crate::output::{atomic_write, prepare_dir, snapshot_vtk, vtu_bytes};
+use crate::solver::{Observer, Progress, Simulation};
+use crate::topology::SplitRecord;
+use crate::traits::ParamError;
+
+/// A direct solver of the linear static problem of a model (METHOD section 10).
+///
+/// `solve` takes `&self`: an implementation keeps what it can reuse between calls (a symbolic
+/// factorisation, a sparsity pattern) behind interior mutability, so one configured solver in a
+/// scene serves every stage.
+#[typetag::serde(tag = "type")]
+pub trait CheckSolver: Debug + Send + Sync {
+    /// Checks the parameters; the error names the key and the allowed range.
+    fn validate(&self) -> Result<(), ParamError> {
+        Ok(())
+    }
+    /// Solves `K u = f_ext` with the dofs flagged in `fix` (bit 1 = x, bit 2 = y) prescribed to
+    /// `u_prescribed`; returns the displacement of every cluster. A singular system (a fragment
+    /// without enough support) is an error naming the fragment, never a NaN solution.
+    fn solve(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>>;
+}
+
+/// `[check]`: compare every stage's equilibrium with the implicit solve.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckCfg {
+    /// The check solver; filled in with "faer_cholesky" when the scene names none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solver: Option<Box<dyn CheckSolver>>,
+    /// A stage is `within_tolerance` when both relative L2 differences are at most this.
+    #[serde(default = "default_tol")]
+    pub tolerance: f64,
+    /// Write one comparison VTU per stage.
+    #[serde(default = "yes")]
+    pub vtu: bool,
+}
+
+fn default_tol() -> f64 {
+    1e-6
+}
+fn yes() -> bool {
+    true
+}
+
+impl CheckCfg {
+    /// `[check]` with every default (the check solver named "faer_cholesky", which must be
+    /// linked into the program: `flem-plugins`).
+    pub fn with_defaults(file: &str) -> Result<CheckCfg> {
+        let mut c = CheckCfg { solver: None, tolerance: default_tol(), vtu: true };
+        c.fill_default(file)?;
+        Ok(c)
+    }
+
+    /// Fills in the default solver.
+    pub fn fill_default(&mut self, file: &str) -> Result<()> {
+        if self.solver.is_none() {
+            let s = toml::from_str("type = \"faer_cholesky\"").map_err(|e| FlemError::config(file, "check.solver", format!("is not given and the default \"faer_cholesky\" is not registered in this program ({e}); link flem-plugins or name a check solver")))?;
+            self.solver = Some(s);
+        }
+        Ok(())
+    }
+
+    /// Validates the keys (errors name `check.<key>`).
+    pub fn validate(&self, file: &str) -> Result<()> {
+        ParamError::range("check.tolerance", self.tolerance, 0.0, false, 1.0, false).map_err(|e| FlemError::config(file, e.key, e.msg))?;
+        if let Some(s) = &self.solver {
+            s.validate().map_err(|e| FlemError::config(file, format!("check.solver.{}", e.key), e.msg))?;
+        }
+        Ok(())
+    }
+
+    pub fn solver(&self) -> &dyn CheckSolver {
+        self.solver.as_deref().expect("Scene::from_str fills in the default check solver")
+    }
+}
+
+/// The comparison of one stage (one entry of `compare.json`).
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct StageComparison {
+    pub stage: usize,
+    pub name: String,
+    pub clusters: usize,
+    /// Free dofs of the implicit system.
+    pub dofs: usize,
+    pub flem_steps: u64,
+    pub flem_converged: bool,
+    /// Unbalanced-force ratio FLEM reached at the end of the stage.
+    pub unbalanced_ratio: Option<f64>,
+    pub splits: usize,
+    pub rel_l2_displacement: Option<f64>,
+    pub max_abs_displacement_error: Option<f64>,
+    /// Largest displacement component of the implicit solution (the scale of the error above).
+    pub max_abs_displacement: Option<f64>,
+    pub rel_l2_nodal_stress: Option<f64>,
+    pub wall_seconds_flem: f64,
+    pub wall_seconds_implicit: f64,
+    /// Both relative differences at most `[check] tolerance` (false when not computed).
+    pub within_tolerance: bool,
+    /// Why the implicit solve failed (e.g. a fragment without support, named).
+    pub implicit_error: Option<String>,
+    /// The comparison VTU, relative to the output folder.
+    pub vtu: Option<String>,
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+/// `|a - b|_2 / |b|_2` over every component (`None` when `|b| = 0` and `a != b`, 0 when both 0).
+fn rel_l2<const N: usize>(a: &[[f64; N]], b: &[[f64; N]]) -> Option<f64> {
+    let (mut d, mut n) = (0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        for k in 0..N {
+            d += (x[k] - y[k]) * (x[k] - y[k]);
+            n += y[k] * y[k];
+        }
+    }
+    if n == 0.0 {
+        return if d == 0.0 { Some(0.0) } else { None };
+    }
+    finite((d / n).sqrt())
+}
+
+/// Runs the implicit solve on the simulation's current state and compares. Returns the entry
+/// and, when the solve succeeded, the implicit displacement and nodal stress.
+pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, tolerance: f64) -> (StageComparison, Option<(Vec<[f64; 2]>, Vec<[f64; 3]>)>) {
+    let st = sim.stages_done.last().cloned().unwrap_or_default();
+    let nc = sim.model.topo.n_clusters();
+    let dofs = sim.state.fix.iter().map(|&b| 2 - (b & 1) as usize - ((b >> 1) & 1) as usize).sum();
+    let mut c = StageComparison {
+        stage,
+        name: st.name.clone(),
+        clusters: nc,
+        dofs,
+        flem_steps: st.steps,
+        flem_converged: st.converged,
+        unbalanced_ratio: finite(st.final_ratio),
+        splits: st.splits,
+        wall_seconds_flem: st.wall_seconds,
+        ..Default::default()
+    };
+    let t0 = Instant::now();
+    let r = solver.solve(&sim.model, &sim.state.fix, &sim.external_force(), &sim.state.u);
+    c.wall_seconds_implicit = t0.elapsed().as_secs_f64();
+    let u_imp = match r {
+        Ok(u) if u.iter().all(|v| v[0].is_finite() && v[1].is_finite()) => u,
+        Ok(_) => {
+            c.implicit_error = Some("the implicit solution is not finite".into());
+            return (c, None);
+        }
+        Err(e) => {
+            c.implicit_error = Some(e.to_string());
+            return (c, None);
+        }
+    };
+    let (mut corner, mut s_flem, mut s_imp) = (Vec::new(), Vec::new(), Vec::new());
+    sim.model.nodal_stress(&sim.state.u, &mut corner, &mut s_flem);
+    sim.model.nodal_stress(&u_imp, &mut corner, &mut s_imp);
+    c.rel_l2_displacement = rel_l2(&sim.state.u, &u_imp);
+    c.rel_l2_nodal_stress = rel_l2(&s_flem, &s_imp);
+    let max_err = sim.state.u.iter().zip(&u_imp).flat_map(|(a, b)| [(a[0] - b[0]).abs(), (a[1] - b[1]).abs()]).fold(0.0, f64::max);
+    c.max_abs_displacement_error = finite(max_err);
+    c.max_abs_displacement = finite(u_imp.iter().flat_map(|v| [v[0].abs(), v[1].abs()]).fold(0.0, f64::max));
+    c.within_tolerance = matches!((c.rel_l2_displacement, c.rel_l2_nodal_stress), (Some(a), Some(b)) if a <= tolerance && b <= tolerance);
+    (c, Some((u_imp, s_imp)))
+}
+
+/// The snapshot VTU of `sim` with the implicit fields and the differences added.
+pub fn comparison_vtu(sim: &Simulation, u_imp: &[[f64; 2]], s_imp: &[[f64; 3]], compress: bool) -> Result<Vec<u8>> {
+    let mut vtk = snapshot_vtk(sim);
+    let (mut corner, mut s_flem) = (Vec::new(), Vec::new());
+    sim.model.nodal_stress(&sim.state.u, &mut corner, &mut s_flem);
+    let du: Vec<f64> = sim.state.u.iter().zip(u_imp).flat_map(|(a, b)| [a[0] - b[0], a[1] - b[1], 0.0]).collect();
+    let ds: Vec<f64> = s_flem.iter().zip(s_imp).flat_map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]]).collect();
+    let attrs = [
+        Attribute::generic("displacement_implicit", 3).with_data(u_imp.iter().flat_map(|v| [v[0], v[1], 0.0]).collect::<Vec<f64>>()),
+        Attribute::generic("nodal_stress_implicit", 3).with_data(s_imp.iter().flat_map(|s| *s).collect::<Vec<f64>>()),
+        Attribute::generic("displacement_difference", 3).with_data(du),
+        Attribute::generic("nodal_stress_difference", 3).with_data(ds),
+    ];
+    match &mut vtk.data {
+        DataSet::UnstructuredGrid { pieces, .. } => match pieces.first_mut() {
+            Some(Piece::Inline(p)) => p.data.point.extend(attrs),
+            _ => return Err(FlemError::Other("comparison VTU: the snapshot has no inline piece".into())),
+        },
+        _ => return Err(FlemError::Other("comparison VTU: the snapshot is not an unstructured grid".into())),
+    }
+    vtu_bytes(vtk, compress)
+}
+
+/// The comparison table printed by `flem compare` and `flem run` with `[check]`.
+pub fn table(rows: &[StageComparison]) -> String {
+    let f = |v: Option<f64>| v.map(|x| format!("{x:.2e}")).unwrap_or_else(|| "-".into());
+    let mut s = format!("{:<14} {:>8} {:>9} {:>10} {:>10} {:>10} {:>9} {:>9}  ok\n", "stage", "dofs", "ratio", "rel_l2_u", "max|du|", "rel_l2_s", "t_flem", "t_impl");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{:<14} {:>8} {:>9} {:>10} {:>10} {:>10} {:>8.3}s {:>8.3}s  {}",
+            r.name,
+            r.dofs,
+            f(r.unbalanced_ratio),
+            f(r.rel_l2_displacement),
+            f(r.max_abs_displacement_error),
+            f(r.rel_l2_nodal_stress),
+            r.wall_seconds_flem,
+            r.wall_seconds_implicit,
+            if r.within_tolerance { "yes" } else { "NO" }
+        );
+        if let Some(e) = &r.implicit_error {
+            let _ = writeln!(s, "    implicit solve failed: {e}");
+        }
+    }
+    s
+}
+
+/// An observer that forwards everything to `inner` and, at the end of every stage, runs the
+/// comparison with the scene's `[check]` solver, writes the VTU and rewrites `compare.json`
+/// in `dir`.
+pub struct Comparer<'a> {
+    inner: &'a mut dyn Observer,
+    dir: PathBuf,
+    pub rows: Vec<StageComparison>,
+    /// Called with each new row (the CLI prints it).
+    pub on_row: Option<Box<dyn FnMut(&StageComparison) + 'a>>,
+}
+
+impl<'a> Comparer<'a> {
+    /// `dir` is created if needed (an unwritable folder fails here, before any step).
+    pub fn new(inner: &'a mut dyn Observer, dir: &Path) -> Result<Self> {
+        prepare_dir(dir)?;
+        Ok(Comparer { inner, dir: dir.to_path_buf(), rows: Vec::new(), on_row: None })
+    }
+
+    fn write_json(&self, sim: &Simulation) -> Result<()> {
+        let tol = sim.scene.file.check.as_ref().map_or(default_tol(), |c| c.tolerance);
+        let v = serde_json::json!({
+            "scene": sim.scene.path.display().to_string(),
+            "title": sim.scene.file.title,
+            "solver": sim.scene.file.check.as_ref().and_then(|c| c.solver.as_ref()).and_then(|s| serde_json::to_value(s).ok()),
+            "tolerance": tol,
+            "stages": self.rows,
+        });
+        atomic_write(&self.dir.join("compare.json"), serde_json::to_string_pretty(&v).unwrap_or_default().as_bytes())
+    }
+}
+
+impl Observer for Comparer<'_> {
+    fn history(&mut self, sim: &Simulation, stage: usize) -> Result<()> {
+        self.inner.history(sim, stage)
+    }
+    fn snapshot(&mut self, sim: &Simulation, stage: usize, label: &str) -> Result<()> {
+        self.inner.snapshot(sim, stage, label)
+    }
+    fn splits(&mut self, sim: &Simulation, rec: &SplitRecord, events: &[SplitEvent]) -> Result<()> {
+        self.inner.splits(sim, rec, events)
+    }
+    fn progress(&mut self, p: &Progress) {
+        self.inner.progress(p)
+    }
+    fn stage_end(&mut self, sim: &Simulation, stage: usize) -> Result<()> {
+        self.inner.stage_end(sim, stage)?;
+        let file = sim.scene.path.display().to_string();
+        let cfg = sim.scene.file.check.as_ref().ok_or_else(|| FlemError::config(&file, "check", "is missing: the comparison needs a [check] section"))?;
+        let (mut row, fields) = compare_stage(sim, cfg.solver(), stage, cfg.tolerance);
+        if let (Some((u, s)), true) = (fields, cfg.vtu) {
+            let name = format!("compare_{stage:04}_{}.vtu", sanitize(&row.name));
+            let bytes = comparison_vtu(sim, &u, &s, sim.scene.file.output.compress)?;
+            atomic_write(&self.dir.join(&name), &bytes)?;
+            row.vtu = Some(name);
+        }
+        if let Some(f) = self.on_row.as_mut() {
+            f(&row);
+        }
+        self.rows.push(row);
+        self.write_json(sim)
+    }
+}
+
+/// A stage name usable in a file name.
+fn sanitize(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
+}

@@ -1,0 +1,300 @@
+//! `flem chart SCENE`: the speed-accuracy chart (issue 9).
+//!
+//! The scene is run over a sweep of the explicit solver's knobs (damping scheme, dt safety
+//! factor, equilibrium tolerance) and of mesh refinement (rectangle meshes: nx, ny times 1, 2,
+//! 4). For every run: the wall time (model build + all stages) and its errors:
+//! - `err_implicit`: relative L2 displacement error against the implicit solve on the same
+//!   mesh and topology (what the explicit solver itself gets wrong);
+//! - `err_reference`: against a reference, the implicit solve on a rectangle twice as fine as
+//!   the finest of the sweep, compared at the points both meshes share (discretisation plus
+//!   solver error; only for rectangle meshes and runs without splits);
+//! - `err_analytic`: with `--analytic PROBE:x|y=VALUE`, the relative error of that probe's
+//!   displacement component against the analytic value.
+//!
+//! The implicit solves appear as their own points (method "implicit"). The Pareto front
+//! (no other point both faster and more accurate) is marked over the chart's error, the first
+//! of analytic, reference, implicit that exists. Written: chart.csv, chart.json (and the
+//! pictures, see `plot`).
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use flem_core::scene::Scene;
+use flem_core::solver::{NoOutput, Simulation};
+use serde::Serialize;
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Point {
+    pub method: String,
+    pub damping: String,
+    pub dt_safety: f64,
+    pub tolerance: f64,
+    pub refine: usize,
+    pub elements: usize,
+    pub steps: u64,
+    pub converged: bool,
+    pub wall_seconds: f64,
+    pub err_implicit: Option<f64>,
+    pub err_reference: Option<f64>,
+    pub err_analytic: Option<f64>,
+    pub pareto: bool,
+}
+
+impl Point {
+    /// The error the chart plots: analytic, else reference, else same-mesh implicit.
+    pub fn error(&self) -> Option<f64> {
+        self.err_analytic.or(self.err_reference).or(self.err_implicit)
+    }
+    pub fn error_kind(&self) -> &'static str {
+        if self.err_analytic.is_some() {
+            "analytic"
+        } else if self.err_reference.is_some() {
+            "reference"
+        } else {
+            "implicit"
+        }
+    }
+}
+
+/// An analytic value for one probe component.
+#[derive(Clone, Debug)]
+pub struct Analytic {
+    pub probe: String,
+    pub comp: usize,
+    pub value: f64,
+}
+
+impl std::str::FromStr for Analytic {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let bad = || format!("--analytic {s:?} is incorrect; write PROBE:x=VALUE or PROBE:y=VALUE (a probe of [output] probes)");
+        let (probe, rest) = s.split_once(':').ok_or_else(bad)?;
+        let (c, v) = rest.split_once('=').ok_or_else(bad)?;
+        let comp = match c {
+            "x" => 0,
+            "y" => 1,
+            _ => return Err(bad()),
+        };
+        let value: f64 = v.trim().parse().map_err(|_| bad())?;
+        if !value.is_finite() || value == 0.0 {
+            return Err(format!("--analytic {s:?}: the value must be finite and non-zero (the error is relative)"));
+        }
+        Ok(Analytic { probe: probe.to_string(), comp, value })
+    }
+}
+
+pub struct Sweep {
+    pub dampings: Vec<&'static str>,
+    pub safeties: Vec<f64>,
+    pub tolerances: Vec<f64>,
+    pub refines: Vec<usize>,
+}
+
+impl Sweep {
+    pub fn full() -> Sweep {
+        Sweep { dampings: vec!["adaptive", "local"], safeties: vec![0.5, 0.8, 0.95], tolerances: vec![1e-4, 1e-6, 1e-8], refines: vec![1, 2, 4] }
+    }
+    pub fn quick() -> Sweep {
+        Sweep { dampings: vec!["adaptive", "local"], safeties: vec![0.8], tolerances: vec![1e-4, 1e-7], refines: vec![1, 2] }
+    }
+}
+
+fn damping_table(name: &str) -> toml::Table {
+    let mut t = toml::Table::new();
+    t.insert("type".into(), toml::Value::String(name.into()));
+    t
+}
+
+/// The scene text with the sweep's settings: damping, dt safety, tolerance (global and every
+/// stage's), and rectangle refinement.
+fn variant(base: &toml::Table, damping: Option<&str>, safety: Option<f64>, tol: Option<f64>, refine: usize) -> Result<String> {
+    let mut t = base.clone();
+    let solver = t.entry("solver").or_insert(toml::Value::Table(toml::Table::new())).as_table_mut().context("[solver] is not a table")?;
+    if let Some(d) = damping {
+        solver.insert("damping".into(), toml::Value::Table(damping_table(d)));
+    }
+    if let Some(s) = safety {
+        solver.insert("dt_safety".into(), toml::Value::Float(s));
+        solver.remove("dt");
+    }
+    if let Some(tol) = tol {
+        solver.insert("tolerance".into(), toml::Value::Float(tol));
+        if let Some(toml::Value::Array(stages)) = t.get_mut("stage") {
+            for st in stages {
+                if let Some(st) = st.as_table_mut() {
+                    if st.contains_key("tolerance") {
+                        st.insert("tolerance".into(), toml::Value::Float(tol));
+                    }
+                }
+            }
+        }
+    }
+    if refine > 1 {
+        let mesh = t.get_mut("mesh").and_then(|m| m.as_table_mut()).context("[mesh] missing")?;
+        for k in ["nx", "ny"] {
+            let n = mesh.get(k).and_then(|v| v.as_integer()).with_context(|| format!("mesh.{k} missing"))?;
+            mesh.insert(k.into(), toml::Value::Integer(n * refine as i64));
+        }
+    }
+    Ok(toml::to_string(&t)?)
+}
+
+fn is_rectangle(t: &toml::Table) -> bool {
+    t.get("mesh").and_then(|m| m.get("type")).and_then(|v| v.as_str()) == Some("rectangle")
+}
+
+fn rel_l2(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        num += (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2);
+        den += y[0] * y[0] + y[1] * y[1];
+    }
+    if den > 0.0 {
+        (num / den).sqrt()
+    } else {
+        num.sqrt()
+    }
+}
+
+/// Reference field keyed by position (rounded), for comparison at shared points.
+struct Reference {
+    at: std::collections::BTreeMap<(i64, i64), [f64; 2]>,
+    scale: f64,
+}
+
+impl Reference {
+    fn key(x: [f64; 2], scale: f64) -> (i64, i64) {
+        ((x[0] / scale * 1e9).round() as i64, (x[1] / scale * 1e9).round() as i64)
+    }
+    fn new(sim: &Simulation, u: &[[f64; 2]]) -> Reference {
+        let scale = sim.x0.iter().fold(0.0f64, |m, x| m.max(x[0].abs()).max(x[1].abs())).max(f64::MIN_POSITIVE);
+        Reference { at: sim.x0.iter().zip(u).map(|(x, u)| (Self::key(*x, scale), *u)).collect(), scale }
+    }
+    /// Relative L2 error of `u` at the points of `sim` found in the reference.
+    fn error(&self, sim: &Simulation) -> Option<f64> {
+        let (mut mine, mut refs) = (Vec::new(), Vec::new());
+        for (x, u) in sim.x0.iter().zip(&sim.state.u) {
+            if let Some(r) = self.at.get(&Self::key(*x, self.scale)) {
+                mine.push(*u);
+                refs.push(*r);
+            }
+        }
+        (mine.len() == sim.x0.len()).then(|| rel_l2(&mine, &refs))
+    }
+}
+
+fn probe_index(sim: &Simulation, name: &str) -> Result<usize> {
+    let p = sim.scene.file.output.probes.iter().find(|p| p.name == name).with_context(|| format!("--analytic: no probe {name:?} in [output] probes of the scene"))?;
+    let mut best = (f64::INFINITY, 0);
+    for (c, x) in sim.x0.iter().enumerate() {
+        let d = (x[0] - p.at[0]).powi(2) + (x[1] - p.at[1]).powi(2);
+        if d < best.0 {
+            best = (d, c);
+        }
+    }
+    Ok(best.1)
+}
+
+fn load(text: &str, scene: &Scene) -> Result<Scene> {
+    Ok(Scene::from_str(text, &scene.path, &scene.base_dir)?)
+}
+
+/// Runs the sweep; progress lines on stderr.
+pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analytic>) -> Result<Vec<Point>> {
+    let base: toml::Table = toml::from_str(text).context("the scene is not TOML")?;
+    let rect = is_rectangle(&base);
+    let refines: Vec<usize> = if rect { sweep.refines.clone() } else { vec![1] };
+    let reference = if rect {
+        let finest = refines.iter().max().copied().unwrap_or(1) * 2;
+        let s = load(&variant(&base, None, None, None, finest)?, scene)?;
+        let mut sim = Simulation::new(s)?;
+        // Static reference: the load levels of the last stage, no explicit steps.
+        sim.set_stage_levels(sim.scene.file.stages.len() - 1);
+        let u = flem_plugins::check::static_solve(&sim)?;
+        eprintln!("reference: implicit solve on {} elements (refinement x{finest})", sim.model.n_elems());
+        Some(Reference::new(&sim, &u))
+    } else {
+        None
+    };
+    let mut pts = Vec::new();
+    for &r in &refines {
+        // The implicit solve as its own point.
+        let s = load(&variant(&base, None, None, None, r)?, scene)?;
+        let t0 = Instant::now();
+        let mut sim = Simulation::new(s)?;
+        sim.set_stage_levels(sim.scene.file.stages.len() - 1);
+        let u = flem_plugins::check::static_solve(&sim)?;
+        let wall = t0.elapsed().as_secs_f64();
+        sim.state.u = u.clone();
+        let implicit_u = u;
+        let err_ref = reference.as_ref().and_then(|rf| rf.error(&sim));
+        let err_an = match analytic {
+            Some(a) => Some((sim.state.u[probe_index(&sim, &a.probe)?][a.comp] - a.value).abs() / a.value.abs()),
+            None => None,
+        };
+        pts.push(Point { method: "implicit".into(), damping: "-".into(), dt_safety: 0.0, tolerance: 0.0, refine: r, elements: sim.model.n_elems(), steps: 0, converged: true, wall_seconds: wall, err_implicit: Some(0.0), err_reference: err_ref, err_analytic: err_an, pareto: false });
+        for &d in &sweep.dampings {
+            for &sf in &sweep.safeties {
+                for &tol in &sweep.tolerances {
+                    let s = load(&variant(&base, Some(d), Some(sf), Some(tol), r)?, scene)?;
+                    let t0 = Instant::now();
+                    let mut sim = Simulation::new(s)?;
+                    sim.run(&mut NoOutput)?;
+                    let wall = t0.elapsed().as_secs_f64();
+                    let steps: u64 = sim.stages_done.iter().map(|s| s.steps).sum();
+                    let converged = sim.stages_done.iter().all(|s| s.converged);
+                    let split = sim.model.topo.n_clusters() != sim.model.topo.n_points;
+                    let err_imp = if split { flem_plugins::check::static_solve(&sim).ok().map(|ui| rel_l2(&sim.state.u, &ui)) } else { Some(rel_l2(&sim.state.u, &implicit_u)) };
+                    let err_ref = if split { None } else { reference.as_ref().and_then(|rf| rf.error(&sim)) };
+                    let err_an = match analytic {
+                        Some(a) => Some((sim.state.u[probe_index(&sim, &a.probe)?][a.comp] - a.value).abs() / a.value.abs()),
+                        None => None,
+                    };
+                    let p = Point { method: "explicit".into(), damping: d.into(), dt_safety: sf, tolerance: tol, refine: r, elements: sim.model.n_elems(), steps, converged, wall_seconds: wall, err_implicit: err_imp, err_reference: err_ref, err_analytic: err_an, pareto: false };
+                    eprintln!("x{r} {d:<8} safety {sf:<4} tol {tol:.0e}: {steps:>8} steps {wall:>8.3} s  error {:.3e} ({})", p.error().unwrap_or(f64::NAN), p.error_kind());
+                    pts.push(p);
+                }
+            }
+        }
+    }
+    mark_pareto(&mut pts);
+    Ok(pts)
+}
+
+/// Marks the points no other point beats on both wall time and error.
+pub fn mark_pareto(pts: &mut [Point]) {
+    let key: Vec<Option<(f64, f64)>> = pts.iter().map(|p| p.error().map(|e| (p.wall_seconds, e))).collect();
+    for i in 0..pts.len() {
+        let Some((ti, ei)) = key[i] else { continue };
+        pts[i].pareto = !key.iter().enumerate().any(|(j, k)| j != i && k.is_some_and(|(tj, ej)| tj <= ti && ej <= ei && (tj < ti || ej < ei)));
+    }
+}
+
+pub fn csv(pts: &[Point]) -> String {
+    let f = |x: Option<f64>| x.map(|v| format!("{v:e}")).unwrap_or_default();
+    let mut s = String::from("method,damping,dt_safety,tolerance,refine,elements,steps,converged,wall_seconds,err_implicit,err_reference,err_analytic,pareto\n");
+    for p in pts {
+        s += &format!("{},{},{},{:e},{},{},{},{},{:e},{},{},{},{}\n", p.method, p.damping, p.dt_safety, p.tolerance, p.refine, p.elements, p.steps, p.converged, p.wall_seconds, f(p.err_implicit), f(p.err_reference), f(p.err_analytic), p.pareto);
+    }
+    s
+}
+
+/// `flem chart`: sweep, then chart.csv, chart.json and the pictures into `out`.
+pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Option<Analytic>) -> Result<()> {
+    let text = std::fs::read_to_string(scene_path).with_context(|| format!("{}: cannot be read", scene_path.display()))?;
+    let scene = Scene::from_file(scene_path)?;
+    if let Some(a) = &analytic {
+        if !scene.file.output.probes.iter().any(|p| p.name == a.probe) {
+            bail!("{}: --analytic names probe {:?}, but [output] probes has {:?}", scene_path.display(), a.probe, scene.file.output.probes.iter().map(|p| &p.name).collect::<Vec<_>>());
+        }
+    }
+    let stem = scene_path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "scene".into());
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_chart")));
+    flem_core::output::prepare_dir(&out)?;
+    let sw = if quick { Sweep::quick() } else { Sweep::full() };
+    let pts = sweep(&scene, &text, &sw, analytic.as_ref())?;
+    flem_core::output::atomic_write(&out.join("chart.csv"), csv(&pts).as_bytes())?;
+    flem_core::output::atomic_write(&out.join("chart.json"), serde_json::to_string_pretty(&pts)?.as_bytes())?;
+    eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());
+    Ok(())
+}
