@@ -3,6 +3,7 @@
 mod common;
 mod compare;
 mod configs;
+mod ckpt;
 mod cracking;
 mod dynplug;
 mod interop;

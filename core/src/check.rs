@@ -296,6 +296,15 @@ impl Observer for Comparer<'_> {
     fn progress(&mut self, p: &Progress) {
         self.inner.progress(p)
     }
+    fn should_stop(&mut self, sim: &Simulation) -> bool {
+        self.inner.should_stop(sim)
+    }
+    fn checkpoint_due(&mut self, sim: &Simulation) -> bool {
+        self.inner.checkpoint_due(sim)
+    }
+    fn checkpoint(&mut self, sim: &Simulation, pos: &crate::solver::StagePos) -> Result<()> {
+        self.inner.checkpoint(sim, pos)
+    }
     fn stage_end(&mut self, sim: &Simulation, stage: usize) -> Result<()> {
         self.inner.stage_end(sim, stage)?;
         let file = sim.scene.path.display().to_string();

@@ -36,6 +36,9 @@ pub struct Cracking {
     /// Failure index of every cluster at the last check.
     pub index: Vec<f64>,
     pub n_splits: usize,
+    /// Every cut applied, in order: (cluster, proposed edges). A checkpoint stores it and a
+    /// resumed run replays it through `Topology::cut` (checkpoint.rs).
+    pub cuts: Vec<(u32, Vec<u32>)>,
 }
 
 impl Cracking {
@@ -45,7 +48,7 @@ impl Cracking {
             Some(w) => (0..np as u64).map(|p| weibull_scale(w.modulus, w.seed, p)).collect(),
             None => vec![1.0; np],
         };
-        Cracking { scale, corner: Vec::new(), nodal: Vec::new(), principal: Vec::new(), scales: Vec::new(), checks: Vec::new(), index: vec![0.0; model.topo.n_clusters()], n_splits: 0 }
+        Cracking { scale, corner: Vec::new(), nodal: Vec::new(), principal: Vec::new(), scales: Vec::new(), checks: Vec::new(), index: vec![0.0; model.topo.n_clusters()], n_splits: 0, cuts: Vec::new() }
     }
 
     /// Direction (radians, [0, 2 pi)) of every joined edge of the fan, in the current configuration.
@@ -113,6 +116,7 @@ impl Cracking {
                 continue;
             }
             model.apply_record(&r);
+            self.cuts.push((c, prop.edges.iter().map(|e| e.0).collect()));
             for nc in &r.new_clusters {
                 self.index.push(idx);
                 events.push(SplitEvent {

@@ -21,6 +21,12 @@ pub enum FlemError {
     /// A dynamic plugin library that cannot be used (core/src/dynload).
     #[error("plugin library {file}: {msg}")]
     Plugin { file: String, msg: String },
+    /// The run was asked to stop (SIGINT/SIGTERM): a checkpoint and a snapshot were written.
+    #[error("interrupted after step {step} (stage {stage}, step {stage_step} of the stage); a checkpoint was written")]
+    Interrupted { step: u64, stage: usize, stage_step: u64 },
+    /// A checkpoint that cannot be used (corrupt, truncated, other scene or version).
+    #[error("checkpoint {path} refused: {msg}")]
+    Checkpoint { path: String, msg: String },
     /// Anything else, with its context.
     #[error("{0}")]
     Other(String),

@@ -6,6 +6,7 @@
 //! out through [`output`].
 pub mod block;
 pub mod check;
+pub mod checkpoint;
 pub mod damping;
 pub mod dynload;
 pub mod element;

@@ -245,6 +245,23 @@ pub struct OutputCfg {
     /// zlib-compress VTU arrays.
     #[serde(default)]
     pub compress: bool,
+    /// Steps (global count) between checkpoints (0: none by step count). A checkpoint is also
+    /// written at the end of every stage and when the run is interrupted.
+    #[serde(default)]
+    pub checkpoint_every: u64,
+    /// Wall-clock seconds between checkpoints (0: none by time).
+    #[serde(default = "default_ck_seconds")]
+    pub checkpoint_seconds: f64,
+    /// Checkpoints kept (the newest ones; at least 1).
+    #[serde(default = "default_ck_keep")]
+    pub checkpoint_keep: usize,
+}
+
+fn default_ck_seconds() -> f64 {
+    600.0
+}
+fn default_ck_keep() -> usize {
+    2
 }
 
 fn default_hist() -> u64 {
@@ -253,7 +270,7 @@ fn default_hist() -> u64 {
 
 impl Default for OutputCfg {
     fn default() -> Self {
-        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false }
+        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false, checkpoint_every: 0, checkpoint_seconds: default_ck_seconds(), checkpoint_keep: default_ck_keep() }
     }
 }
 
@@ -420,6 +437,10 @@ impl Scene {
             for v in vals {
                 range(&n, &format!("load[{i}].value"), v, f64::MIN, true, f64::MAX, true)?;
             }
+        }
+        range(&n, "output.checkpoint_seconds", f.output.checkpoint_seconds, 0.0, true, f64::INFINITY, false)?;
+        if f.output.checkpoint_keep == 0 {
+            return Err(FlemError::config(&n, "output.checkpoint_keep", "= 0 is incorrect; it must be >= 1"));
         }
         if f.stages.is_empty() {
             return Err(FlemError::config(&n, "stage", "is missing; give at least one [[stage]]"));

@@ -75,7 +75,7 @@ pub struct StableStep {
 }
 
 /// Per-stage results.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct StageResult {
     pub name: String,
     pub steps: u64,
@@ -116,6 +116,47 @@ pub trait Observer {
     fn stage_end(&mut self, _sim: &Simulation, _stage: usize) -> Result<()> {
         Ok(())
     }
+    /// Polled once per step: `true` stops the run after this step (a checkpoint, a snapshot
+    /// labelled "interrupted", then `FlemError::Interrupted`).
+    fn should_stop(&mut self, _sim: &Simulation) -> bool {
+        false
+    }
+    /// Polled once per step: `true` asks for a checkpoint now (e.g. a wall-clock interval).
+    fn checkpoint_due(&mut self, _sim: &Simulation) -> bool {
+        false
+    }
+    /// Saves a checkpoint (see `checkpoint.rs`): every `output.checkpoint_every` steps, when
+    /// `checkpoint_due`, at the end of every stage and on interruption.
+    fn checkpoint(&mut self, _sim: &Simulation, _pos: &StagePos) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// Where the stage loop is: enough to re-enter [`Simulation::run_from`] at step `stage_step`
+/// of stage `stage` with the loop's own counters.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StagePos {
+    pub stage: usize,
+    /// Steps done in this stage.
+    pub stage_step: u64,
+    /// Whether `begin_stage` (levels, constraints, damping reset) has been applied.
+    pub begun: bool,
+    /// Splits in this stage so far.
+    pub splits: usize,
+    /// The loop's last unbalanced ratio.
+    pub ratio: f64,
+    /// Wall time already spent in this stage (before an interruption).
+    pub wall_seconds: f64,
+    /// Stall detection: the best ratio so far and the stage step it was reached at.
+    pub best_ratio: f64,
+    pub best_step: u64,
+}
+
+impl StagePos {
+    /// The start of stage `i`.
+    pub fn start(i: usize) -> Self {
+        StagePos { stage: i, stage_step: 0, begun: false, splits: 0, ratio: f64::INFINITY, wall_seconds: 0.0, best_ratio: f64::INFINITY, best_step: 0 }
+    }
 }
 
 /// A do-nothing observer.
@@ -137,11 +178,11 @@ pub struct Simulation {
     pub last_ratio: f64,
     /// x0 of every cluster.
     pub x0: Vec<[f64; 2]>,
-    f_const: Vec<[f64; 2]>,
+    pub(crate) f_const: Vec<[f64; 2]>,
     /// Eigenvector of the last stable-step estimate (warm start after splits).
-    stable_vec: Vec<[f64; 2]>,
-    stats: StepStats,
-    coeffs: DampingCoeffs,
+    pub(crate) stable_vec: Vec<[f64; 2]>,
+    pub(crate) stats: StepStats,
+    pub(crate) coeffs: DampingCoeffs,
 }
 
 impl Simulation {
@@ -355,7 +396,7 @@ impl Simulation {
         }
     }
 
-    fn refresh_constant_force(&mut self) {
+    pub(crate) fn refresh_constant_force(&mut self) {
         let mut f = std::mem::take(&mut self.f_const);
         self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
         self.f_const = f;
@@ -476,16 +517,30 @@ impl Simulation {
 
     /// Runs every stage.
     pub fn run(&mut self, obs: &mut dyn Observer) -> Result<()> {
-        for i in 0..self.scene.file.stages.len() {
-            self.run_stage(i, obs)?;
+        self.run_from(StagePos::start(0), obs)
+    }
+
+    /// Runs from a position (a restored checkpoint's) to the end of the last stage.
+    pub fn run_from(&mut self, pos: StagePos, obs: &mut dyn Observer) -> Result<()> {
+        for i in pos.stage..self.scene.file.stages.len() {
+            self.run_stage_from(if i == pos.stage { pos.clone() } else { StagePos::start(i) }, obs)?;
         }
         Ok(())
     }
 
     /// Marches stage `i` to equilibrium (or its step limit, or its fixed step count when dynamic).
     pub fn run_stage(&mut self, i: usize, obs: &mut dyn Observer) -> Result<()> {
+        self.run_stage_from(StagePos::start(i), obs)
+    }
+
+    /// [`Self::run_stage`] entered at `pos` (re-entrant: a resumed run continues with the
+    /// loop's counters as they were).
+    pub fn run_stage_from(&mut self, pos: StagePos, obs: &mut dyn Observer) -> Result<()> {
         let t0 = std::time::Instant::now();
-        self.begin_stage(i);
+        let i = pos.stage;
+        if !pos.begun {
+            self.begin_stage(i);
+        }
         let st = self.scene.file.stages[i].clone();
         let sc = &self.scene.file.solver;
         let (max_steps, tol, every) = (st.max_steps.unwrap_or(sc.max_steps), st.tolerance.unwrap_or(sc.tolerance), sc.ratio_every);
@@ -497,12 +552,27 @@ impl Simulation {
             None => (0, false, 0),
         };
         // Stall detection (at_equilibrium mode): the best ratio and the step it was last halved.
-        let (mut best, mut best_step) = (f64::INFINITY, 0u64);        let n_stages = self.scene.file.stages.len();
-        let mut k = 0u64;
+        let (mut best, mut best_step) = (pos.best_ratio, pos.best_step);
+        let n_stages = self.scene.file.stages.len();
+        let ck_every = self.scene.file.output.checkpoint_every;
+        let k0 = pos.stage_step;
+        let mut k = k0;
         let mut converged = false;
-        let mut splits = 0usize;
-        let mut ratio = f64::INFINITY;
+        let mut splits = pos.splits;
+        let mut ratio = pos.ratio;
+        let here = |k: u64, splits: usize, ratio: f64, best_ratio: f64, best_step: u64| StagePos { stage: i, stage_step: k, begun: true, splits, ratio, wall_seconds: pos.wall_seconds + t0.elapsed().as_secs_f64(), best_ratio, best_step };
         while k < max_steps {
+            if k > k0 {
+                // Once per step, between two steps (the state is whole here).
+                let stop = obs.should_stop(self);
+                if stop || (ck_every > 0 && self.state.step % ck_every == 0) || obs.checkpoint_due(self) {
+                    obs.checkpoint(self, &here(k, splits, ratio, best, best_step))?;
+                }
+                if stop {
+                    obs.snapshot(self, i, "interrupted")?;
+                    return Err(FlemError::Interrupted { step: self.state.step, stage: i, stage_step: k });
+                }
+            }
             self.step()?;
             k += 1;
             if check_every > 0 && k % check_every == 0 {
@@ -551,7 +621,7 @@ impl Simulation {
             steps: k,
             converged,
             final_ratio: ratio,
-            wall_seconds: t0.elapsed().as_secs_f64(),
+            wall_seconds: pos.wall_seconds + t0.elapsed().as_secs_f64(),
             time: self.state.time,
             splits,
             energy_residual: self.ledger.relative_residual(),
@@ -560,7 +630,14 @@ impl Simulation {
         if st.snapshot {
             obs.snapshot(self, i, &format!("stage{i}"))?;
         }
-        obs.stage_end(self, i)
+        obs.stage_end(self, i)?;
+        obs.checkpoint(self, &StagePos::start(i + 1))?;
+        // The last step of a stage is polled here (the run is complete after the last stage).
+        if i + 1 < n_stages && obs.should_stop(self) {
+            obs.snapshot(self, i, "interrupted")?;
+            return Err(FlemError::Interrupted { step: self.state.step, stage: i + 1, stage_step: 0 });
+        }
+        Ok(())
     }
 
     /// Failure check: proposes and applies splits, then makes every per-cluster array follow.
@@ -579,6 +656,13 @@ impl Simulation {
     /// Grows the per-cluster arrays for new clusters (same displacement and velocity as the
     /// parent), recomputes masses, fixities and the constant loads.
     pub fn apply_split_record(&mut self, rec: &SplitRecord) {
+        self.apply_split_arrays(rec);
+        self.update_stable_step(rec);
+    }
+
+    /// The per-cluster arrays of [`Self::apply_split_record`] without the new stable-step
+    /// estimate (a checkpoint restores that itself).
+    pub(crate) fn apply_split_arrays(&mut self, rec: &SplitRecord) {
         let st = &mut self.state;
         for nc in &rec.new_clusters {
             let p = nc.parent.idx();
@@ -596,7 +680,6 @@ impl Simulation {
         st.fix = fix;
         st.v_pres = vpres;
         self.refresh_constant_force();
-        self.update_stable_step(rec);
     }
 }
 

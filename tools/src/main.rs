@@ -8,7 +8,10 @@ use flem_core::check::{CheckCfg, Comparer};
 use flem_core::output::OutputWriter;
 use flem_core::solver::NoOutput;
 use flem_core::scene::Scene;
-use flem_core::solver::Simulation;
+use flem_core::solver::{Simulation, StagePos};
+use flem_core::FlemError;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod bench_dyncall;
@@ -37,6 +40,10 @@ enum Cmd {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Continue from the newest valid checkpoint in this folder (results go on there
+        /// unless --out says otherwise).
+        #[arg(long, value_name = "DIR")]
+        resume: Option<PathBuf>,
     },
     /// Validate a scene (and build its mesh) without running it; exit 1 with the message on error.
     Check { scenes: Vec<PathBuf> },
@@ -111,7 +118,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
         None => run_default(),
-        Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
+        Some(Cmd::Run { scene, out, quiet, resume }) => load(&scene).and_then(|s| run(s, out, quiet, resume)),
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Chart { scene, out, quick, analytic }) => chart::chart(&scene, out, quick, analytic),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
@@ -121,6 +128,10 @@ fn main() -> ExitCode {
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.downcast_ref::<Stopped>().is_some() => {
+            eprintln!("{e:#}");
+            ExitCode::from(130)
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
@@ -152,7 +163,30 @@ fn load(path: &Path) -> Result<Scene> {
 fn run_default() -> Result<()> {
     let scene = Scene::from_str(DEFAULT_SCENE, Path::new(DEFAULT_NAME), Path::new("configs"))?;
     eprintln!("flem: no scene given, running the default scene {DEFAULT_NAME} (see `flem --help`)");
-    run(scene, None, false)
+    run(scene, None, false, None)
+}
+
+/// A run stopped by SIGINT/SIGTERM after writing a checkpoint (exit code 130).
+#[derive(Debug)]
+struct Stopped(String);
+impl std::fmt::Display for Stopped {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+impl std::error::Error for Stopped {}
+
+/// The command that resumes a run, for messages.
+fn resume_command(scene: &Path, out: &Path) -> String {
+    let q = |p: &Path| {
+        let s = p.display().to_string();
+        if s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+:,=".contains(c)) {
+            s
+        } else {
+            format!("'{}'", s.replace('\'', "'\\''"))
+        }
+    };
+    format!("flem run {} --resume {}", q(scene), q(out))
 }
 
 fn check(scenes: &[PathBuf]) -> Result<()> {
@@ -167,13 +201,33 @@ fn check(scenes: &[PathBuf]) -> Result<()> {
     Ok(())
 }
 
-fn run(scene: Scene, out: Option<PathBuf>, quiet: bool) -> Result<()> {
+fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>) -> Result<()> {
     let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
-    let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
+    let out = out.or_else(|| resume.clone()).unwrap_or_else(|| PathBuf::from("out").join(stem));
+    let scene_path = scene.path.clone();
     // Fail on an unwritable folder before any step is computed.
     flem_core::output::prepare_dir(&out)?;
+    // SIGINT/SIGTERM set a flag the run polls once per step; a second signal while the flag is
+    // set ends the process at once (files stay whole: every write is atomic).
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register_conditional_shutdown(sig, 130, Arc::clone(&stop)).context("installing the signal handler")?;
+        signal_hook::flag::register(sig, Arc::clone(&stop)).context("installing the signal handler")?;
+    }
     let t0 = std::time::Instant::now();
     let mut sim = Simulation::new(scene)?;
+    let mut pos = StagePos::start(0);
+    let mut resumed = None;
+    if let Some(dir) = &resume {
+        let (ck, path, refused) = flem_core::checkpoint::load_newest(dir, &sim)?;
+        for r in &refused {
+            eprintln!("warning: {r}");
+        }
+        ck.restore(&mut sim).with_context(|| format!("restoring {}", path.display()))?;
+        eprintln!("resuming from {} (step {}, stage {} step {})", path.display(), ck.step, ck.pos.stage + 1, ck.pos.stage_step);
+        pos = ck.pos.clone();
+        resumed = Some((ck, path));
+    }
     for w in &sim.warnings {
         eprintln!("warning: {w}");
     }
@@ -186,6 +240,10 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool) -> Result<()> {
         sim.stable.dt_crit
     );
     let mut w = OutputWriter::new(&out, &sim)?;
+    w.stop = Some(Arc::clone(&stop));
+    if let Some((ck, path)) = &resumed {
+        w.resume(ck, path)?;
+    }
     let bar = if quiet || !std::io::IsTerminal::is_terminal(&std::io::stderr()) { ProgressBar::hidden() } else { ProgressBar::new(1) };
     bar.set_style(ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} steps {msg} (left <= {eta})").unwrap().progress_chars("=> "));
     let b2 = bar.clone();
@@ -198,14 +256,25 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool) -> Result<()> {
     let r = if sim.scene.file.check.is_some() {
         // [check]: the implicit comparison after every stage, compare.json beside the results.
         let mut c = Comparer::new(&mut w, &out)?;
-        let r = sim.run(&mut c);
+        let r = sim.run_from(pos, &mut c);
         bar.finish_and_clear();
         eprint!("{}", flem_core::check::table(&c.rows));
         r
     } else {
-        sim.run(&mut w)
+        sim.run_from(pos, &mut w)
     };
     bar.finish_and_clear();
+    let resume_hint = |w: &OutputWriter| match &w.last_checkpoint {
+        Some(p) => format!("the last good checkpoint is {}; resume with: {}", p.display(), resume_command(&scene_path, &out)),
+        None => String::from("no checkpoint was written"),
+    };
+    if let Err(e @ FlemError::Interrupted { .. }) = &r {
+        let _ = w.write_summary(&sim, t0.elapsed().as_secs_f64());
+        return Err(Stopped(format!("flem: {e}: {}\nresume with: {}", w.last_checkpoint.as_ref().map(|p| p.display().to_string()).unwrap_or_default(), resume_command(&scene_path, &out))).into());
+    }
+    if let Err(e @ FlemError::Output { .. }) = &r {
+        anyhow::bail!("{e}\nthe run stopped; {}", resume_hint(&w));
+    }
     w.write_summary(&sim, t0.elapsed().as_secs_f64()).with_context(|| "writing summary.json")?;
     r?;
     for s in &sim.stages_done {

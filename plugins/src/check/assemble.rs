@@ -182,7 +182,7 @@ fn scatter<S: Shape<N>, const N: usize>(blk: &dyn Block, eq: &[usize], cp: &[usi
     let (d, t) = (mat.dmat(), mat.thickness);
     let nd = 2 * N;
     let mut k = [0.0; 64];
-    let mut g = [0usize; 6];
+    let mut g = [0usize; 8];
     for i in 0..blk.len() {
         elem_stiffness::<S, N>(blk.coords(i), &d, t, &mut k);
         let conn = blk.conn(i);

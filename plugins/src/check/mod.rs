@@ -72,8 +72,8 @@ struct Cache {
 
 /// Sparse direct solver of the linear static problem (faer's supernodal/simplicial Cholesky);
 /// keeps the sparsity pattern, the symbolic and the numeric factorisation while the topology,
-/// fixities, geometry and materials are unchanged (a later stage then costs two triangular
-/// solves).
+/// fixities, geometry and materials are unchanged (a later stage then costs one pair of
+/// triangular solves: the refinement guard already passed on that factor).
 ///
 /// ```toml
 /// [check]
@@ -303,7 +303,8 @@ impl ImplicitSolver {
                 (a, l)
             }
         };
-        let x = match refined_solve(llt, a, &rhs, &mut tm) {
+        // The refinement step guards against a near-singular factor; a kept factor passed it.
+        let x = match refined_solve(llt, a, &rhs, fresh.is_some(), &mut tm) {
             Some(x) => x,
             None => return Err(locate_singular(model, fix, &eq, &fr, a)),
         };
@@ -361,17 +362,21 @@ fn factor(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, tm: &mut Timing
     r
 }
 
-/// Solve and one step of iterative refinement. `None` when the matrix is (numerically)
+/// Solve and (`refine`) one step of iterative refinement. `None` when the matrix is (numerically)
 /// singular: a non-finite solution, or a refinement correction above 1e-6 of the solution (its
 /// size is about cond(K) x machine epsilon, so a mechanism whose pivot rounds to a tiny
 /// positive value is caught too).
-fn refined_solve(llt: &Llt<usize, f64>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Option<Vec<f64>> {
+fn refined_solve(llt: &Llt<usize, f64>, a: &SparseColMat<usize, f64>, rhs: &[f64], refine: bool, tm: &mut Timings) -> Option<Vec<f64>> {
     let t1 = Instant::now();
     let n = rhs.len();
     let x = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i]));
     let mut x: Vec<f64> = (0..n).map(|i| x[i]).collect();
     if !x.iter().all(|v| v.is_finite()) {
         return None;
+    }
+    if !refine {
+        tm.solve = t1.elapsed().as_secs_f64();
+        return Some(x);
     }
     let kx = sym_mul(a, &x);
     let dx = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i] - kx[i]));
@@ -391,7 +396,7 @@ fn refined_solve(llt: &Llt<usize, f64>, a: &SparseColMat<usize, f64>, rhs: &[f64
 /// Factor, solve, refine; `Err(None)` when singular (see [`factor`], [`refined_solve`]).
 fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Result<Vec<f64>, Option<String>> {
     let llt = factor(sym, a, tm)?;
-    refined_solve(&llt, a, rhs, tm).ok_or(None)
+    refined_solve(&llt, a, rhs, true, tm).ok_or(None)
 }
 
 /// After a failed factorisation: factorise each fragment's block alone and name the first that

@@ -1,0 +1,352 @@
+//! Checkpoints: the whole state of a run in a versioned binary file with a checksum, so that a
+//! run interrupted anywhere (Ctrl-C, SIGTERM, a crash, a full disk) continues bit for bit.
+//!
+//! # File layout (all integers little endian)
+//! | bytes | what |
+//! |---|---|
+//! | 0..8 | magic `FLEMCKPT` |
+//! | 8..12 | format version `u32` ([`FORMAT_VERSION`]) |
+//! | 12..16 | CRC-32 (IEEE, `crc32fast`) of every byte from 16 to the end |
+//! | 16..24 | `u64` length of the bytes from 24 to the end (a truncated file is named as such) |
+//! | 24..32 | `u64` hash of the resolved scene and its mesh ([`scene_hash`]) |
+//! | 32..34 | `u16` length `n` of the FLEM version string, then its `n` bytes |
+//! | then | the payload: [`Checkpoint`] encoded with `postcard` |
+//!
+//! A file is refused, with its name and the reason, when the magic, the format version, the
+//! length, the checksum, the FLEM version or the scene hash do not match; `--resume` then tries
+//! the previous file ([`load_newest`]).
+//!
+//! # What is stored
+//! Nodal arrays verbatim (u, v, f_int, f_ext, v_pres, mass, fixity), time and step counter, the
+//! energy ledger, load levels, the step size, the damping plugin's `state()`, the last step's
+//! statistics and damping coefficients (the adaptive damping reads them), the unbalanced
+//! ratio, finished stage results, the position in the stage loop ([`StagePos`]), and the
+//! cracking history as the ordered list of cuts (cluster, edges). On restore the cuts are replayed
+//! through the same `Topology::cut` / `Model::apply_record` / `apply_split_record` calls as the
+//! run made, then the copy-to-cluster map is compared with the stored one (a mismatch refuses
+//! the file). Weibull strength factors are a stateless hash of (seed, point): nothing to store.
+//!
+//! # Adding state (e.g. contact pairs with their history)
+//! Two ways, both in this file:
+//! - a subsystem with its own state puts a **section**: `ck.put_section("contact", 1, &pairs)`
+//!   when capturing (the observer's [`crate::solver::Observer::checkpoint`] or [`Checkpoint::capture`]),
+//!   `ck.section::<Pairs>("contact", 1)` when restoring (in [`Checkpoint::restore`]). A section
+//!   has its own version; a reader that meets an unknown version refuses it by name. The output
+//!   writer keeps its history rows and snapshot list in section `"output"`.
+//! - a new field of [`Checkpoint`] itself: add it at the end and bump [`FORMAT_VERSION`]
+//!   (postcard is not self-describing, so old files are then refused with a clear message).
+use std::path::{Path, PathBuf};
+
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+
+use crate::damping::{DampingCoeffs, StepStats};
+use crate::error::{FlemError, Result};
+use crate::ids::{ClusterId, EdgeId};
+use crate::solver::{Ledger, Simulation, StagePos, StageResult};
+
+pub const MAGIC: &[u8; 8] = b"FLEMCKPT";
+/// Version of the layout and of the [`Checkpoint`] payload.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// One named, versioned, opaque part of a checkpoint (postcard bytes).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Section {
+    pub name: String,
+    pub version: u32,
+    pub bytes: Vec<u8>,
+}
+
+/// The payload of a checkpoint file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// Sequence number (the file is `checkpoint_{seq:06}.bin`).
+    pub seq: u64,
+    pub pos: StagePos,
+    pub step: u64,
+    pub time: f64,
+    pub dt: f64,
+    pub u: Vec<[f64; 2]>,
+    pub v: Vec<[f64; 2]>,
+    pub f_int: Vec<[f64; 2]>,
+    pub f_ext: Vec<[f64; 2]>,
+    pub v_pres: Vec<[f64; 2]>,
+    pub mass: Vec<f64>,
+    pub fix: Vec<u8>,
+    pub ledger: Ledger,
+    pub levels: Vec<f64>,
+    pub last_ratio: f64,
+    /// The last step's statistics (step, dt, omega_max, kinetic, u.f_int, u.M.u).
+    pub stats: (u64, f64, f64, f64, f64, f64),
+    /// The last step's damping coefficients (viscous, local).
+    pub coeffs: (f64, f64),
+    /// The stable step (dt_crit, element bound, omega_max, iterations) and the eigenvector
+    /// that warm-starts its next estimate after a split.
+    pub stable: (f64, f64, f64, u64),
+    pub stable_vec: Vec<[f64; 2]>,
+    pub damping_state: Vec<f64>,
+    pub stages_done: Vec<StageResult>,
+    /// Cuts applied by the cracking driver, in order: (cluster, edges).
+    pub cuts: Vec<(u32, Vec<u32>)>,
+    /// Cluster of every copy after the cuts (checked after the replay).
+    pub copy_cluster: Vec<u32>,
+    pub failure_index: Vec<f64>,
+    pub n_splits: usize,
+    /// Extension sections (output writer state, contact pairs, ...).
+    pub sections: Vec<Section>,
+}
+
+/// FNV-1a, 64 bit. Hand-written (6 lines) because the scene hash must be stable across Rust
+/// releases (std's `DefaultHasher` is not) and a cryptographic hash would add a dependency
+/// for no gain: it guards against resuming with another scene, not against an adversary.
+fn fnv1a(h: &mut u64, bytes: &[u8]) {
+    for &b in bytes {
+        *h ^= b as u64;
+        *h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+}
+
+/// Hash of the resolved scene (every default filled in) and of the mesh it built (points,
+/// cells), so that a checkpoint cannot be resumed with another scene or an edited mesh file.
+pub fn scene_hash(sim: &Simulation) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    fnv1a(&mut h, sim.scene.resolved_toml().as_bytes());
+    for p in &sim.model.mesh.points {
+        fnv1a(&mut h, &p[0].to_le_bytes());
+        fnv1a(&mut h, &p[1].to_le_bytes());
+    }
+    for e in 0..sim.model.topo.n_elems() {
+        for k in sim.model.topo.elem_copies(crate::ids::ElemId::new(e)) {
+            fnv1a(&mut h, &sim.model.topo.copy_point[k].0.to_le_bytes());
+        }
+    }
+    h
+}
+
+impl Checkpoint {
+    /// The state of `sim` at `pos` (nothing in `sim` changes).
+    pub fn capture(sim: &Simulation, pos: &StagePos) -> Checkpoint {
+        let st = &sim.state;
+        let s = &sim.stats;
+        let (cuts, failure_index, n_splits) = match &sim.cracking {
+            Some(c) => (c.cuts.clone(), c.index.clone(), c.n_splits),
+            None => (Vec::new(), Vec::new(), 0),
+        };
+        Checkpoint {
+            seq: 0,
+            pos: pos.clone(),
+            step: st.step,
+            time: st.time,
+            dt: sim.dt,
+            u: st.u.clone(),
+            v: st.v.clone(),
+            f_int: st.f_int.clone(),
+            f_ext: st.f_ext.clone(),
+            v_pres: st.v_pres.clone(),
+            mass: st.mass.clone(),
+            fix: st.fix.clone(),
+            ledger: sim.ledger,
+            levels: sim.levels.clone(),
+            last_ratio: sim.last_ratio,
+            stats: (s.step, s.dt, s.omega_max, s.kinetic, s.u_f_int, s.u_m_u),
+            coeffs: (sim.coeffs.viscous, sim.coeffs.local),
+            stable: (sim.stable.dt_crit, sim.stable.dt_element_bound, sim.stable.omega_max, sim.stable.iterations as u64),
+            stable_vec: sim.stable_vec.clone(),
+            damping_state: sim.scene.file.solver.damping.as_ref().map(|d| d.state()).unwrap_or_default(),
+            stages_done: sim.stages_done.clone(),
+            cuts,
+            copy_cluster: sim.model.topo.copy_cluster.iter().map(|c| c.0).collect(),
+            failure_index,
+            n_splits,
+            sections: Vec::new(),
+        }
+    }
+
+    /// Adds (or replaces) a section.
+    pub fn put_section<T: Serialize>(&mut self, name: &str, version: u32, value: &T) -> Result<()> {
+        let bytes = postcard::to_stdvec(value).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be encoded: {e}")))?;
+        self.sections.retain(|s| s.name != name);
+        self.sections.push(Section { name: name.to_string(), version, bytes });
+        Ok(())
+    }
+
+    /// Reads a section: `Ok(None)` when absent, an error when its version is not `version`.
+    pub fn section<T: DeserializeOwned>(&self, name: &str, version: u32) -> Result<Option<T>> {
+        let Some(s) = self.sections.iter().find(|s| s.name == name) else { return Ok(None) };
+        if s.version != version {
+            return Err(FlemError::Other(format!("checkpoint section \"{name}\" has version {}, this program reads version {version}", s.version)));
+        }
+        postcard::from_bytes(&s.bytes).map(Some).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be decoded: {e}")))
+    }
+
+    /// Puts the state into `sim`, a simulation freshly built from the same scene
+    /// (`Simulation::new`): replays the cuts, checks the topology, copies every array.
+    pub fn restore(&self, sim: &mut Simulation) -> Result<()> {
+        let bad = |msg: String| FlemError::Other(format!("the checkpoint does not fit this scene: {msg}"));
+        if sim.state.step != 0 || sim.cracking.as_ref().is_some_and(|c| !c.cuts.is_empty()) {
+            return Err(FlemError::Other("a checkpoint can only be restored into a new simulation".into()));
+        }
+        sim.levels.clone_from(&self.levels);
+        if !self.cuts.is_empty() {
+            let Some(cr) = sim.cracking.as_mut() else { return Err(bad("it has splits and the scene has no [cracking]".into())) };
+            cr.cuts.clone_from(&self.cuts);
+            for (n, (c, edges)) in self.cuts.iter().enumerate() {
+                let edges: Vec<EdgeId> = edges.iter().map(|&e| EdgeId(e)).collect();
+                if *c as usize >= sim.model.topo.n_clusters() || edges.iter().any(|e| e.idx() >= sim.model.topo.edges.len()) {
+                    return Err(bad(format!("cut {n} names cluster {c} or an edge beyond the mesh")));
+                }
+                let rec = sim.model.topo.cut(ClusterId(*c), &edges, true);
+                if rec.is_empty() {
+                    return Err(bad(format!("cut {n} (cluster {c}) splits nothing when replayed")));
+                }
+                sim.model.apply_record(&rec);
+                sim.apply_split_arrays(&rec);
+            }
+        }
+        let nc = sim.model.topo.n_clusters();
+        let same_topology = self.copy_cluster.len() == sim.model.topo.copy_cluster.len() && self.copy_cluster.iter().zip(&sim.model.topo.copy_cluster).all(|(a, b)| *a == b.0);
+        if !same_topology || self.u.len() != nc {
+            return Err(bad(format!("after replaying {} cuts the clusters differ ({} clusters, the checkpoint has {})", self.cuts.len(), nc, self.u.len())));
+        }
+        for (name, len) in [("v", self.v.len()), ("f_int", self.f_int.len()), ("f_ext", self.f_ext.len()), ("v_pres", self.v_pres.len()), ("mass", self.mass.len()), ("fix", self.fix.len())] {
+            if len != nc {
+                return Err(bad(format!("array {name} has {len} entries for {nc} clusters")));
+            }
+        }
+        if self.levels.len() != sim.loads.loads.len() {
+            return Err(bad(format!("{} load levels for {} loads", self.levels.len(), sim.loads.loads.len())));
+        }
+        if self.pos.stage > sim.scene.file.stages.len() {
+            return Err(bad(format!("stage {} of {}", self.pos.stage, sim.scene.file.stages.len())));
+        }
+        let st = &mut sim.state;
+        st.u.clone_from(&self.u);
+        st.v.clone_from(&self.v);
+        st.f_int.clone_from(&self.f_int);
+        st.f_ext.clone_from(&self.f_ext);
+        st.v_pres.clone_from(&self.v_pres);
+        st.mass.clone_from(&self.mass);
+        st.fix.clone_from(&self.fix);
+        st.time = self.time;
+        st.step = self.step;
+        sim.dt = self.dt;
+        sim.ledger = self.ledger;
+        sim.last_ratio = self.last_ratio;
+        let s = self.stats;
+        sim.stats = StepStats { step: s.0, dt: s.1, omega_max: s.2, kinetic: s.3, u_f_int: s.4, u_m_u: s.5 };
+        sim.coeffs = DampingCoeffs { viscous: self.coeffs.0, local: self.coeffs.1 };
+        let sb = self.stable;
+        sim.stable = crate::solver::StableStep { dt_crit: sb.0, dt_element_bound: sb.1, omega_max: sb.2, iterations: sb.3 as usize };
+        if self.stable_vec.len() != nc {
+            return Err(bad(format!("stable-step vector has {} entries for {nc} clusters", self.stable_vec.len())));
+        }
+        sim.stable_vec.clone_from(&self.stable_vec);
+        sim.scene.file.solver.damping().set_state(&self.damping_state);
+        sim.stages_done.clone_from(&self.stages_done);
+        if let Some(cr) = sim.cracking.as_mut() {
+            cr.index.clone_from(&self.failure_index);
+            cr.index.resize(nc, 0.0);
+            cr.n_splits = self.n_splits;
+        }
+        sim.refresh_constant_force();
+        Ok(())
+    }
+
+    /// The file bytes (header, checksum, payload) for a run of the scene with hash `scene_hash`.
+    pub fn encode(&self, scene_hash: u64) -> Result<Vec<u8>> {
+        let payload = postcard::to_stdvec(self).map_err(|e| FlemError::Other(format!("checkpoint cannot be encoded: {e}")))?;
+        let ver = crate::VERSION.as_bytes();
+        let mut out = Vec::with_capacity(34 + ver.len() + payload.len());
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        out.extend_from_slice(&[0; 4]);
+        out.extend_from_slice(&((10 + ver.len() + payload.len()) as u64).to_le_bytes());
+        out.extend_from_slice(&scene_hash.to_le_bytes());
+        out.extend_from_slice(&(ver.len() as u16).to_le_bytes());
+        out.extend_from_slice(ver);
+        out.extend_from_slice(&payload);
+        let crc = crc32fast::hash(&out[16..]);
+        out[12..16].copy_from_slice(&crc.to_le_bytes());
+        Ok(out)
+    }
+
+    /// Reads and checks a checkpoint file; the error names the file and the reason.
+    pub fn decode(path: &Path, bytes: &[u8], scene_hash: u64) -> Result<Checkpoint> {
+        let refuse = |msg: String| FlemError::Checkpoint { path: path.display().to_string(), msg };
+        if bytes.len() < 8 || &bytes[..8] != MAGIC {
+            return Err(refuse("not a FLEM checkpoint (bad magic)".into()));
+        }
+        if bytes.len() < 34 {
+            return Err(refuse(format!("truncated ({} bytes)", bytes.len())));
+        }
+        let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
+        let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().unwrap());
+        let fv = u32_at(8);
+        if fv != FORMAT_VERSION {
+            return Err(refuse(format!("format version {fv}, this program reads version {FORMAT_VERSION}")));
+        }
+        let len = u64_at(16);
+        if len != (bytes.len() - 24) as u64 {
+            return Err(refuse(format!("truncated or padded: the header announces {} bytes, the file has {}", len + 24, bytes.len())));
+        }
+        let (stored, actual) = (u32_at(12), crc32fast::hash(&bytes[16..]));
+        if stored != actual {
+            return Err(refuse(format!("bad checksum (stored {stored:08x}, computed {actual:08x}): the file is corrupt")));
+        }
+        let n = u16::from_le_bytes([bytes[32], bytes[33]]) as usize;
+        let ver = bytes.get(34..34 + n).map(String::from_utf8_lossy).unwrap_or_default();
+        if ver != crate::VERSION {
+            return Err(refuse(format!("written by FLEM {ver}, this is FLEM {}", crate::VERSION)));
+        }
+        let h = u64_at(24);
+        if h != scene_hash {
+            return Err(refuse(format!("written for another scene (scene hash {h:016x}, this scene {scene_hash:016x}); resume with the scene file the run started with")));
+        }
+        postcard::from_bytes(&bytes[34 + n..]).map_err(|e| refuse(format!("payload cannot be decoded: {e}")))
+    }
+}
+
+/// The file name of checkpoint number `seq`.
+pub fn file_name(seq: u64) -> String {
+    format!("checkpoint_{seq:06}.bin")
+}
+
+/// The checkpoint files of `dir`, newest (highest sequence number) first.
+pub fn list(dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
+    let rd = std::fs::read_dir(dir).map_err(|e| FlemError::Output { path: dir.display().to_string(), msg: format!("cannot list checkpoints: {e}") })?;
+    let mut v: Vec<(u64, PathBuf)> = rd
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().to_string();
+            let seq = name.strip_prefix("checkpoint_")?.strip_suffix(".bin")?.parse().ok()?;
+            Some((seq, e.path()))
+        })
+        .collect();
+    v.sort_by(|a, b| b.0.cmp(&a.0));
+    Ok(v)
+}
+
+/// The newest checkpoint of `dir` that is valid for `sim`'s scene, its path, and one message
+/// per newer file refused (naming the file and the reason).
+pub fn load_newest(dir: &Path, sim: &Simulation) -> Result<(Checkpoint, PathBuf, Vec<String>)> {
+    let hash = scene_hash(sim);
+    let mut refused = Vec::new();
+    for (_, path) in list(dir)? {
+        let r = std::fs::read(&path).map_err(|e| FlemError::Checkpoint { path: path.display().to_string(), msg: format!("cannot be read: {e}") }).and_then(|b| Checkpoint::decode(&path, &b, hash));
+        match r {
+            Ok(ck) => return Ok((ck, path, refused)),
+            Err(e) => refused.push(format!("{e}; trying the previous one")),
+        }
+    }
+    let why = if refused.is_empty() { String::from("it holds no checkpoint_*.bin file") } else { format!("every checkpoint was refused:\n  {}", refused.join("\n  ")) };
+    Err(FlemError::Other(format!("cannot resume from {}: {why}", dir.display())))
+}
+
+/// Deletes the checkpoints of `dir` older than the `keep` newest ones with a sequence number
+/// up to `newest` (files with a higher number, e.g. a refused one, are left alone: the run
+/// overwrites them as it goes).
+pub fn prune(dir: &Path, newest: u64, keep: usize) -> Result<()> {
+    for (_, path) in list(dir)?.into_iter().filter(|(s, _)| *s <= newest).skip(keep) {
+        std::fs::remove_file(&path).map_err(|e| FlemError::Output { path: path.display().to_string(), msg: format!("cannot remove an old checkpoint: {e}") })?;
+    }
+    Ok(())
+}
