@@ -7,4 +7,5 @@ mod ckpt;
 mod cracking;
 mod dynplug;
 mod interop;
+mod paper;
 mod verification;

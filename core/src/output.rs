@@ -329,7 +329,12 @@ impl Observer for OutputWriter {
             }).collect();
             let _ = writeln!(self.splits, "{:e},{},{},{:e},{:e},{},{},{:?},{:e},{:.3},{:e},{:e},{:e},{}", e.time, e.step, e.point, x[0], x[1], e.cluster, e.new_cluster, e.mode, e.index, e.sigma1_deg, e.stress[0], e.stress[1], e.stress[2], edges.join(" "));
         }
-        atomic_write_with(&self.dir.join("splits.csv"), self.splits.as_bytes(), false)
+        atomic_write_with(&self.dir.join("splits.csv"), self.splits.as_bytes(), false)?;
+        if sim.scene.file.output.snapshot_on_split && !events.is_empty() {
+            let n = sim.cracking.as_ref().map_or(0, |c| c.n_splits);
+            self.snapshot(sim, sim.stages_done.len(), &format!("stage{}_split{n}", sim.stages_done.len()))?;
+        }
+        Ok(())
     }
 
     fn progress(&mut self, p: &Progress) {

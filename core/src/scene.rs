@@ -255,6 +255,13 @@ pub struct OutputCfg {
     /// Checkpoints kept (the newest ones; at least 1).
     #[serde(default = "default_ck_keep")]
     pub checkpoint_keep: usize,
+    /// Also write a snapshot after every failure check that split something (the frames of a
+    /// running crack, as the paper's figure 11).
+    #[serde(default)]
+    pub snapshot_on_split: bool,
+    /// Draw the pictures (PNG and SVG in `plots/`, as `flem plot`) at the end of `flem run`.
+    #[serde(default)]
+    pub plots: bool,
 }
 
 fn default_ck_seconds() -> f64 {
@@ -270,7 +277,7 @@ fn default_hist() -> u64 {
 
 impl Default for OutputCfg {
     fn default() -> Self {
-        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false, checkpoint_every: 0, checkpoint_seconds: default_ck_seconds(), checkpoint_keep: default_ck_keep() }
+        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false, checkpoint_every: 0, checkpoint_seconds: default_ck_seconds(), checkpoint_keep: default_ck_keep(), snapshot_on_split: false, plots: false }
     }
 }
 

@@ -19,8 +19,9 @@ mod chart;
 mod stability;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
-const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
-const DEFAULT_NAME: &str = "configs/default.toml";
+/// The paper's opening model (issue 8): a notched plate cracking in tension, pictures in plots/.
+const DEFAULT_SCENE: &str = include_str!("../../configs/paper/opening.toml");
+const DEFAULT_NAME: &str = "configs/paper/opening.toml";
 
 #[derive(Parser)]
 #[command(name = "flem", version, about = "FLEM: the flow element method with cracking")]
@@ -44,7 +45,13 @@ enum Cmd {
         /// unless --out says otherwise).
         #[arg(long, value_name = "DIR")]
         resume: Option<PathBuf>,
+        /// Draw the pictures at the end (as `flem plot`; also when the scene sets output.plots).
+        #[arg(long)]
+        plot: bool,
     },
+    /// Draw a finished run's pictures (PNG and SVG) into RUN_DIR/plots: deformed mesh frames,
+    /// crack sequence, load-displacement curve.
+    Plot { run_dir: PathBuf },
     /// Validate a scene (and build its mesh) without running it; exit 1 with the message on error.
     Check { scenes: Vec<PathBuf> },
     /// List the built-in plugins (kind and name) and the dynamic ones loaded with --load or by a
@@ -118,7 +125,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
         None => run_default(),
-        Some(Cmd::Run { scene, out, quiet, resume }) => load(&scene).and_then(|s| run(s, out, quiet, resume)),
+        Some(Cmd::Run { scene, out, quiet, resume, plot }) => load(&scene).and_then(|s| run(s, out, quiet, resume, plot)),
+        Some(Cmd::Plot { run_dir }) => plot(&run_dir),
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Chart { scene, out, quick, analytic }) => chart::chart(&scene, out, quick, analytic),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
@@ -161,9 +169,9 @@ fn load(path: &Path) -> Result<Scene> {
 }
 
 fn run_default() -> Result<()> {
-    let scene = Scene::from_str(DEFAULT_SCENE, Path::new(DEFAULT_NAME), Path::new("configs"))?;
+    let scene = Scene::from_str(DEFAULT_SCENE, Path::new(DEFAULT_NAME), Path::new("configs/paper"))?;
     eprintln!("flem: no scene given, running the default scene {DEFAULT_NAME} (see `flem --help`)");
-    run(scene, None, false, None)
+    run(scene, None, false, None, false)
 }
 
 /// A run stopped by SIGINT/SIGTERM after writing a checkpoint (exit code 130).
@@ -201,7 +209,8 @@ fn check(scenes: &[PathBuf]) -> Result<()> {
     Ok(())
 }
 
-fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>) -> Result<()> {
+fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>, plot_flag: bool) -> Result<()> {
+    let plots = plot_flag || scene.file.output.plots;
     let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
     let out = out.or_else(|| resume.clone()).unwrap_or_else(|| PathBuf::from("out").join(stem));
     let scene_path = scene.path.clone();
@@ -281,6 +290,15 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>)
         eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
     }
     eprintln!("energy residual {:.2e} of the work done; wall time {:.2} s; results in {}", sim.ledger.relative_residual(), t0.elapsed().as_secs_f64(), out.display());
+    if plots {
+        plot(&out)?;
+    }
+    Ok(())
+}
+
+fn plot(dir: &Path) -> Result<()> {
+    let rep = flem_plot::plot_run(dir).with_context(|| format!("drawing the pictures of {}", dir.display()))?;
+    eprintln!("{} pictures (PNG + SVG) in {} (displacements x {})", rep.files.len(), dir.join("plots").display(), rep.mag);
     Ok(())
 }
 

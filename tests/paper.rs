@@ -1,0 +1,248 @@
+//! The paper's two scenes (issue 8; Nishimura et al., section 4; METHOD section 9):
+//! configs/paper/opening.toml (side notch, uniaxial tension, tension check only) and
+//! configs/paper/direct_shear.toml (21 quads + 1 triangle, bc pre-separated, q then p, shear
+//! check only), each also on a finer mesh. The measured numbers are printed (`--nocapture`)
+//! and collected in docs/paper.md.
+use flem_core::ids::EdgeId;
+use flem_core::solver::Simulation;
+use flem_core::traits::principal;
+
+use crate::common::{rel, root};
+
+/// rho g of Table 1 (g/cm^3 x cm/s^2): the load value per unit level in the configs.
+const RHO_G: f64 = 2.65 * 980.0;
+/// Table 1 strengths, dyn/cm^2.
+const SIGMA_T: f64 = 980665.0;
+const COHESION: f64 = 98066.5;
+
+fn config(name: &str) -> String {
+    std::fs::read_to_string(root().join("configs/paper").join(name)).unwrap()
+}
+
+/// The config with its stages replaced by `stages` (TOML `[[stage]]` blocks).
+fn with_stages(text: &str, stages: &str) -> String {
+    let a = text.find("[[stage]]").expect("a stage");
+    let b = text.find("[output]").unwrap_or(text.len());
+    format!("{}{stages}\n{}", &text[..a], &text[b..])
+}
+
+/// Paper-relative sim: configs/paper/ is the base folder of the mesh files.
+fn paper_sim(text: &str) -> Simulation {
+    flem_plugins::link();
+    let s = flem_core::scene::Scene::from_str(text, std::path::Path::new("<paper test>"), &root().join("configs/paper")).unwrap_or_else(|e| panic!("{e}"));
+    Simulation::new(s).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Largest tension (tension positive) of the nodal stress of every cluster for displacement u.
+fn nodal_tension(sim: &Simulation, u: &[[f64; 2]]) -> Vec<f64> {
+    let (mut corner, mut nodal) = (Vec::new(), Vec::new());
+    sim.model.nodal_stress(u, &mut corner, &mut nodal);
+    nodal.iter().map(|s| -principal(*s, 0.0).s3).collect()
+}
+
+/// p_crit / (rho g) of an opening config: the load level at which the elastic nodal stress at
+/// the notch tip reaches sigma_t, from a linear static solve (the faer check solver, METHOD 10)
+/// at unit level, by linearity. Also returns the largest nodal tension anywhere at unit level.
+pub fn opening_p_crit(text: &str) -> (f64, f64, f64) {
+    let mut sim = paper_sim(text);
+    let k = sim.loads.loads.iter().position(|l| l.name == "p").unwrap();
+    sim.levels[k] = 1.0;
+    let u = flem_plugins::check::static_solve(&sim).unwrap();
+    let t = nodal_tension(&sim, &u);
+    let tip = sim.model.mesh.node_sets["notch_tip"][0] as usize;
+    let tip_c = sim.model.topo.point_clusters[tip][0].idx();
+    let tmax = t.iter().copied().fold(f64::MIN, f64::max);
+    (SIGMA_T / t[tip_c], t[tip_c], tmax)
+}
+
+/// Runs an opening config at 0.95 and 1.05 p_crit; returns (splits at 0.95, splits at 1.05,
+/// first split point, fragments at the end, cut edges).
+fn opening_runs(text: &str, p_crit: f64) -> (usize, usize, usize, usize, Vec<EdgeId>, Simulation) {
+    let st = format!("[[stage]]\nname = \"below\"\nlevels = {{ p = {} }}\n\n[[stage]]\nname = \"above\"\nlevels = {{ p = {} }}\nmax_steps = 20000\n", 0.95 * p_crit, 1.05 * p_crit);
+    let mut sim = paper_sim(&with_stages(text, &st));
+    let mut log = SplitLog::default();
+    sim.run_stage(0, &mut log).unwrap();
+    let below = log.events.len();
+    sim.run_stage(1, &mut log).unwrap();
+    let above = log.events.len() - below;
+    let first = log.events.first().map(|e| e.point.idx()).unwrap_or(usize::MAX);
+    let (_, nfrag) = sim.model.topo.fragments();
+    let edges = log.events.iter().flat_map(|e| e.edges.clone()).collect();
+    (below, above, first, nfrag, edges, sim)
+}
+
+#[derive(Default)]
+struct SplitLog {
+    events: Vec<flem_core::cracking::SplitEvent>,
+}
+impl flem_core::solver::Observer for SplitLog {
+    fn splits(&mut self, _s: &Simulation, _r: &flem_core::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+        self.events.extend(ev.iter().cloned());
+        Ok(())
+    }
+}
+
+fn check_opening(file: &str) -> f64 {
+    let text = config(file);
+    let (p_crit, tip_unit, tmax) = opening_p_crit(&text);
+    println!("{file}: p_crit/(rho g) = {:.2} (tip tension at unit level {:.4} = {:.3} x the nominal rho g; paper: no crack at 110, crack at 115)", p_crit / 1.0, tip_unit, tip_unit / RHO_G);
+    // The notch tip carries the largest nodal tension (reference: the notch concentrates stress).
+    assert!(rel(tip_unit, tmax) < 1e-9, "{file}: the largest nodal tension {tmax} is not at the notch tip ({tip_unit})");
+    let (below, above, first, nfrag, edges, sim) = opening_runs(&text, p_crit);
+    let tip = sim.model.mesh.node_sets["notch_tip"][0] as usize;
+    println!("{file}: splits at 0.95 p_crit: {below}; at 1.05 p_crit: {above} (first at point {first}, tip {tip}), fragments {nfrag}");
+    assert_eq!(below, 0, "{file}: a split below p_crit");
+    assert!(above > 0, "{file}: no crack above p_crit");
+    assert_eq!(first, tip, "{file}: the first split is not at the notch tip");
+    // Through the ligament: every edge of the notch line from the tip to the far side is
+    // separated (at both ends but the far side's last point: once a single point holds the two
+    // halves, the upper one turns about it and never comes to equilibrium, where the checks
+    // happen), and every cut edge lies on the notch line y = 3 (the crack runs straight across).
+    let topo = &sim.model.topo;
+    let pts = &sim.model.mesh.points;
+    let lig: Vec<usize> = (0..topo.edges.len()).filter(|&e| {
+        let q = topo.edges[e].points;
+        let (a, b) = (pts[q[0].idx()], pts[q[1].idx()]);
+        (a[1] - 3.0).abs() < 1e-9 && (b[1] - 3.0).abs() < 1e-9 && a[0].min(b[0]) > 2.0 - 1e-9
+    }).collect();
+    let states: Vec<u8> = lig.iter().map(|&e| topo.crack_state(EdgeId::new(e))).collect();
+    let open = states.iter().filter(|&&s| s == 2).count();
+    println!("{file}: ligament edges {}: open at both ends {open}, all cracked: {}; fragments {nfrag}", lig.len(), states.iter().all(|&s| s >= 1));
+    assert!(states.iter().all(|&s| s >= 1) && open + 1 >= lig.len(), "{file}: the crack did not run through the ligament: {states:?}");
+    let ymax_dev = edges.iter().map(|e| {
+        let p = topo.edges[e.idx()].points;
+        let (a, b) = (pts[p[0].idx()], pts[p[1].idx()]);
+        (a[1] - 3.0).abs().max((b[1] - 3.0).abs())
+    }).fold(0.0, f64::max);
+    assert!(ymax_dev < 1e-9, "{file}: the crack left the notch line by {ymax_dev}");
+    p_crit
+}
+
+/// Opening model, 36 quads (configs/paper/opening.toml). Reference: p_crit from a linear static
+/// solve at unit load (linearity); criterion sigma_t (Table 1). No split at 0.95 p_crit (5 %
+/// margin: FLEM's equilibrium at tolerance 1e-5 agrees with the static solve far closer), a
+/// crack starting at the notch tip and running along the notch line through the ligament at
+/// 1.05 p_crit. The paper: no crack at p/(rho g) = 110, a crack at 115.
+#[test]
+fn paper_opening_cracks_between_095_and_105_p_crit() {
+    let p = check_opening("opening.toml");
+    // The config's own stages bracket p_crit the same way (0.95 and 1.05, rounded to 0.1).
+    let t = config("opening.toml");
+    let lv: Vec<f64> = t.match_indices("levels = { p = ").map(|(i, _)| t[i + 15..].split(' ').next().unwrap().parse().unwrap()).collect();
+    assert!(lv.len() == 2 && rel(lv[0], 0.95 * p) < 2e-3 && rel(lv[1], 1.05 * p) < 2e-3, "opening.toml stages {lv:?} are not 0.95/1.05 x p_crit = {p}");
+}
+
+/// Same on the finer mesh (configs/paper/opening_fine.toml, each cell split 2 x 2).
+#[test]
+fn paper_opening_fine_cracks_between_095_and_105_p_crit() {
+    check_opening("opening_fine.toml");
+}
+
+/// One row per p stage of a direct shear run: (p/(rho g), stage in equilibrium, cd edges open at
+/// both ends, cd edges cracked at one end or more, crack faces off the plane y = 4, splits so far).
+type ShearRow = (f64, bool, usize, usize, usize, usize);
+
+/// Direct shear: q alone, then p in steps; the state of the plane cd after every stage.
+fn direct_shear(file: &str) -> (usize, Vec<ShearRow>) {
+    let mut sim = paper_sim(&config(file));
+    let cd = sim.model.edge_set("cd", "cd", file).unwrap();
+    let kp = sim.loads.loads.iter().position(|l| l.name == "p").unwrap();
+    let mut log = SplitLog::default();
+    sim.run_stage(0, &mut log).unwrap();
+    let under_q = log.events.len();
+    let mut rows = Vec::new();
+    for i in 1..sim.scene.file.stages.len() {
+        sim.run_stage(i, &mut log).unwrap();
+        let topo = &sim.model.topo;
+        let pts = &sim.model.mesh.points;
+        let open = cd.iter().filter(|e| topo.crack_state(**e) == 2).count();
+        let cracked = cd.iter().filter(|e| topo.crack_state(**e) >= 1).count();
+        let off = (0..topo.edges.len()).filter(|&e| topo.crack_state(EdgeId::new(e)) > 0).filter(|&e| {
+            let q = topo.edges[e].points;
+            (pts[q[0].idx()][1] - 4.0).abs() > 1e-6 || (pts[q[1].idx()][1] - 4.0).abs() > 1e-6
+        }).count();
+        let row = (sim.levels[kp], sim.stages_done[i].converged, open, cracked, off, log.events.len());
+        println!("{file}: p/(rho g) = {:5.0}: in equilibrium {:5}, cd edges open {}/{} (cracked {}), crack faces off the plane {}, splits {}", row.0, row.1, row.2, cd.len(), row.3, row.4, row.5);
+        rows.push(row);
+        if open == cd.len() || !row.1 {
+            break;
+        }
+    }
+    (under_q, rows)
+}
+
+/// Direct shear, 21 quads + 1 triangle (configs/paper/direct_shear.toml) and its finer mesh.
+/// References: (1) under q alone (q = 100 rho g) nothing fails: the upper block is in near
+/// uniaxial compression q, below the uniaxial compressive strength 2 c cos(phi)/(1 - sin(phi))
+/// = 133 rho g (METHOD 4). (2) Limit statics of the upper block (bc pre-separated carries
+/// nothing): the push 4 p (side ab from (2,4) to (4,8)) against (c + sigma_n tan(phi)) x 8 cm on
+/// cd with sigma_n = (8 q + 2 p)/8: p_lim = 8 (c + q tan(phi)) / (4 - 2 tan(phi)) = 268 rho g.
+/// Cracking starts below p_lim, and the block stops finding equilibrium no later than p_lim + one
+/// load step (20 rho g; there is no contact yet, so separated faces carry nothing).
+/// Measured and printed, NOT asserted, because it does not hold on these meshes: the paper's
+/// separation along cd. With Table 1 and the sigma1-nearest rule the nodes near the plane fail
+/// with sigma1 steeper than 45 deg and cut vertical edges (docs/paper.md has the table).
+#[test]
+fn paper_direct_shear_fails_below_the_limit_load() {
+    let tphi = 30f64.to_radians().tan();
+    let q = 100.0 * RHO_G;
+    let p_lim = 8.0 * (COHESION + q * tphi) / (4.0 - 2.0 * tphi) / RHO_G;
+    for file in ["direct_shear.toml", "direct_shear_fine.toml"] {
+        let (under_q, rows) = direct_shear(file);
+        assert_eq!(under_q, 0, "{file}: splits under q alone");
+        let first = rows.iter().find(|r| r.5 > 0).unwrap_or_else(|| panic!("{file}: nothing failed up to p = {}", rows.last().unwrap().0));
+        let p_first = first.0;
+        let end = rows.iter().find(|r| !r.1 || r.2 == 4 * r.2.div_ceil(4).max(1) && r.2 > 0);
+        let end = end.unwrap_or_else(|| panic!("{file}: the block still holds at p = {}, above the limit {p_lim:.1}", rows.last().unwrap().0));
+        println!("{file}: first split at p/(rho g) = {p_first} (ratio to p_lim {:.3}); equilibrium lost or cd open at {} (ratio {:.3}); cd edges open then {}, crack faces off the plane {}; p_lim/(rho g) = {p_lim:.1}", p_first / p_lim, end.0, end.0 / p_lim, end.2, end.4);
+        assert!(p_first < p_lim, "{file}: first split at {p_first} above the limit {p_lim:.1}");
+        assert!(end.0 <= p_lim + 20.0, "{file}: the block still holds at {}, above the limit {p_lim:.1}", end.0);
+    }
+}
+
+/// `flem plot` on a finished run of the opening model: one PNG + SVG per snapshot, the crack
+/// sequence (four panels) and the load-displacement curve; every PNG decodes as a PNG with
+/// non-white pixels and every SVG is an SVG document with the bundled font's text.
+/// Reference: the files' own formats (PNG signature, `<svg`), and the snapshot count of
+/// results.pvd.
+#[test]
+fn paper_plot_writes_frames_sequence_and_curve() {
+    let dir = std::env::temp_dir().join(format!("flem_paper_plot_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut sim = paper_sim(&config("opening.toml"));
+    let mut w = flem_core::output::OutputWriter::new(&dir, &sim).unwrap();
+    sim.run(&mut w).unwrap();
+    w.write_summary(&sim, 0.0).unwrap();
+    let rep = flem_plot::plot_run(&dir).unwrap();
+    let n_snap = flem_plot::run::snapshot_list(&dir).unwrap().len();
+    assert!(n_snap >= 4, "one snapshot per stage and per split: {n_snap}");
+    assert_eq!(rep.files.len(), 2 * (n_snap + 2), "{:?}", rep.files);
+    assert_eq!(rep.sequence.len(), 4);
+    for f in &rep.files {
+        let b = std::fs::read(f).unwrap();
+        if f.extension().unwrap() == "png" {
+            assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n", "{}", f.display());
+            let dec = png::Decoder::new(std::io::Cursor::new(&b));
+            let mut r = dec.read_info().unwrap();
+            let mut px = vec![0u8; r.output_buffer_size()];
+            r.next_frame(&mut px).unwrap();
+            assert!(px.iter().any(|&v| v < 128), "{}: blank picture", f.display());
+        } else {
+            let s = String::from_utf8(b).unwrap();
+            assert!(s.contains("<svg") && s.contains("load levels") || s.contains("level of load"), "{}", f.display());
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `flem plot` on a folder that is not a run: a clear error naming results.pvd, no picture and
+/// no plots/ folder written. Reference: the error contract (HELPERS: bad input names the file).
+#[test]
+fn paper_plot_refuses_a_folder_without_results() {
+    let dir = std::env::temp_dir().join(format!("flem_paper_noplot_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = flem_plot::plot_run(&dir).unwrap_err().to_string();
+    assert!(e.contains("results.pvd") && e.contains("run folder"), "{e}");
+    assert!(!dir.join("plots").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
