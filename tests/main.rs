@@ -5,6 +5,7 @@ mod compare;
 mod configs;
 mod ckpt;
 mod cracking;
+mod dynplug;
 mod interop;
 mod paper;
 mod parallel;

@@ -70,7 +70,8 @@ impl Cracking {
 
     /// Evaluates the criterion at every cluster and applies the proposed splits, the most
     /// critical first (index descending, then cluster id), at most `max_splits_per_check`.
-    pub fn check(&mut self, cfg: &CrackingCfg, model: &mut Model, u: &[[f64; 2]], x0: &[[f64; 2]], time: f64, step: u64) -> (SplitRecord, Vec<SplitEvent>) {
+    /// A plugin that fails or panics (dynamic plugins) gives an error.
+    pub fn check(&mut self, cfg: &CrackingCfg, model: &mut Model, u: &[[f64; 2]], x0: &[[f64; 2]], time: f64, step: u64) -> crate::Result<(SplitRecord, Vec<SplitEvent>)> {
         let mut nodal = std::mem::take(&mut self.nodal);
         model.nodal_stress(u, &mut self.corner, &mut nodal);
         self.nodal = nodal;
@@ -84,7 +85,7 @@ impl Cracking {
             self.scales.push(self.scale[model.topo.cluster_point[c].idx()]);
         }
         self.checks.resize(nc, FailureCheck::default());
-        cfg.criterion.check_batch(&self.principal, &self.scales, &mut self.checks);
+        cfg.criterion.try_check_batch(&self.principal, &self.scales, &mut self.checks).map_err(crate::FlemError::Other)?;
         self.index.resize(nc, 0.0);
         let mut cands: Vec<(f64, u32)> = Vec::new();
         for c in 0..nc {
@@ -109,7 +110,7 @@ impl Cracking {
             Self::link_geometry(&model.topo, &fan, x0, u, &mut links);
             let view = FanView { point: fan.point, cluster: cid, closed: fan.is_closed(), links: &links, stress: self.nodal[c as usize], principal: self.principal[c as usize] };
             let chk = self.checks[c as usize];
-            let Some(prop) = cfg.separation.propose(&view, &chk) else { continue };
+            let Some(prop) = cfg.separation.try_propose(&view, &chk).map_err(crate::FlemError::Other)? else { continue };
             let r = model.topo.cut(cid, &prop.edges, true);
             if r.is_empty() {
                 continue;
@@ -134,6 +135,6 @@ impl Cracking {
             rec.extend(r);
         }
         self.n_splits += events.len();
-        (rec, events)
+        Ok((rec, events))
     }
 }

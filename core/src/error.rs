@@ -18,6 +18,9 @@ pub enum FlemError {
     /// The implicit check solver could not solve.
     #[error("{0}")]
     Solve(String),
+    /// A dynamic plugin library that cannot be used (core/src/dynload).
+    #[error("plugin library {file}: {msg}")]
+    Plugin { file: String, msg: String },
     /// The run was asked to stop (SIGINT/SIGTERM): a checkpoint and a snapshot were written.
     #[error("interrupted after step {step} (stage {stage}, step {stage_step} of the stage); a checkpoint was written")]
     Interrupted { step: u64, stage: usize, stage_step: u64 },

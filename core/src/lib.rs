@@ -8,6 +8,7 @@ pub mod block;
 pub mod check;
 pub mod checkpoint;
 pub mod damping;
+pub mod dynload;
 pub mod element;
 pub mod error;
 pub mod ids;

@@ -285,7 +285,10 @@ impl Default for OutputCfg {
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CrackingCfg {
+    /// A built-in (typetag) or a plugin from a `[plugins] load` library (`dynload`).
+    #[serde(deserialize_with = "crate::dynload::de_criterion")]
     pub criterion: Box<dyn FailureCriterion>,
+    #[serde(deserialize_with = "crate::dynload::de_separation")]
     pub separation: Box<dyn SeparationRule>,
     /// Steps between failure checks, when `at_equilibrium = false`.
     #[serde(default = "default_check_every")]
@@ -369,6 +372,7 @@ impl Scene {
     /// Parses and validates scene text; `path` is used in messages, `base_dir` for relative paths.
     pub fn from_str(text: &str, path: &Path, base_dir: &Path) -> Result<Scene> {
         let name = path.display().to_string();
+        crate::dynload::load_scene_plugins(text, &name, base_dir)?;
         let mut file: SceneFile = toml::from_str(text).map_err(|e| parse_error(&name, text, e))?;
         if file.solver.damping.is_none() {
             // The default: adaptive dynamic relaxation (a plugin; an error, not a panic, when the
@@ -464,8 +468,9 @@ impl Scene {
             }
         }
         if let Some(c) = &f.cracking {
-            c.criterion.validate().map_err(|e| FlemError::config(&n, format!("cracking.criterion.{}", e.key), e.msg))?;
-            c.separation.validate().map_err(|e| FlemError::config(&n, format!("cracking.separation.{}", e.key), e.msg))?;
+            let key = |t: &str, k: &str| if k.is_empty() { t.to_string() } else { format!("{t}.{k}") };
+            c.criterion.validate().map_err(|e| FlemError::config(&n, key("cracking.criterion", &e.key), e.msg))?;
+            c.separation.validate().map_err(|e| FlemError::config(&n, key("cracking.separation", &e.key), e.msg))?;
             if c.check_every == 0 {
                 return Err(FlemError::config(&n, "cracking.check_every", "= 0 is incorrect; it must be >= 1"));
             }

@@ -703,7 +703,7 @@ impl Simulation {
     fn check_failure(&mut self, obs: &mut dyn Observer) -> Result<usize> {
         let Some(cr) = self.cracking.as_mut() else { return Ok(0) };
         let cfg = self.scene.file.cracking.as_ref().expect("cracking config");
-        let (rec, events) = cr.check(cfg, &mut self.model, &self.state.u, &self.x0, self.state.time, self.state.step);
+        let (rec, events) = cr.check(cfg, &mut self.model, &self.state.u, &self.x0, self.state.time, self.state.step)?;
         if rec.is_empty() {
             return Ok(0);
         }

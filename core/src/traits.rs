@@ -84,6 +84,12 @@ pub trait FailureCriterion: Debug + Send + Sync {
             out[i] = self.check(&p[i], scale[i]);
         }
     }
+    /// Fallible batch form: what the core calls. Built-ins keep this default; a dynamic plugin
+    /// (`dynload`) turns a plugin error or a caught panic into `Err` (a message).
+    fn try_check_batch(&self, p: &[Principal], scale: &[f64], out: &mut [FailureCheck]) -> Result<(), String> {
+        self.check_batch(p, scale, out);
+        Ok(())
+    }
 }
 
 /// A parameter error: `key = value is incorrect; it must be ...`.
@@ -160,6 +166,10 @@ pub trait SeparationRule: Debug + Send + Sync {
         Ok(())
     }
     fn propose(&self, fan: &FanView, failure: &FailureCheck) -> Option<Proposal>;
+    /// Fallible form: what the core calls (see [`FailureCriterion::try_check_batch`]).
+    fn try_propose(&self, fan: &FanView, failure: &FailureCheck) -> Result<Option<Proposal>, String> {
+        Ok(self.propose(fan, failure))
+    }
 }
 
 /// Angular distance between two directions (radians), as undirected lines (mod pi), in [0, pi/2].

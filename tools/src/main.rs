@@ -14,6 +14,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod bench_dyncall;
 mod chart;
 mod stability;
 mod bench;
@@ -54,8 +55,15 @@ enum Cmd {
     Plot { run_dir: PathBuf },
     /// Validate a scene (and build its mesh) without running it; exit 1 with the message on error.
     Check { scenes: Vec<PathBuf> },
-    /// List the registered plugins (kind and name).
-    Plugins,
+    /// List the built-in plugins (kind and name) and the dynamic ones loaded with --load or by a
+    /// scene's `[plugins] load`, with the file each came from.
+    Plugins {
+        /// A plugin library to load (repeatable).
+        #[arg(long)]
+        load: Vec<PathBuf>,
+        /// A scene whose `[plugins] load` libraries to load.
+        scene: Option<PathBuf>,
+    },
     /// The speed-accuracy chart: sweep damping, dt safety, tolerance and mesh refinement;
     /// wall time against the error (vs the implicit solve, a refined reference, or an
     /// analytic probe value); Pareto front marked. Writes chart.csv, chart.json and pictures.
@@ -127,6 +135,9 @@ enum BenchWhat {
         #[arg(long, default_value_t = 1.0)]
         min_time: f64,
     },
+    /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
+    /// one and against the whole step.
+    Dyncall(bench_dyncall::Args),
 }
 
 fn main() -> ExitCode {
@@ -141,12 +152,7 @@ fn main() -> ExitCode {
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
-        Some(Cmd::Plugins) => {
-            for (kind, name) in flem_plugins::registry() {
-                println!("{kind:<12} {name}");
-            }
-            Ok(())
-        }
+        Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
@@ -173,6 +179,23 @@ fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_s
     anyhow::ensure!(min_time > 0.0 && min_time.is_finite(), "--min-time = {min_time} is incorrect; it must be > 0");
     anyhow::ensure!(sizes.iter().chain(&step_sizes).all(|&n| (8..=16_000_000).contains(&n)), "--sizes/--step-sizes: each must be in [8, 16000000]");
     bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes })
+}
+
+fn plugins(libs: &[PathBuf], scene: Option<&Path>) -> Result<()> {
+    for l in libs {
+        flem_core::dynload::load_library(l)?;
+    }
+    if let Some(p) = scene {
+        let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+        flem_core::dynload::load_scene_plugins(&text, &p.display().to_string(), p.parent().unwrap_or(Path::new("")))?;
+    }
+    for (kind, name) in flem_plugins::registry() {
+        println!("{kind:<12} {name}");
+    }
+    for p in flem_core::dynload::loaded() {
+        println!("{:<12} {:<24} loaded from {} (FLEM core {}, {})", p.kind, p.name, p.file.display(), p.core_version, p.rustc_version);
+    }
+    Ok(())
 }
 
 fn load(path: &Path) -> Result<Scene> {
@@ -346,6 +369,7 @@ fn bench(what: BenchWhat) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&b)?);
         }
         BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time } => bench_step(sizes, threads, kinds, step_sizes, min_time)?,
+        BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
     }
     Ok(())
 }

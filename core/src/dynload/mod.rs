@@ -1,0 +1,258 @@
+//! Dynamic plugins: failure criteria and separation rules loaded at run time from a shared
+//! library (`[plugins] load = ["path/to/libfoo.so"]`), then chosen by `type = "name"` exactly
+//! like a built-in.
+//!
+//! Why not typetag: typetag's registry is filled at link time and cannot see impls inside a
+//! library opened with `dlopen` (typetag issue #94; the library has its own registry). So the
+//! library describes itself through a plain C ABI ([`abi`]), the host keeps a registry of what
+//! it loaded ([`load_library`]), and the scene's plugin tables are read first as TOML values and
+//! handed to the dynamic registry when their name is not a built-in ([`de_criterion`]).
+//!
+//! Rules the loader keeps:
+//! - the header (ABI version, FLEM core version) is checked before anything else of the library
+//!   is read; a mismatch is refused with a message naming both versions;
+//! - a missing file or entry symbol is reported with the system loader's own message (the
+//!   `source()` chain of libloading's error, whose own text is only "dlopen failed");
+//! - a library is never unloaded (it is leaked into a global registry: function pointers and
+//!   names from it live as long as the process);
+//! - a plugin name may not shadow a built-in or a name from another loaded library;
+//! - plugin errors and panics come back as `Err` (the SDK catches panics on its side).
+pub mod abi;
+mod wrap;
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer};
+
+use crate::error::{FlemError, Result};
+use crate::traits::{FailureCriterion, SeparationRule};
+use abi::{Descriptor, PluginEntry, ABI_VERSION, CORE_VERSION, ENTRY_SYMBOL, KIND_CRITERION, KIND_SEPARATION, RUSTC_VERSION};
+pub use wrap::{DynCriterion, DynSeparation};
+
+/// A plugin provided by a loaded library.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PluginInfo {
+    /// "criterion" or "separation".
+    pub kind: &'static str,
+    pub name: &'static str,
+    /// The library it came from (canonical path).
+    pub file: PathBuf,
+    /// The FLEM core and compiler versions the library was built with.
+    pub core_version: String,
+    pub rustc_version: String,
+}
+
+struct Registered {
+    info: PluginInfo,
+    entry: &'static PluginEntry,
+}
+
+/// Every library loaded so far and its plugins, in load order. Never shrinks.
+static REGISTRY: Mutex<Vec<Registered>> = Mutex::new(Vec::new());
+/// Canonical paths of the loaded libraries.
+static LIBRARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn kind_name(kind: u32) -> Option<&'static str> {
+    match kind {
+        KIND_CRITERION => Some("criterion"),
+        KIND_SEPARATION => Some("separation"),
+        _ => None,
+    }
+}
+
+/// `e` and every `source()` below it, joined by ": " (libloading's own text is only
+/// "dlopen failed"; the system's message is its source).
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cur = c.source();
+    }
+    s
+}
+
+/// Checks a descriptor's header against this host. Reads only the frozen header fields.
+pub fn check_header(d: &Descriptor, file: &str) -> Result<(String, String)> {
+    let err = |m: String| FlemError::Plugin { file: file.to_string(), msg: m };
+    // SAFETY: header strings are statics of the library, which is never unloaded.
+    let core = unsafe { d.core_version.as_str() }.map_err(|e| err(format!("its core version string is not UTF-8 ({e})")))?.to_string();
+    let rustc = unsafe { d.rustc_version.as_str() }.map_err(|e| err(format!("its compiler version string is not UTF-8 ({e})")))?.to_string();
+    if d.abi_version != ABI_VERSION || core != CORE_VERSION {
+        return Err(err(format!(
+            "version mismatch: the library was built for plugin ABI {} and FLEM core {core} ({rustc}), but this flem has plugin ABI {ABI_VERSION} and FLEM core {CORE_VERSION} ({RUSTC_VERSION}); rebuild the plugin against flem-plugin-sdk {CORE_VERSION}",
+            d.abi_version
+        )));
+    }
+    Ok((core, rustc))
+}
+
+/// Whether a typetag built-in of this kind has this name (the registry is only reachable
+/// through deserialization: an unknown name gives "unknown variant").
+fn is_builtin(kind: u32, name: &str) -> bool {
+    let mut t = toml::Table::new();
+    t.insert("type".into(), toml::Value::String(name.into()));
+    let msg = match kind {
+        KIND_CRITERION => Box::<dyn FailureCriterion>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
+        _ => Box::<dyn SeparationRule>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
+    };
+    !msg.is_some_and(|m| m.contains("unknown variant"))
+}
+
+/// Loads a plugin library (an explicit path: a bare name would search system folders) and
+/// registers its plugins. Loading the same file again returns its plugins without reloading.
+pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
+    let shown = path.display().to_string();
+    let perr = |m: String| FlemError::Plugin { file: shown.clone(), msg: m };
+    if let Ok(c) = path.canonicalize() {
+        if LIBRARIES.lock().unwrap_or_else(|p| p.into_inner()).contains(&c) {
+            return Ok(loaded().into_iter().filter(|p| p.file == c).collect());
+        }
+    }
+    // SAFETY: loading a library runs its initialisers; FLEM plugins are trusted code chosen by
+    // the user, like the scene itself.
+    let lib = unsafe { libloading::Library::new(path) }.map_err(|e| perr(format!("cannot be loaded: {}", error_chain(&e))))?;
+    let file = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+    // Never unloaded: every pointer taken from it below lives as long as the process.
+    let lib: &'static libloading::Library = Box::leak(Box::new(lib));
+    type Entry = unsafe extern "C" fn() -> *const Descriptor;
+    // SAFETY: the symbol's type is fixed by the ABI (checked by the header right after).
+    let entry = unsafe { lib.get::<Entry>(ENTRY_SYMBOL) }.map_err(|e| {
+        perr(format!("is not a FLEM plugin for plugin ABI {ABI_VERSION}: it has no entry point `{ENTRY_SYMBOL}` (build it with flem-plugin-sdk {CORE_VERSION} and its export_plugins! macro): {}", error_chain(&e)))
+    })?;
+    // SAFETY: the entry point of the SDK returns a pointer to a static descriptor.
+    let d = unsafe { entry() };
+    if d.is_null() {
+        return Err(perr(format!("`{ENTRY_SYMBOL}` returned a null descriptor")));
+    }
+    // SAFETY: non-null, static in the never-unloaded library.
+    let d: &'static Descriptor = unsafe { &*d };
+    let (core, rustc) = check_header(d, &shown)?;
+    let entries: &'static [PluginEntry] = if d.n_plugins == 0 {
+        &[]
+    } else {
+        // SAFETY: the header matched, so the body has the ABI 1 layout: n_plugins entries.
+        unsafe { std::slice::from_raw_parts(d.plugins, d.n_plugins) }
+    };
+    let mut new = Vec::new();
+    for e in entries {
+        let kind = kind_name(e.kind).ok_or_else(|| perr(format!("provides a plugin of unknown kind {} (this flem knows criterion and separation)", e.kind)))?;
+        // SAFETY: a static of the library.
+        let name: &'static str = unsafe { e.name.as_str() }.map_err(|_| perr("has a plugin name that is not UTF-8".into()))?;
+        if (e.kind == KIND_CRITERION && e.check_batch.is_none()) || (e.kind == KIND_SEPARATION && e.propose.is_none()) {
+            return Err(perr(format!("{kind} \"{name}\" has no {} function", if e.kind == KIND_CRITERION { "check_batch" } else { "propose" })));
+        }
+        if is_builtin(e.kind, name) {
+            return Err(perr(format!("{kind} \"{name}\" has the name of a built-in {kind}; rename it")));
+        }
+        if let Some(other) = find(e.kind, name) {
+            return Err(perr(format!("{kind} \"{name}\" is already provided by {}", other.info.file.display())));
+        }
+        if new.iter().any(|r: &Registered| r.entry.kind == e.kind && r.info.name == name) {
+            return Err(perr(format!("provides {kind} \"{name}\" twice")));
+        }
+        new.push(Registered { info: PluginInfo { kind, name, file: file.clone(), core_version: core.clone(), rustc_version: rustc.clone() }, entry: e });
+    }
+    let infos = new.iter().map(|r| r.info.clone()).collect();
+    REGISTRY.lock().unwrap_or_else(|p| p.into_inner()).extend(new);
+    LIBRARIES.lock().unwrap_or_else(|p| p.into_inner()).push(file);
+    Ok(infos)
+}
+
+fn find(kind: u32, name: &str) -> Option<Registered> {
+    REGISTRY.lock().unwrap_or_else(|p| p.into_inner()).iter().find(|r| r.entry.kind == kind && r.info.name == name).map(|r| Registered { info: r.info.clone(), entry: r.entry })
+}
+
+/// Every plugin loaded so far, in load order.
+pub fn loaded() -> Vec<PluginInfo> {
+    REGISTRY.lock().unwrap_or_else(|p| p.into_inner()).iter().map(|r| r.info.clone()).collect()
+}
+
+/// Loads the libraries of a scene's `[plugins] load` list (paths relative to `base_dir`) before
+/// the rest of the scene is deserialized. Text that is not TOML is left to the scene parser.
+pub fn load_scene_plugins(text: &str, file: &str, base_dir: &Path) -> Result<()> {
+    let Ok(doc) = toml::from_str::<toml::Table>(text) else { return Ok(()) };
+    let Some(list) = doc.get("plugins").and_then(|p| p.get("load")) else { return Ok(()) };
+    let Some(list) = list.as_array() else { return Ok(()) }; // the scene parser names the type error
+    for (i, item) in list.iter().enumerate() {
+        let key = format!("plugins.load[{i}]");
+        let Some(s) = item.as_str() else { return Err(FlemError::config(file, key, "must be a path (a string)")) };
+        let p = Path::new(s);
+        let mut full = if p.is_absolute() { p.to_path_buf() } else { base_dir.join(p) };
+        if full.is_relative() && full.parent().is_none_or(|d| d.as_os_str().is_empty()) {
+            full = Path::new(".").join(full); // never let the system search its folders
+        }
+        load_library(&full).map_err(|e| FlemError::config(file, key, format!("= \"{s}\": {e}")))?;
+    }
+    Ok(())
+}
+
+/// The names of loaded plugins of a kind, for messages.
+fn names_of(kind: u32) -> Vec<&'static str> {
+    REGISTRY.lock().unwrap_or_else(|p| p.into_inner()).iter().filter(|r| r.entry.kind == kind).map(|r| r.info.name).collect()
+}
+
+/// Adds the loaded names of this kind to typetag's "unknown variant `x`, expected one of ..."
+/// so that the scene's "did you mean" hint considers them too.
+fn with_loaded_names(msg: String, kind: u32) -> String {
+    let names = names_of(kind);
+    if names.is_empty() || !msg.contains("unknown variant") {
+        return msg;
+    }
+    let extra: Vec<String> = names.iter().map(|n| format!("`{n}`")).collect();
+    format!("{msg}, or a loaded plugin: {}", extra.join(", "))
+}
+
+fn type_name(v: &toml::Value) -> Option<&str> {
+    v.get("type").and_then(|t| t.as_str())
+}
+
+/// `deserialize_with` for a scene's criterion table: a loaded plugin's name builds a
+/// [`DynCriterion`], any other name goes to typetag (the built-ins).
+pub fn de_criterion<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Box<dyn FailureCriterion>, D::Error> {
+    let v = toml::Value::deserialize(d)?;
+    if let Some(r) = type_name(&v).and_then(|n| find(KIND_CRITERION, n)) {
+        return Ok(Box::new(DynCriterion::new(r.info, r.entry, v)));
+    }
+    Box::<dyn FailureCriterion>::deserialize(v).map_err(|e| D::Error::custom(with_loaded_names(e.to_string(), KIND_CRITERION)))
+}
+
+/// `deserialize_with` for a scene's separation table (see [`de_criterion`]).
+pub fn de_separation<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Box<dyn SeparationRule>, D::Error> {
+    let v = toml::Value::deserialize(d)?;
+    if let Some(r) = type_name(&v).and_then(|n| find(KIND_SEPARATION, n)) {
+        return Ok(Box::new(DynSeparation::new(r.info, r.entry, v)));
+    }
+    Box::<dyn SeparationRule>::deserialize(v).map_err(|e| D::Error::custom(with_loaded_names(e.to_string(), KIND_SEPARATION)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::abi::RStr;
+    use super::*;
+
+    fn desc(abi: u32, core: &'static str) -> Descriptor {
+        Descriptor { abi_version: abi, core_version: RStr::new(core), rustc_version: RStr::new("rustc 0.0.0 (test)"), n_plugins: 0, plugins: std::ptr::null() }
+    }
+
+    /// A descriptor of another ABI or core version is refused with both versions named; the
+    /// matching one passes. Reference: the header rule of the module docs.
+    #[test]
+    fn header_mismatch_names_both_versions() {
+        assert!(check_header(&desc(ABI_VERSION, CORE_VERSION), "x.so").is_ok());
+        let e = check_header(&desc(ABI_VERSION + 1, CORE_VERSION), "x.so").unwrap_err().to_string();
+        assert!(e.contains(&format!("plugin ABI {}", ABI_VERSION + 1)) && e.contains(&format!("plugin ABI {ABI_VERSION}")), "{e}");
+        let e = check_header(&desc(ABI_VERSION, "0.0.1-old"), "x.so").unwrap_err().to_string();
+        assert!(e.contains("FLEM core 0.0.1-old") && e.contains(&format!("FLEM core {CORE_VERSION}")) && e.starts_with("plugin library x.so"), "{e}");
+    }
+
+    /// A missing file reports the system loader's message (not only "dlopen failed").
+    #[test]
+    fn missing_file_reports_loader_message() {
+        let e = load_library(Path::new("/nonexistent/libnope.so")).unwrap_err().to_string();
+        assert!(e.contains("dlopen failed") && e.contains("/nonexistent/libnope.so") && e.contains("No such file"), "{e}");
+    }
+}
