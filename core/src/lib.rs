@@ -5,6 +5,8 @@
 //! [`scene::Scene`] (validated TOML) drives a [`solver::Simulation`] through stages; results go
 //! out through [`output`].
 pub mod block;
+pub mod contact;
+pub mod corot;
 pub mod damping;
 pub mod element;
 pub mod error;

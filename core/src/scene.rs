@@ -36,6 +36,9 @@ pub struct SceneFile {
     pub cracking: Option<CrackingCfg>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plugins: Option<PluginsCfg>,
+    /// `[contact]`: contact between faces (crate::contact).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<crate::contact::ContactCfg>,
 }
 
 /// `[plugins] load = ["path/to/libfoo.so"]`: dynamic plugin libraries loaded before the rest
@@ -81,6 +84,9 @@ pub struct MaterialCfg {
     pub density: f64,
     #[serde(default = "one")]
     pub thickness: f64,
+    /// Co-rotational kinematics (crate::corot): rigid rotations carry no stress.
+    #[serde(default)]
+    pub corotational: bool,
 }
 
 fn all() -> String {
@@ -417,6 +423,9 @@ impl Scene {
             if st.max_steps == Some(0) {
                 return Err(FlemError::config(&n, format!("stage[{i}].max_steps"), "= 0 is incorrect; it must be >= 1"));
             }
+        }
+        if let Some(c) = &f.contact {
+            c.validate(&n)?;
         }
         if let Some(c) = &f.cracking {
             c.criterion.validate().map_err(|e| FlemError::config(&n, format!("cracking.criterion.{}", e.key), e.msg))?;
