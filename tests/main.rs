@@ -5,3 +5,4 @@ mod configs;
 mod cracking;
 mod interop;
 mod verification;
+mod contact;

@@ -9,6 +9,8 @@ use flem_core::scene::Scene;
 use flem_core::solver::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod bench_contact;
+
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 const DEFAULT_SCENE: &str = include_str!("../../configs/default.toml");
 const DEFAULT_NAME: &str = "configs/default.toml";
@@ -36,6 +38,24 @@ enum Cmd {
     Check { scenes: Vec<PathBuf> },
     /// List the registered plugins (kind and name).
     Plugins,
+    /// Benchmarks, printing JSON.
+    Bench {
+        #[command(subcommand)]
+        what: BenchWhat,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchWhat {
+    /// Contact search cost against the number of surface nodes, with the growth exponent.
+    Contact {
+        /// Surface-node counts to measure.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1000usize, 10000, 100000])]
+        sizes: Vec<usize>,
+        /// Timed repetitions per size (the best is kept).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
 }
 
 fn main() -> ExitCode {
@@ -45,6 +65,7 @@ fn main() -> ExitCode {
         None => run_default(),
         Some(Cmd::Run { scene, out, quiet }) => load(&scene).and_then(|s| run(s, out, quiet)),
         Some(Cmd::Check { scenes }) => check(&scenes),
+        Some(Cmd::Bench { what: BenchWhat::Contact { sizes, repeats } }) => bench_contact::run(&sizes, repeats),
         Some(Cmd::Plugins) => {
             for (kind, name) in flem_plugins::registry() {
                 println!("{kind:<12} {name}");

@@ -12,6 +12,12 @@ use crate::model::Model;
 use crate::topology::SplitRecord;
 
 const NONE: u32 = u32::MAX;
+/// A new node-to-edge contact is accepted for `-XI_NEW <= xi <= 1 + XI_NEW` (faces ending at
+/// the same point, e.g. the two sides of a cut, must not lose their end nodes to round-off);
+/// an existing pair is kept up to `XI_KEEP` beyond its face when no neighbouring face takes
+/// it (hysteresis: no chatter at face ends). Forces use `xi` clamped to [0, 1].
+const XI_NEW: f64 = 1e-3;
+const XI_KEEP: f64 = 2e-2;
 
 /// A master face: element `id / 4`, local edge `id % 4`, from cluster `a` to cluster `b`
 /// (counter-clockwise, outward normal `(dy, -dx) / L`).
@@ -431,6 +437,9 @@ impl Contact {
                         found = Some((Geo { slave: s, master: Master::Face(id), i: fc.a, j: fc.b, xi, n, t }, gap, state, false));
                     } else if -gap <= self.max_depth * len {
                         let end = if xi < 0.0 { fc.a } else { fc.b };
+                        if (-XI_KEEP..=1.0 + XI_KEEP).contains(&xi) {
+                            found = Some((Geo { slave: s, master: Master::Face(id), i: fc.a, j: fc.b, xi: xi.clamp(0.0, 1.0), n, t }, gap, state, false));
+                        }
                         for &fi in cands {
                             let g = self.faces[fi as usize];
                             if g.id == id || (g.a != end && g.b != end) {
@@ -455,9 +464,9 @@ impl Contact {
                     if gap >= 0.0 || -gap > self.max_depth * len {
                         continue;
                     }
-                    if (0.0..=1.0).contains(&xi) {
+                    if (-XI_NEW..=1.0 + XI_NEW).contains(&xi) {
                         if best.as_ref().is_none_or(|b| -gap < b.0) {
-                            best = Some((-gap, Geo { slave: s, master: Master::Face(g.id), i: g.a, j: g.b, xi, n, t }));
+                            best = Some((-gap, Geo { slave: s, master: Master::Face(g.id), i: g.a, j: g.b, xi: xi.clamp(0.0, 1.0), n, t }));
                         }
                     } else {
                         let q = if xi < 0.0 { g.a } else { g.b };

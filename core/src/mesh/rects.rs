@@ -1,6 +1,9 @@
 //! `rectangles`: several separate rectangles in one mesh (blocks on a base, stacks,
 //! collisions): each part is a [`Rectangle`] whose points are its own (parts never share a
 //! point even where they touch), so the parts are separate bodies that meet through contact.
+//! Parts must not have coincident points (the mesh validation refuses duplicates, which in an
+//! imported mesh are a meshing error): leave a small gap (1e-7 of the size is enough) where
+//! parts rest on each other; gravity or the loads close it.
 //!
 //! Groups of part `p`: node and edge sets `p_left`, `p_right`, `p_bottom`, `p_top`, node sets
 //! `p_bottom_left`, ..., `p_all`, and the element region `p` (so `[[material]] region = "p"`
@@ -11,7 +14,7 @@
 //! type = "rectangles"
 //! parts = [
 //!   { name = "base", origin = [0.0, 0.0], width = 4.0, height = 0.5, nx = 16, ny = 2 },
-//!   { name = "block", origin = [1.0, 0.5], width = 1.0, height = 1.0, nx = 4, ny = 4 },
+//!   { name = "block", origin = [1.0, 0.5000001], width = 1.0, height = 1.0, nx = 4, ny = 4 },
 //! ]
 //! ```
 use std::collections::BTreeMap;
