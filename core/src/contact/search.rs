@@ -16,8 +16,8 @@ const NONE: u32 = u32::MAX;
 /// the same point, e.g. the two sides of a cut, must not lose their end nodes to round-off);
 /// an existing pair is kept up to `XI_KEEP` beyond its face when no neighbouring face takes
 /// it (hysteresis: no chatter at face ends). Forces use `xi` clamped to [0, 1].
-const XI_NEW: f64 = 1e-3;
-const XI_KEEP: f64 = 2e-2;
+const XI_NEW: f64 = 2e-2;
+const XI_KEEP: f64 = 5e-2;
 
 /// A master face: element `id / 4`, local edge `id % 4`, from cluster `a` to cluster `b`
 /// (counter-clockwise, outward normal `(dy, -dx) / L`).

@@ -8,9 +8,10 @@
 //! - dashpots (eq. 12): `d_n = -eta_n A v_n`, `d_s = -eta_s A v_s`;
 //! - no tension: `e_n <= 0` opens the pair (forces zero, history dropped); the normal force
 //!   `e_n + d_n` is clamped at 0 (a dashpot does not pull);
-//! - Coulomb slip (eq. 13-14): `|e_s + d_s| > mu e_n` gives `e_s = mu e_n sign(e_s + d_s)`,
-//!   `d_s = 0`. (The paper tests `|e_s|` alone; including the dashpot keeps the tangential
-//!   force within Coulomb's limit on the first step of a pair, when `e_s` is still 0 but the
+//! - Coulomb slip (eq. 13-14): `|e_s + d_s| > mu N` with `N = max(e_n + d_n, 0)` the normal
+//!   force gives `e_s = mu N sign(e_s + d_s)`, `d_s = 0`. (The paper tests `|e_s| > mu e_n`;
+//!   including the dashpots keeps the tangential force within Coulomb's limit of the force
+//!   really transmitted, also on the first step of a pair, when `e_s` is still 0 but the
 //!   dashpot already sees the full sliding velocity.)
 //! - force on the slave `(e_n + d_n) n + (e_s + d_s) t` (eq. 15), the opposite on the face.
 //!
@@ -81,15 +82,15 @@ impl ContactLaw for SpringDashpot {
             }
             let dn = -self.normal_damping * k.area * k.vn;
             let mut ds = -self.shear_damping * k.area * k.vs;
+            let normal = (h.en + dn).max(0.0);
             let trial = h.es + ds;
-            let (capped, slipped) = coulomb_cap(trial, self.friction * h.en);
+            let (capped, slipped) = coulomb_cap(trial, self.friction * normal);
             let mut diss = 0.0;
             if slipped {
                 diss += (h.es - capped).abs() / ks * capped.abs();
                 h.es = capped;
                 ds = 0.0;
             }
-            let normal = (h.en + dn).max(0.0);
             diss += -((normal - h.en) * k.vn + ds * k.vs) * k.dt;
             *o = PairForce { normal, tangential: h.es + ds, active: true, stored: 0.5 * h.en * h.en / kn + 0.5 * h.es * h.es / ks, dissipated: diss };
         }
