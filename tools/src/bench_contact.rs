@@ -1,7 +1,8 @@
 //! `flem bench contact`: the cost of the contact search against the number of surface nodes.
 //!
 //! Scene: `k` strips of 50 x 1 square elements stacked on each other (every node is a surface
-//! node, `boundary = true`), each strip pressed 1e-6 into the one below so that every
+//! node, `boundary = true`; 1e-6 apart, as touching parts may not share points), each strip
+//! pressed 1e-6 into the one below so that every
 //! interface is in contact. Measured per size: one Verlet-list build (grid broad phase) and
 //! one contact step without rebuild (narrow phase + law + scatter), the best of `repeats`.
 //! Prints JSON with the growth exponents (least-squares slope of log time against log n).
@@ -14,7 +15,7 @@ use flem_core::solver::Simulation;
 use serde_json::json;
 
 fn scene(strips: usize) -> String {
-    let parts: Vec<String> = (0..strips).map(|k| format!("  {{ name = \"s{k}\", origin = [0.0, {}], width = 50.0, height = 1.0, nx = 50, ny = 1 }},", k as f64)).collect();
+    let parts: Vec<String> = (0..strips).map(|k| format!("  {{ name = \"s{k}\", origin = [0.0, {}], width = 50.0, height = 1.0, nx = 50, ny = 1 }},", k as f64 * (1.0 + 1e-6))).collect();
     format!(
         "[mesh]\ntype = \"rectangles\"\nparts = [\n{}\n]\n\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.25\ndensity = 1.0\n\n[contact]\nlaw = {{ type = \"penalty\", normal_stiffness = 1e4 }}\nboundary = true\n\n[[stage]]\n",
         parts.join("\n")
@@ -39,7 +40,7 @@ pub fn run(sizes: &[usize], repeats: usize) -> Result<()> {
         let mut sim = Simulation::new(sc)?;
         for c in 0..sim.x0.len() {
             let k = sim.x0[c][1].round();
-            sim.state.u[c][1] = -1e-6 * k;
+            sim.state.u[c][1] = -2e-6 * k;
         }
         let law = sim.scene.file.contact.as_ref().unwrap().law.as_ref();
         let con = sim.contact.as_mut().unwrap();
