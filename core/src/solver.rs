@@ -301,7 +301,7 @@ impl Simulation {
         let bound = self.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
         let k = self.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
         let oc2 = match (&self.contact, &self.scene.file.contact) {
-            (Some(c), Some(cfg)) => c.omega2(&self.state.mass, fix, cfg.law.stiffness()),
+            (Some(c), Some(cfg)) => c.omega2(&self.model, &self.state.mass, fix, cfg.law.stiffness()),
             _ => 0.0,
         };
         let omega = (omega_el * omega_el + oc2).sqrt();

@@ -156,10 +156,14 @@ pub struct Pair {
     pub state: PairState,
 }
 
-/// Every open pair, sorted by slave cluster (at most one pair per slave).
+/// Every open pair, sorted by slave cluster (at most one pair per slave), and the edges split
+/// during the run (their faces are fresh: cohesive laws act on them). Restore with
+/// [`Contact::restore`].
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ContactHistory {
     pub pairs: Vec<Pair>,
+    #[serde(default)]
+    pub fresh_edges: Vec<u32>,
 }
 
 /// A contact law (METHOD section 6): springs per unit area, called once per step on the batch.

@@ -6,6 +6,7 @@
 //! deterministic candidate order (by face index) with no dependency; a tree would need a
 //! sort of its query results to be deterministic anyway.
 use super::{ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, PairKinematics, PairState};
+use crate::element::{self, Q4, T3};
 use crate::error::Result;
 use crate::ids::{EdgeId, ElemId};
 use crate::model::Model;
@@ -199,7 +200,10 @@ impl Contact {
     /// act on them); pairs joining the two faces of each fresh edge are created at once.
     pub fn on_split(&mut self, model: &Model, rec: &SplitRecord) {
         for &(e, _) in &rec.cut_edges {
-            self.fresh_edge[e.idx()] = true;
+            if !self.fresh_edge[e.idx()] {
+                self.fresh_edge[e.idx()] = true;
+                self.history.fresh_edges.push(e.0);
+            }
         }
         self.rebuild_surfaces(model);
         let topo = &model.topo;
@@ -221,19 +225,33 @@ impl Contact {
         added.sort_by(|p, q| (p.slave, p.master).cmp(&(q.slave, q.master)));
         added.dedup_by_key(|p| p.slave);
         let old = std::mem::take(&mut self.history.pairs);
+        let history = &mut self.history;
         let (mut i, mut j) = (0, 0);
         while i < old.len() || j < added.len() {
             if j == added.len() || (i < old.len() && old[i].slave <= added[j].slave) {
                 if j < added.len() && old[i].slave == added[j].slave {
                     j += 1;
                 }
-                self.history.pairs.push(old[i]);
+                history.pairs.push(old[i]);
                 i += 1;
             } else {
-                self.history.pairs.push(added[j]);
+                history.pairs.push(added[j]);
                 j += 1;
             }
         }
+    }
+
+    /// Restores a checkpointed history (the model's topology must already be the checkpoint's):
+    /// surfaces are rebuilt and the Verlet list is rebuilt at the next step.
+    pub fn restore(&mut self, model: &Model, history: ContactHistory) {
+        self.fresh_edge.iter_mut().for_each(|f| *f = false);
+        for &e in &history.fresh_edges {
+            if let Some(f) = self.fresh_edge.get_mut(e as usize) {
+                *f = true;
+            }
+        }
+        self.rebuild_surfaces(model);
+        self.history = history;
     }
 
     fn face(&self, id: u32) -> Option<Face> {
@@ -247,7 +265,12 @@ impl Contact {
     /// nodes (each node carries its own pair and the pairs of the slaves on its faces; the
     /// relative motion of two nodes doubles the rate), so `dt <= 2 / omega` includes
     /// `2 sqrt(m / k_n)` per contact.
-    pub fn omega2(&self, mass: &[f64], fix: &[u8], k: f64) -> f64 {
+    ///
+    /// With `crack_faces`, splits during the run create new surface nodes, lighter than any
+    /// node now; the bound then also covers every element corner as if it were a node of its
+    /// own with both its element edges as faces (`4 k (L1 + L2) t / 2 / m_corner`), so the step
+    /// chosen at the start stays stable after any split.
+    pub fn omega2(&self, model: &Model, mass: &[f64], fix: &[u8], k: f64) -> f64 {
         let mut a_max: f64 = 0.0;
         let mut m_min = f64::INFINITY;
         for (&s, &a) in self.slaves.iter().zip(&self.area) {
@@ -256,11 +279,28 @@ impl Contact {
                 m_min = m_min.min(mass[s as usize]);
             }
         }
-        if m_min.is_finite() {
-            4.0 * k * a_max / m_min
-        } else {
-            0.0
+        let mut w2 = if m_min.is_finite() { 4.0 * k * a_max / m_min } else { 0.0 };
+        if self.crack_faces {
+            for b in &model.blocks {
+                let (rho, t) = (b.material().density, b.material().thickness);
+                for i in 0..b.len() {
+                    let x = b.coords(i);
+                    let m: Vec<f64> = match x.len() {
+                        4 => element::lumped_mass::<Q4, 4>(&[x[0], x[1], x[2], x[3]], rho, t).to_vec(),
+                        _ => element::lumped_mass::<T3, 3>(&[x[0], x[1], x[2]], rho, t).to_vec(),
+                    };
+                    let n = x.len();
+                    let len = |a: usize, b: usize| ((x[a][0] - x[b][0]).powi(2) + (x[a][1] - x[b][1]).powi(2)).sqrt();
+                    for a in 0..n {
+                        let area = 0.5 * (len(a, (a + 1) % n) + len(a, (a + n - 1) % n)) * t;
+                        if m[a] > 0.0 {
+                            w2 = w2.max(4.0 * k * area / m[a]);
+                        }
+                    }
+                }
+            }
         }
+        w2
     }
 
     /// Rebuilds the Verlet list: for every slave, the faces (not of its own element) within

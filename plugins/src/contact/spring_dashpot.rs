@@ -29,8 +29,10 @@
 //! ```toml
 //! [contact.law]
 //! type = "spring_dashpot"
-//! normal_stiffness = 6.21e4   # paper Table 1 per unit area, dyn/cm^3 (k_n/(rho g) = 6210 cm^2 per cm^2 of face)
-//! shear_stiffness = 1.552e4
+//! # paper Table 1: k_n = 6210 rho g = 1.61e7 dyn/cm and k_s = 1552 rho g = 4.03e6 dyn/cm per
+//! # node (rho = 2.65 g/cm^3, g = 980 cm/s^2); per unit area for a node of 1 cm^2:
+//! normal_stiffness = 1.61e7
+//! shear_stiffness = 4.03e6
 //! normal_damping = 10.0
 //! shear_damping = 10.0
 //! friction = 0.577            # paper Table 1
