@@ -595,6 +595,10 @@ max_steps = 100000
 
 [[support]]
 nodes = "bottom"
+fix = "y"
+
+[[support]]
+nodes = "bottom_left"
 fix = "xy"
 
 [[load]]
