@@ -180,7 +180,7 @@ impl Contact {
             per.push((f.a, half));
             per.push((f.b, half));
         }
-        per.sort_by(|a, b| a.0.cmp(&b.0));
+        per.sort_by_key(|a| a.0);
         self.slaves.clear();
         self.area.clear();
         for (c, a) in per {
@@ -222,7 +222,7 @@ impl Contact {
                 added.push(Pair { slave: s, master: Master::Face(mf.id), state: PairState { fresh: true, ..Default::default() } });
             }
         }
-        added.sort_by(|p, q| (p.slave, p.master).cmp(&(q.slave, q.master)));
+        added.sort_by_key(|p| (p.slave, p.master));
         added.dedup_by_key(|p| p.slave);
         let old = std::mem::take(&mut self.history.pairs);
         let history = &mut self.history;
@@ -291,10 +291,10 @@ impl Contact {
                     };
                     let n = x.len();
                     let len = |a: usize, b: usize| ((x[a][0] - x[b][0]).powi(2) + (x[a][1] - x[b][1]).powi(2)).sqrt();
-                    for a in 0..n {
+                    for (a, &ma) in m.iter().enumerate() {
                         let area = 0.5 * (len(a, (a + 1) % n) + len(a, (a + n - 1) % n)) * t;
-                        if m[a] > 0.0 {
-                            w2 = w2.max(4.0 * k * area / m[a]);
+                        if ma > 0.0 {
+                            w2 = w2.max(4.0 * k * area / ma);
                         }
                     }
                 }
