@@ -10,3 +10,4 @@ mod interop;
 mod paper;
 mod parallel;
 mod verification;
+mod contact;

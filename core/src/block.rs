@@ -51,6 +51,11 @@ pub trait Block: Send + Sync {
     fn coords(&self, i: usize) -> &[[f64; 2]];
     /// Upper bound of the highest natural frequency of each element (Gershgorin on M^-1/2 K M^-1/2).
     fn max_omega_bound(&self) -> f64;
+    /// Strain energy of blocks whose forces are not linear in `u` (co-rotational,
+    /// `crate::corot`); `None` for linear blocks, where the solver uses `1/2 u . F_int`.
+    fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
+        None
+    }
 }
 
 /// Blocks smaller than this run on the calling thread (waking the pool costs more than it

@@ -83,6 +83,8 @@ pub struct Checkpoint {
     /// that warm-starts its next estimate after a split.
     pub stable: (f64, f64, f64, u64),
     pub stable_vec: Vec<[f64; 2]>,
+    /// The contact part of the stable step (2 / omega_contact; infinite without contact).
+    pub stable_dt_contact: f64,
     pub damping_state: Vec<f64>,
     pub stages_done: Vec<StageResult>,
     /// Cuts applied by the cracking driver, in order: (cluster, edges).
@@ -124,14 +126,14 @@ pub fn scene_hash(sim: &Simulation) -> u64 {
 
 impl Checkpoint {
     /// The state of `sim` at `pos` (nothing in `sim` changes).
-    pub fn capture(sim: &Simulation, pos: &StagePos) -> Checkpoint {
+    pub fn capture(sim: &Simulation, pos: &StagePos) -> Result<Checkpoint> {
         let st = &sim.state;
         let s = &sim.stats;
         let (cuts, failure_index, n_splits) = match &sim.cracking {
             Some(c) => (c.cuts.clone(), c.index.clone(), c.n_splits),
             None => (Vec::new(), Vec::new(), 0),
         };
-        Checkpoint {
+        let mut ck = Checkpoint {
             seq: 0,
             pos: pos.clone(),
             step: st.step,
@@ -151,6 +153,7 @@ impl Checkpoint {
             coeffs: (sim.coeffs.viscous, sim.coeffs.local),
             stable: (sim.stable.dt_crit, sim.stable.dt_element_bound, sim.stable.omega_max, sim.stable.iterations as u64),
             stable_vec: sim.stable_vec.clone(),
+            stable_dt_contact: sim.stable.dt_contact,
             damping_state: sim.scene.file.solver.damping.as_ref().map(|d| d.state()).unwrap_or_default(),
             stages_done: sim.stages_done.clone(),
             cuts,
@@ -158,7 +161,12 @@ impl Checkpoint {
             failure_index,
             n_splits,
             sections: Vec::new(),
+        };
+        // Contact pairs with their history (the Verlet list is rebuilt on the next step).
+        if let Some(c) = &sim.contact {
+            ck.put_section("contact", 1, &c.history)?;
         }
+        Ok(ck)
     }
 
     /// Adds (or replaces) a section.
@@ -235,7 +243,7 @@ impl Checkpoint {
         sim.stats = StepStats { step: s.0, dt: s.1, omega_max: s.2, kinetic: s.3, u_f_int: s.4, u_m_u: s.5 };
         sim.coeffs = DampingCoeffs { viscous: self.coeffs.0, local: self.coeffs.1 };
         let sb = self.stable;
-        sim.stable = crate::solver::StableStep { dt_crit: sb.0, dt_element_bound: sb.1, omega_max: sb.2, iterations: sb.3 as usize };
+        sim.stable = crate::solver::StableStep { dt_crit: sb.0, dt_element_bound: sb.1, omega_max: sb.2, iterations: sb.3 as usize, dt_contact: self.stable_dt_contact };
         if self.stable_vec.len() != nc {
             return Err(bad(format!("stable-step vector has {} entries for {nc} clusters", self.stable_vec.len())));
         }
@@ -246,6 +254,12 @@ impl Checkpoint {
             cr.index.clone_from(&self.failure_index);
             cr.index.resize(nc, 0.0);
             cr.n_splits = self.n_splits;
+        }
+        match (sim.contact.as_mut(), self.section::<crate::contact::ContactHistory>("contact", 1)?) {
+            (Some(c), Some(h)) => c.restore(&sim.model, h),
+            (None, None) => {}
+            (Some(_), None) => return Err(bad("the scene has [contact] and the checkpoint has no contact pairs".into())),
+            (None, Some(_)) => return Err(bad("the checkpoint has contact pairs and the scene has no [contact]".into())),
         }
         sim.refresh_constant_force();
         Ok(())

@@ -7,6 +7,8 @@
 pub mod block;
 pub mod check;
 pub mod checkpoint;
+pub mod contact;
+pub mod corot;
 pub mod damping;
 pub mod dynload;
 pub mod element;

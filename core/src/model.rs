@@ -17,6 +17,8 @@ pub struct Model {
     /// Worker threads of the element loop and the node update (`solver.threads`); `None`: one
     /// thread, no pool. Results do not depend on it (see `kernel`).
     pub pool: Option<std::sync::Arc<rayon::ThreadPool>>,
+    /// Some block is co-rotational (its forces are not linear in u).
+    pub corotational: bool,
 }
 
 impl Model {
@@ -35,6 +37,7 @@ impl Model {
             let m = materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all"))?;
             Some(Material { young: m.young_modulus, poisson: m.poisson_ratio, density: m.density, thickness: m.thickness, plane })
         };
+        let corot_of = |region: &str| materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all")).is_some_and(|m| m.corotational);
         let mut blocks: Vec<Box<dyn Block>> = Vec::new();
         let mut elem_slot = vec![(0u32, 0u32); mesh.cells.len()];
         for region in &regions {
@@ -55,11 +58,12 @@ impl Model {
                     }
                 }
             }
+            let corot = corot_of(region);
             if !q4.is_empty() {
-                blocks.push(Box::new(q4));
+                blocks.push(if corot { Box::new(crate::corot::CorotBlock(q4)) } else { Box::new(q4) });
             }
             if !t3.is_empty() {
-                blocks.push(Box::new(t3));
+                blocks.push(if corot { Box::new(crate::corot::CorotBlock(t3)) } else { Box::new(t3) });
             }
         }
         for blk in blocks.iter_mut() {
@@ -70,7 +74,8 @@ impl Model {
                 elem_slot[e.idx()] = (b as u32, i as u32);
             }
         }
-        Ok(Model { mesh, topo, blocks, elem_slot, plane, pool: None })
+        let corotational = materials.iter().any(|m| m.corotational);
+        Ok(Model { mesh, topo, blocks, elem_slot, plane, pool: None, corotational })
     }
 
     /// Points of a named node set; the error names the set and the groups that exist.
@@ -138,6 +143,29 @@ impl Model {
     /// Threads in use (1 without a pool).
     pub fn threads(&self) -> usize {
         self.pool.as_ref().map_or(1, |p| p.current_num_threads())
+
+    }
+
+    /// Strain energy at `u`: each co-rotational block's own, plus `1/2 u . F_int` of the
+    /// linear blocks (computed into `scratch`).
+    pub fn strain_energy(&self, u: &[[f64; 2]], scratch: &mut Vec<[f64; 2]>) -> f64 {
+        let mut e = 0.0;
+        scratch.clear();
+        scratch.resize(u.len(), [0.0; 2]);
+        let mut any_linear = false;
+        for b in &self.blocks {
+            match b.strain_energy(u) {
+                Some(x) => e += x,
+                None => {
+                    any_linear = true;
+                    b.add_internal_forces(u, scratch);
+                }
+            }
+        }
+        if any_linear {
+            e += 0.5 * u.iter().zip(scratch.iter()).map(|(u, f)| u[0] * f[0] + u[1] * f[1]).sum::<f64>();
+        }
+        e
     }
 
     /// Lumped mass of every cluster.

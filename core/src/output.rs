@@ -357,7 +357,7 @@ impl Observer for OutputWriter {
     /// Writes `checkpoint_{seq}.bin` atomically, then removes the ones older than the
     /// `output.checkpoint_keep` newest (only after the new one is safely in place).
     fn checkpoint(&mut self, sim: &Simulation, pos: &StagePos) -> Result<()> {
-        let mut ck = Checkpoint::capture(sim, pos);
+        let mut ck = Checkpoint::capture(sim, pos)?;
         ck.seq = self.ck_seq;
         ck.put_section("output", 1, &WriterState { snapshots: self.snapshots.clone(), history: self.history.clone(), splits: self.splits.clone() })?;
         let path = self.dir.join(crate::checkpoint::file_name(ck.seq));

@@ -40,6 +40,9 @@ pub struct SceneFile {
     /// `[check]`: compare each stage with the implicit solve (core/src/check.rs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub check: Option<CheckCfg>,
+    /// `[contact]`: contact between faces (crate::contact).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<crate::contact::ContactCfg>,
 }
 
 /// `[plugins] load = ["path/to/libfoo.so"]`: dynamic plugin libraries loaded before the rest
@@ -85,6 +88,9 @@ pub struct MaterialCfg {
     pub density: f64,
     #[serde(default = "one")]
     pub thickness: f64,
+    /// Co-rotational kinematics (crate::corot): rigid rotations carry no stress.
+    #[serde(default)]
+    pub corotational: bool,
 }
 
 fn all() -> String {
@@ -466,6 +472,9 @@ impl Scene {
             if st.max_steps == Some(0) {
                 return Err(FlemError::config(&n, format!("stage[{i}].max_steps"), "= 0 is incorrect; it must be >= 1"));
             }
+        }
+        if let Some(c) = &f.contact {
+            c.validate(&n)?;
         }
         if let Some(c) = &f.cracking {
             let key = |t: &str, k: &str| if k.is_empty() { t.to_string() } else { format!("{t}.{k}") };

@@ -16,6 +16,8 @@ pub struct State {
     pub v: Vec<[f64; 2]>,
     pub f_int: Vec<[f64; 2]>,
     pub f_ext: Vec<[f64; 2]>,
+    /// Contact forces (all zero without `[contact]`).
+    pub f_con: Vec<[f64; 2]>,
     pub mass: Vec<f64>,
     /// Prescribed-dof bits (1: x, 2: y).
     pub fix: Vec<u8>,
@@ -38,6 +40,17 @@ pub struct Ledger {
     /// Work of the last half step, not yet part of the balance.
     pub pending_ext: f64,
     pub pending_damp: f64,
+    /// Work done by contact forces on the nodes (trapezoidal, like `external_work`).
+    #[serde(default)]
+    pub contact_work: f64,
+    #[serde(default)]
+    pub pending_contact: f64,
+    /// Elastic energy stored in the contact springs now.
+    #[serde(default)]
+    pub contact_energy: f64,
+    /// Energy dissipated by contacts (friction slip, dashpots, fracture), cumulative.
+    #[serde(default)]
+    pub contact_dissipated: f64,
 }
 
 impl Ledger {
@@ -47,13 +60,13 @@ impl Ledger {
     pub fn dissipated(&self) -> f64 {
         self.damping - self.pending_damp
     }
-    /// `W_ext - (KE + U + D)`.
+    /// `W_ext - (KE + U + D + E_contact + D_contact)`.
     pub fn residual(&self) -> f64 {
-        self.external() - (self.kinetic + self.strain + self.dissipated())
+        self.external() - (self.kinetic + self.strain + self.dissipated() + self.contact_energy + self.contact_dissipated)
     }
     /// Residual relative to the largest term.
     pub fn relative_residual(&self) -> f64 {
-        let scale = self.external().abs().max(self.kinetic.abs() + self.strain.abs() + self.dissipated().abs());
+        let scale = self.external().abs().max(self.kinetic.abs() + self.strain.abs() + self.dissipated().abs() + self.contact_energy.abs() + self.contact_dissipated.abs());
         if scale > 0.0 {
             self.residual().abs() / scale
         } else {
@@ -72,6 +85,9 @@ pub struct StableStep {
     pub dt_element_bound: f64,
     pub omega_max: f64,
     pub iterations: usize,
+    /// 2 / omega_contact (infinite without contact); `dt_crit` uses
+    /// `omega = sqrt(omega_max^2 + omega_contact^2)`.
+    pub dt_contact: f64,
 }
 
 /// Per-stage results.
@@ -174,6 +190,8 @@ pub struct Simulation {
     pub stable: StableStep,
     pub warnings: Vec<String>,
     pub cracking: Option<Cracking>,
+    /// Contact state, only when the scene has `[contact]`.
+    pub contact: Option<crate::contact::Contact>,
     pub stages_done: Vec<StageResult>,
     pub last_ratio: f64,
     /// x0 of every cluster.
@@ -184,7 +202,8 @@ pub struct Simulation {
     pub(crate) stats: StepStats,
     pub(crate) coeffs: DampingCoeffs,
     /// Ledger sums of each node chunk of the last step.
-    partials: Vec<[f64; 9]>,
+    partials: Vec<[f64; 11]>,
+    scratch: Vec<[f64; 2]>,
 }
 
 /// Nodes per chunk of the node update (fixed: the ledger sums must not depend on threads).
@@ -196,6 +215,7 @@ struct NodeCtx<'a> {
     fix: &'a [u8],
     f_int: &'a [[f64; 2]],
     f_ext: &'a [[f64; 2]],
+    f_con: &'a [[f64; 2]],
     v_pres: &'a [[f64; 2]],
     dt: f64,
     c1: f64,
@@ -205,12 +225,14 @@ struct NodeCtx<'a> {
 
 impl NodeCtx<'_> {
     /// Central-difference update of the clusters `c0..c0 + u.len()`; returns the ledger sums
-    /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf]` of the chunk.
+    /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]` of the chunk. `CONTACT = false`
+    /// compiles the contact force out (a scene without contact pays nothing for it).
     #[inline]
-    fn update(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; 9] {
+    fn update<const CONTACT: bool>(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; 11] {
         let (dt, c1, c2, beta) = (self.dt, self.c1, self.c2, self.beta);
         let inv_dt = 1.0 / dt;
         let (mut w, mut dmp, mut pw, mut pd, mut ke, mut keh, mut ufi, mut umu, mut uf) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut wc, mut pc) = (0.0, 0.0);
         for (i, (uc, vc)) in u.iter_mut().zip(v.iter_mut()).enumerate() {
             let c = c0 + i;
             let m = self.mass[c];
@@ -219,16 +241,21 @@ impl NodeCtx<'_> {
             let fix = self.fix[c];
             for d in 0..2 {
                 let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
+                let fc = if CONTACT { self.f_con[c][d] } else { 0.0 };
                 let ud = uc[d];
                 uf += ud * fi;
                 let vp;
                 if fix & (1 << d) == 0 {
-                    let f = fe - fi;
+                    let f = if CONTACT { fe + fc - fi } else { fe - fi };
                     let s = if vm > 0.0 { 1.0 } else if vm < 0.0 { -1.0 } else { 0.0 };
                     vp = (c1 * vm + dt_m * (f - beta * f.abs() * s)) * c2;
                     let fd = f - m * (vp - vm) * inv_dt;
                     let va = 0.5 * (vm + vp) * dt;
                     w += fe * va;
+                    if CONTACT {
+                        wc += fc * va;
+                        pc += 0.5 * fc * vp * dt;
+                    }
                     dmp += fd * va;
                     pw += 0.5 * fe * vp * dt;
                     pd += 0.5 * fd * vp * dt;
@@ -237,8 +264,12 @@ impl NodeCtx<'_> {
                 } else {
                     vp = self.v_pres[c][d];
                     let va = 0.5 * (vm + vp) * dt;
-                    w += fi * va;
-                    pw += 0.5 * fi * vp * dt;
+                    w += (fi - fc) * va;
+                    pw += 0.5 * (fi - fc) * vp * dt;
+                    if CONTACT {
+                        wc += fc * va;
+                        pc += 0.5 * fc * vp * dt;
+                    }
                 }
                 ke += 0.5 * m * vm * vp;
                 keh += 0.5 * m * vp * vp;
@@ -246,7 +277,7 @@ impl NodeCtx<'_> {
                 uc[d] = ud + dt * vp;
             }
         }
-        [w, dmp, pw, pd, ke, keh, ufi, umu, uf]
+        [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]
     }
 }
 
@@ -269,18 +300,23 @@ impl Simulation {
             Some(c) => Some(Cracking::new(c, &model)),
             None => None,
         };
+        let contact = match &scene.file.contact {
+            Some(c) => Some(crate::contact::Contact::new(c, &model, &file)?),
+            None => None,
+        };
         let nc = model.topo.n_clusters();
         let mass = model.masses();
         let x0 = model.cluster_x0();
         let mut sim = Simulation {
             levels: vec![0.0; loads.loads.len()],
             loads,
-            state: State { u: vec![[0.0; 2]; nc], v: vec![[0.0; 2]; nc], f_int: vec![[0.0; 2]; nc], f_ext: vec![[0.0; 2]; nc], mass, fix: vec![0; nc], v_pres: vec![[0.0; 2]; nc], time: 0.0, step: 0 },
+            state: State { u: vec![[0.0; 2]; nc], v: vec![[0.0; 2]; nc], f_int: vec![[0.0; 2]; nc], f_ext: vec![[0.0; 2]; nc], f_con: vec![[0.0; 2]; nc], mass, fix: vec![0; nc], v_pres: vec![[0.0; 2]; nc], time: 0.0, step: 0 },
             ledger: Ledger::default(),
             dt: 0.0,
             stable: StableStep::default(),
             warnings: Vec::new(),
             cracking,
+            contact,
             stages_done: Vec::new(),
             last_ratio: f64::NAN,
             x0,
@@ -289,6 +325,7 @@ impl Simulation {
             stats: StepStats::default(),
             coeffs: DampingCoeffs::default(),
             partials: Vec::new(),
+            scratch: Vec::new(),
             scene,
             model,
         };
@@ -353,6 +390,16 @@ impl Simulation {
         }
         let mut u = vec![[0.0; 2]; n];
         let mut f = vec![[0.0; 2]; n];
+        let size = {
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for p in &self.model.mesh.points {
+                for d in 0..2 {
+                    lo[d] = lo[d].min(p[d]);
+                    hi[d] = hi[d].max(p[d]);
+                }
+            }
+            ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt().max(f64::MIN_POSITIVE)
+        };
         let (mut lam, mut prev, mut it) = (0.0f64, 0.0f64, 0usize);
         let mut stable_iters = 0;
         while it < 2000 {
@@ -361,17 +408,23 @@ impl Simulation {
             if nx == 0.0 {
                 break;
             }
+            let mut umax: f64 = 0.0;
             for c in 0..n {
                 for d in 0..2 {
                     x[c][d] /= nx;
                     u[c][d] = x[c][d] / sqm[c];
+                    umax = umax.max(u[c][d].abs());
                 }
             }
+            // Probe with displacements of 1e-9 of the mesh size: exact for linear blocks,
+            // the tangent for co-rotational ones.
+            let sc = if umax > 0.0 { 1e-9 * size / umax } else { 1.0 };
+            u.iter_mut().for_each(|v| *v = [v[0] * sc, v[1] * sc]);
             self.model.internal_forces(&u, &mut f);
             let mut dot = 0.0;
             for c in 0..n {
                 for d in 0..2 {
-                    let y = if fix[c] & (1 << d) == 0 { f[c][d] / sqm[c] } else { 0.0 };
+                    let y = if fix[c] & (1 << d) == 0 { f[c][d] / (sc * sqm[c]) } else { 0.0 };
                     dot += x[c][d] * y;
                     x[c][d] = y;
                 }
@@ -387,10 +440,16 @@ impl Simulation {
             }
             prev = lam;
         }
-        let omega = lam.max(0.0).sqrt();
+        let omega_el = lam.max(0.0).sqrt();
         let bound = self.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
         let k = self.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
-        (StableStep { dt_crit: if omega > 0.0 { k * 2.0 / omega } else { f64::INFINITY }, dt_element_bound: k * 2.0 / bound, omega_max: omega, iterations: it }, x)
+        let oc2 = match (&self.contact, &self.scene.file.contact) {
+            (Some(c), Some(cfg)) => c.omega2(&self.model, &self.state.mass, fix, cfg.law.stiffness()),
+            _ => 0.0,
+        };
+        let omega = (omega_el * omega_el + oc2).sqrt();
+        let dt_contact = if oc2 > 0.0 { 2.0 / oc2.sqrt() } else { f64::INFINITY };
+        (StableStep { dt_crit: if omega > 0.0 { k * 2.0 / omega } else { f64::INFINITY }, dt_element_bound: k * 2.0 / bound, omega_max: omega, iterations: it, dt_contact }, x)
     }
 
     /// After splits: the highest frequency can rise (a split node keeps only part of its mass
@@ -482,11 +541,9 @@ impl Simulation {
         f
     }
 
-    /// `1/2 u . F_int` (linear elasticity).
+    /// Strain energy: `1/2 u . F_int` for linear blocks, the local energy of co-rotational ones.
     pub fn strain_energy(&self) -> f64 {
-        let mut f = vec![[0.0; 2]; self.state.u.len()];
-        self.model.internal_forces(&self.state.u, &mut f);
-        0.5 * self.state.u.iter().zip(&f).map(|(u, f)| u[0] * f[0] + u[1] * f[1]).sum::<f64>()
+        self.model.strain_energy(&self.state.u, &mut Vec::new())
     }
 
     /// One central-difference step.
@@ -497,41 +554,50 @@ impl Simulation {
         if self.loads.has_follower {
             self.loads.add_follower_force(&self.model, &self.levels, &self.x0, &self.state.u, &mut self.state.f_ext);
         }
+        if let (Some(c), Some(cfg)) = (self.contact.as_mut(), self.scene.file.contact.as_ref()) {
+            let (stored, diss) = c.compute(cfg.law.as_ref(), &self.x0, &self.state.u, &self.state.v, dt, &mut self.state.f_con);
+            self.ledger.contact_energy = stored;
+            self.ledger.contact_dissipated += diss;
+        }
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
+        let corot_strain = if self.model.corotational { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
         let (a, beta) = (self.coeffs.viscous, self.coeffs.local);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
         // Node update in fixed chunks; the ledger sums are added chunk by chunk in chunk order,
         // so they do not depend on the number of threads.
-        let State { u, v, f_int, f_ext, mass, fix, v_pres, .. } = &mut self.state;
-        let ctx = NodeCtx { mass, fix, f_int, f_ext, v_pres, dt, c1, c2, beta };
+        let State { u, v, f_int, f_ext, f_con, mass, fix, v_pres, .. } = &mut self.state;
+        let ctx = NodeCtx { mass, fix, f_int, f_ext, f_con, v_pres, dt, c1, c2, beta };
+        let contact = self.contact.is_some();
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
         if self.partials.len() != n_chunks {
-            self.partials.resize(n_chunks, [0.0; 9]);
+            self.partials.resize(n_chunks, [0.0; 11]);
         }
         match self.model.pool.as_deref() {
             Some(pool) if n_chunks > 1 => {
                 use rayon::prelude::*;
                 let par = u.par_chunks_mut(NODE_CHUNK).zip(v.par_chunks_mut(NODE_CHUNK)).zip(self.partials.par_iter_mut()).enumerate();
-                pool.install(|| par.for_each(|(k, ((u, v), s))| *s = ctx.update(k * NODE_CHUNK, u, v)));
+                pool.install(|| par.for_each(|(k, ((u, v), s))| *s = if contact { ctx.update::<true>(k * NODE_CHUNK, u, v) } else { ctx.update::<false>(k * NODE_CHUNK, u, v) }));
             }
             _ => {
                 let seq = u.chunks_mut(NODE_CHUNK).zip(v.chunks_mut(NODE_CHUNK)).zip(self.partials.iter_mut()).enumerate();
-                seq.for_each(|(k, ((u, v), s))| *s = ctx.update(k * NODE_CHUNK, u, v));
+                seq.for_each(|(k, ((u, v), s))| *s = if contact { ctx.update::<true>(k * NODE_CHUNK, u, v) } else { ctx.update::<false>(k * NODE_CHUNK, u, v) });
             }
         }
-        let mut sum = [0.0; 9];
+        let mut sum = [0.0; 11];
         for p in &self.partials {
             for (s, x) in sum.iter_mut().zip(p) {
                 *s += x;
             }
         }
-        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf] = sum;
+        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc] = sum;
         self.ledger.external_work += w;
         self.ledger.damping += dmp;
         self.ledger.pending_ext = pw;
         self.ledger.pending_damp = pd;
+        self.ledger.contact_work += wc;
+        self.ledger.pending_contact = pc;
         self.ledger.kinetic = ke;
-        self.ledger.strain = 0.5 * uf;
+        self.ledger.strain = corot_strain.unwrap_or(0.5 * uf);
         self.state.time += dt;
         self.state.step += 1;
         self.stats = StepStats { step: self.state.step, dt, omega_max: self.stable.omega_max, kinetic: keh, u_f_int: ufi, u_m_u: umu };
@@ -553,12 +619,12 @@ impl Simulation {
         for c in 0..st.u.len() {
             let (mut un, mut ap) = (0.0, 0.0);
             for d in 0..2 {
-                let (fe, fi) = (st.f_ext[c][d], st.f_int[c][d]);
+                let (fe, fi) = (st.f_ext[c][d] + st.f_con[c][d], st.f_int[c][d]);
                 if st.fix[c] & (1 << d) == 0 {
                     un += (fe - fi) * (fe - fi);
                     ap += fe * fe;
                 } else {
-                    ap += fi * fi;
+                    ap += (fi - st.f_con[c][d]).powi(2);
                 }
             }
             num = num.max(un);
@@ -731,6 +797,7 @@ impl Simulation {
             st.v_pres.push(vp);
             st.f_int.push([0.0; 2]);
             st.f_ext.push([0.0; 2]);
+            st.f_con.push([0.0; 2]);
             self.x0.push(self.model.mesh.points[nc.point.idx()]);
         }
         st.mass = self.model.masses();
@@ -739,6 +806,9 @@ impl Simulation {
         st.fix = fix;
         st.v_pres = vpres;
         self.refresh_constant_force();
+        if let Some(c) = self.contact.as_mut() {
+            c.on_split(&self.model, rec);
+        }
     }
 }
 

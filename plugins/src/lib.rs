@@ -1,6 +1,7 @@
 //! FLEM's built-in plugins. Each is one file with one registration line (`#[typetag::serde]`),
 //! selected in a scene by `type = "name"`.
 pub mod check;
+pub mod contact;
 pub mod criteria;
 pub mod damping;
 pub mod import;
@@ -14,8 +15,9 @@ pub fn registry() -> Vec<(&'static str, &'static str)> {
     v.extend(damping::NAMES.iter().map(|n| ("damping", *n)));
     v.extend(criteria::NAMES.iter().map(|n| ("criterion", *n)));
     v.extend(separation::NAMES.iter().map(|n| ("separation", *n)));
+    v.extend(contact::NAMES.iter().map(|n| ("contact", *n)));
     v.push(("check", "faer_cholesky"));
-    v.extend(["rectangle", "gmsh", "vtk"].iter().map(|n| ("mesh", *n)));
+    v.extend(["rectangle", "rectangles", "gmsh", "vtk"].iter().map(|n| ("mesh", *n)));
     v
 }
 

@@ -18,6 +18,7 @@ mod bench_dyncall;
 mod chart;
 mod stability;
 mod bench;
+mod bench_contact;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 /// The paper's opening model (issue 8): a notched plate cracking in tension, pictures in plots/.
@@ -138,6 +139,15 @@ enum BenchWhat {
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
     Dyncall(bench_dyncall::Args),
+    /// Contact search cost against the number of surface nodes, with the growth exponent.
+    Contact {
+        /// Surface-node counts to measure.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1000usize, 10000, 100000])]
+        sizes: Vec<usize>,
+        /// Timed repetitions per size (the best is kept).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
 }
 
 fn main() -> ExitCode {
@@ -370,6 +380,7 @@ fn bench(what: BenchWhat) -> Result<()> {
         }
         BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time } => bench_step(sizes, threads, kinds, step_sizes, min_time)?,
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
+        BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
     }
     Ok(())
 }

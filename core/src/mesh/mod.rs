@@ -4,9 +4,11 @@
 //! [`RawMesh::validate`] checks it and reorients clockwise cells before a model is built.
 mod raw;
 mod rect;
+mod rects;
 
 pub use raw::{CellKind, RawCell, RawMesh, ValidationOptions};
 pub use rect::{Notch, Rectangle};
+pub use rects::{Part, Rectangles};
 
 use crate::error::Result;
 

@@ -44,6 +44,10 @@ pub struct Rectangle {
     pub notch: Option<Notch>,
     #[serde(default)]
     pub distort: f64,
+    /// Heights of horizontal grid lines cut through the whole width (a pre-cut specimen):
+    /// their edges form the edge set "cut" (declare it in `model.separated`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub cuts: Vec<f64>,
 }
 
 fn default_q4() -> CellKind {
@@ -54,7 +58,7 @@ const SRC: &str = "mesh (rectangle)";
 
 impl Rectangle {
     pub fn new(width: f64, height: f64, nx: usize, ny: usize, element: CellKind) -> Self {
-        Rectangle { width, height, nx, ny, element, origin: [0.0, 0.0], notch: None, distort: 0.0 }
+        Rectangle { width, height, nx, ny, element, origin: [0.0, 0.0], notch: None, distort: 0.0, cuts: Vec::new() }
     }
 
     pub fn build(&self) -> Result<RawMesh> {
@@ -145,6 +149,18 @@ impl Rectangle {
             };
             edge_sets.insert("notch".into(), edges);
             node_sets.insert("notch_tip".into(), vec![tip]);
+        }
+        if !self.cuts.is_empty() {
+            let mut edges = Vec::new();
+            for (k, &y) in self.cuts.iter().enumerate() {
+                let jf = (y - self.origin[1]) / hy;
+                let j = jf.round();
+                if (jf - j).abs() > 1e-6 || j < 1.0 || j > (ny - 1) as f64 {
+                    return Err(bad(&format!("cuts[{k}]"), format!("= {y} is incorrect; it must be an interior grid line y0 + k * {hy} with k in [1, {}]", ny - 1)));
+                }
+                edges.extend((0..nx).map(|i| [id(i, j as usize), id(i + 1, j as usize)]));
+            }
+            edge_sets.insert("cut".into(), edges);
         }
         let n = cells.len();
         Ok(RawMesh { source: SRC.into(), points, cells, cell_region: vec!["all".into(); n], node_sets, edge_sets })

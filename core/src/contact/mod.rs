@@ -1,0 +1,178 @@
+//! Contact between faces (METHOD section 6; the paper's section 3.2, eqs. 6-17).
+//!
+//! What: faces that can touch are the free faces created by splits (both sides of every
+//! separated element edge) plus the edge sets a scene declares (`[contact] surfaces`, or
+//! every mesh-boundary face with `boundary = true`). Every node of a surface is a *slave*
+//! and every face a *master* (two-pass, symmetric: no body is privileged).
+//!
+//! How:
+//! - Broad phase ([`search`]): a uniform grid over the master faces gives, for every slave,
+//!   the faces within `skin + max_depth` (a Verlet list). The list is rebuilt only when some
+//!   surface node has moved more than `skin / 2` since the last build, or the topology
+//!   changed (a split), so a quiet step costs one pass over the list.
+//! - Narrow phase: node-to-edge in the edge's local frame (paper eq. 6-7): the slave touches
+//!   face i->j when `0 <= xi <= 1` along it and it lies inside the element side by less than
+//!   `max_depth` x the face length. Node-to-node (corner): a slave inside a concave master
+//!   corner (behind both faces meeting there, inside neither strip) is pushed out towards the
+//!   corner node. One pair per slave (the shallowest face; ties: lowest face id).
+//! - History: [`ContactHistory`], pairs sorted by slave cluster and keyed by
+//!   (slave cluster, master face id = 4 x element + local edge, or master node): stable
+//!   across rebuilds and splits, plain serde (checkpoints). When a slave slides past the end
+//!   of its face onto the neighbouring face (sharing that end node), the pair's history
+//!   carries over.
+//! - The law ([`ContactLaw`], a plugin chosen by `law = { type = "..." }`) is called once per
+//!   step on the whole batch of pairs; forces go to the slave and, with the opposite sign, to
+//!   the face ends by the division ratio (eq. 16-17), so momentum is conserved exactly.
+//!
+//! Determinism: every loop runs in slave order, then face order; no hash map anywhere.
+//!
+//! ```toml
+//! [contact]
+//! law = { type = "penalty", normal_stiffness = 1e5, friction = 0.3 }
+//! surfaces = ["block_bottom", "base_top"]
+//! boundary = false      # true: every mesh-boundary face is a contact surface
+//! crack_faces = true    # faces created by splits and pre-separated edges
+//! max_depth = 0.5       # deepest penetration counted, x face length
+//! # skin = 0.01         # Verlet skin (length); default 0.2 x mean face length
+//! ```
+pub mod search;
+
+use std::fmt::Debug;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{FlemError, Result};
+use crate::traits::ParamError;
+
+pub use search::Contact;
+
+/// `[contact]` in a scene.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactCfg {
+    pub law: Box<dyn ContactLaw>,
+    /// Edge sets that are contact surfaces (boundary faces; an interior edge gives both faces).
+    #[serde(default)]
+    pub surfaces: Vec<String>,
+    /// Every mesh-boundary face is a contact surface.
+    #[serde(default)]
+    pub boundary: bool,
+    /// Faces of separated element edges (splits and `model.separated`) are contact surfaces.
+    #[serde(default = "yes")]
+    pub crack_faces: bool,
+    /// Deepest penetration still counted, as a fraction of the master face length, in (0, 1].
+    #[serde(default = "half")]
+    pub max_depth: f64,
+    /// Verlet skin (length, > 0); default 0.2 x the mean surface face length.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skin: Option<f64>,
+}
+
+fn yes() -> bool {
+    true
+}
+fn half() -> f64 {
+    0.5
+}
+
+impl ContactCfg {
+    /// Checks the parameters; errors name `contact.<key>`.
+    pub fn validate(&self, file: &str) -> Result<()> {
+        self.law.validate().map_err(|e| FlemError::config(file, format!("contact.law.{}", e.key), e.msg))?;
+        ParamError::range("contact.max_depth", self.max_depth, 0.0, false, 1.0, true).map_err(|e| FlemError::config(file, e.key, e.msg))?;
+        if let Some(s) = self.skin {
+            ParamError::range("contact.skin", s, 0.0, false, f64::INFINITY, false).map_err(|e| FlemError::config(file, e.key, e.msg))?;
+        }
+        if self.surfaces.is_empty() && !self.boundary && !self.crack_faces {
+            return Err(FlemError::config(file, "contact", "has no surface: give surfaces = [edge sets], boundary = true or crack_faces = true"));
+        }
+        Ok(())
+    }
+}
+
+/// What the law sees of one pair, in the master face's local frame (paper eq. 6-9):
+/// `n` the master's outward normal, `t` along the face (from its start to its end).
+#[derive(Copy, Clone, Debug, Default)]
+pub struct PairKinematics {
+    /// Signed gap along n (length): > 0 open, < 0 penetrated.
+    pub gap: f64,
+    /// Increment of the gap over the last step (relative displacement increment . n, eq. 8-9).
+    pub dgap: f64,
+    /// Increment of the tangential relative displacement of the slave (. t).
+    pub dslip: f64,
+    /// Relative velocity, normal and tangential.
+    pub vn: f64,
+    pub vs: f64,
+    /// Tributary area of the slave (length x thickness): springs are per unit area.
+    pub area: f64,
+    pub dt: f64,
+    /// First step of this pair (no history yet).
+    pub new: bool,
+}
+
+/// The force a law returns for one pair (acting on the slave; the master gets the opposite).
+#[derive(Copy, Clone, Debug, Default)]
+pub struct PairForce {
+    /// Normal force along n (> 0 pushes the faces apart; < 0 only for cohesion).
+    pub normal: f64,
+    /// Tangential force along t.
+    pub tangential: f64,
+    /// The pair stays in contact (false: it opened and is dropped).
+    pub active: bool,
+    /// Elastic energy stored in the pair's springs now.
+    pub stored: f64,
+    /// Energy dissipated in this step (slip, dashpots, fracture).
+    pub dissipated: f64,
+}
+
+/// Per-pair history (paper eq. 10-14: e_n, e_s accumulate per pair). Plain data so that it
+/// can be written to checkpoints.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PairState {
+    /// Normal spring force (compression positive).
+    pub en: f64,
+    /// Tangential spring force on the slave along t.
+    pub es: f64,
+    /// Largest opening reached (cohesive laws).
+    pub max_open: f64,
+    /// The pair joins the two faces of an edge split during the run (eligible for cohesion).
+    pub fresh: bool,
+}
+
+/// The master of a pair.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum Master {
+    /// Face `4 x element + local edge`.
+    Face(u32),
+    /// A node (cluster) at a concave corner.
+    Node(u32),
+}
+
+/// One contact pair with its history.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Pair {
+    pub slave: u32,
+    pub master: Master,
+    pub state: PairState,
+}
+
+/// Every open pair, sorted by slave cluster (at most one pair per slave), and the edges split
+/// during the run (their faces are fresh: cohesive laws act on them). Restore with
+/// [`Contact::restore`].
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ContactHistory {
+    pub pairs: Vec<Pair>,
+    #[serde(default)]
+    pub fresh_edges: Vec<u32>,
+}
+
+/// A contact law (METHOD section 6): springs per unit area, called once per step on the batch.
+#[typetag::serde(tag = "type")]
+pub trait ContactLaw: Debug + Send + Sync {
+    /// Checks the parameters; the error names the key and the allowed range.
+    fn validate(&self) -> std::result::Result<(), ParamError>;
+    /// The largest spring stiffness per unit area (stress / length), for the stable step.
+    fn stiffness(&self) -> f64;
+    /// Updates the history and returns the force of every pair (same order, same length).
+    fn evaluate(&self, kin: &[PairKinematics], hist: &mut [PairState], out: &mut [PairForce]);
+}

@@ -1,0 +1,563 @@
+//! Contact surfaces, the Verlet-list broad phase on a uniform grid, the narrow phase and the
+//! force scatter (see the module docs of [`crate::contact`]).
+//!
+//! Why a hand-written grid rather than kiddo/rstar: the faces of a FLEM mesh have similar
+//! sizes, the grid is rebuilt rarely (skin) and a counting sort into fixed cells gives a
+//! deterministic candidate order (by face index) with no dependency; a tree would need a
+//! sort of its query results to be deterministic anyway.
+use super::{ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, PairKinematics, PairState};
+use crate::element::{self, Q4, T3};
+use crate::error::Result;
+use crate::ids::{EdgeId, ElemId};
+use crate::model::Model;
+use crate::topology::SplitRecord;
+
+const NONE: u32 = u32::MAX;
+/// A new node-to-edge contact is accepted for `-XI_NEW <= xi <= 1 + XI_NEW` (faces ending at
+/// the same point, e.g. the two sides of a cut, must not lose their end nodes to round-off);
+/// an existing pair is kept up to `XI_KEEP` beyond its face when no neighbouring face takes
+/// it (hysteresis: no chatter at face ends). Forces use `xi` clamped to [0, 1].
+const XI_NEW: f64 = 2e-2;
+const XI_KEEP: f64 = 5e-2;
+
+/// A master face: element `id / 4`, local edge `id % 4`, from cluster `a` to cluster `b`
+/// (counter-clockwise, outward normal `(dy, -dx) / L`).
+#[derive(Copy, Clone, Debug)]
+struct Face {
+    id: u32,
+    a: u32,
+    b: u32,
+    /// Clusters of the face's element (a slave of the same element is never its contact).
+    elem: [u32; 4],
+}
+
+/// Geometry of one pair in this step.
+#[derive(Copy, Clone, Debug)]
+struct Geo {
+    slave: u32,
+    master: Master,
+    i: u32,
+    j: u32,
+    xi: f64,
+    n: [f64; 2],
+    t: [f64; 2],
+}
+
+/// Contact state of a simulation: surfaces, Verlet list, pair history and scratch buffers.
+#[derive(Debug)]
+pub struct Contact {
+    declared: Vec<bool>,
+    fresh_edge: Vec<bool>,
+    crack_faces: bool,
+    boundary: bool,
+    max_depth: f64,
+    skin_cfg: Option<f64>,
+    /// Verlet skin in use (length).
+    pub skin: f64,
+    faces: Vec<Face>,
+    face_of_id: Vec<u32>,
+    /// Slave clusters, ascending, with their tributary area (length x thickness).
+    slaves: Vec<u32>,
+    area: Vec<f64>,
+    cand_off: Vec<u32>,
+    cand: Vec<u32>,
+    u_build: Vec<[f64; 2]>,
+    dirty: bool,
+    /// The open pairs (checkpoint this).
+    pub history: ContactHistory,
+    next: Vec<Pair>,
+    geo: Vec<Geo>,
+    kin: Vec<PairKinematics>,
+    st: Vec<PairState>,
+    out: Vec<PairForce>,
+    reports: Vec<PairReport>,
+    cell_count: Vec<u32>,
+    cell_items: Vec<u32>,
+    /// Number of Verlet-list builds so far.
+    pub rebuilds: u64,
+    /// Pairs in contact after the last step.
+    pub n_active: usize,
+}
+
+/// The force of one pair after a step, for tests and output.
+#[derive(Copy, Clone, Debug)]
+pub struct PairReport {
+    pub slave: u32,
+    pub master: Master,
+    /// Force on the slave (global frame).
+    pub force: [f64; 2],
+    pub gap: f64,
+}
+
+impl Contact {
+    /// Builds the surfaces of a model (after pre-separated edges were cut).
+    pub fn new(cfg: &ContactCfg, model: &Model, file: &str) -> Result<Contact> {
+        let ne = model.topo.edges.len();
+        let mut declared = vec![false; ne];
+        for (k, name) in cfg.surfaces.iter().enumerate() {
+            for e in model.edge_set(name, &format!("contact.surfaces[{k}]"), file)? {
+                declared[e.idx()] = true;
+            }
+        }
+        let mut c = Contact {
+            declared,
+            fresh_edge: vec![false; ne],
+            crack_faces: cfg.crack_faces,
+            boundary: cfg.boundary,
+            max_depth: cfg.max_depth,
+            skin_cfg: cfg.skin,
+            skin: 0.0,
+            faces: Vec::new(),
+            face_of_id: Vec::new(),
+            slaves: Vec::new(),
+            area: Vec::new(),
+            cand_off: Vec::new(),
+            cand: Vec::new(),
+            u_build: Vec::new(),
+            dirty: true,
+            history: ContactHistory::default(),
+            next: Vec::new(),
+            geo: Vec::new(),
+            kin: Vec::new(),
+            st: Vec::new(),
+            out: Vec::new(),
+            reports: Vec::new(),
+            cell_count: Vec::new(),
+            cell_items: Vec::new(),
+            rebuilds: 0,
+            n_active: 0,
+        };
+        c.rebuild_surfaces(model);
+        Ok(c)
+    }
+
+    /// Number of slave nodes (surface nodes).
+    pub fn n_surface_nodes(&self) -> usize {
+        self.slaves.len()
+    }
+    pub fn n_faces(&self) -> usize {
+        self.faces.len()
+    }
+
+    fn rebuild_surfaces(&mut self, model: &Model) {
+        let topo = &model.topo;
+        self.faces.clear();
+        let push = |e: ElemId, k: u8, faces: &mut Vec<Face>| {
+            let r = topo.elem_copies(e);
+            let n = r.len();
+            let cl = |a: usize| topo.copy_cluster[r.start + a].0;
+            let mut elem = [NONE; 4];
+            for (a, x) in elem.iter_mut().enumerate().take(n) {
+                *x = cl(a);
+            }
+            faces.push(Face { id: 4 * e.0 + k as u32, a: cl(k as usize), b: cl((k as usize + 1) % n), elem });
+        };
+        for (ei, ed) in topo.edges.iter().enumerate() {
+            let on = match ed.sides {
+                [Some(_), None] => self.boundary || self.declared[ei],
+                _ => self.declared[ei] || (self.crack_faces && topo.crack_state(EdgeId::new(ei)) >= 1),
+            };
+            if on {
+                for (e, k) in ed.sides.iter().flatten() {
+                    push(*e, *k, &mut self.faces);
+                }
+            }
+        }
+        self.faces.sort_by_key(|f| f.id);
+        self.face_of_id.clear();
+        self.face_of_id.resize(4 * topo.n_elems(), NONE);
+        for (i, f) in self.faces.iter().enumerate() {
+            self.face_of_id[f.id as usize] = i as u32;
+        }
+        let x0 = |c: u32| model.mesh.points[topo.cluster_point[c as usize].idx()];
+        let mut per: Vec<(u32, f64)> = Vec::with_capacity(2 * self.faces.len());
+        let mut total_len = 0.0;
+        for f in &self.faces {
+            let (p, q) = (x0(f.a), x0(f.b));
+            let len = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt();
+            total_len += len;
+            let half = 0.5 * len * model.material_of(ElemId(f.id / 4)).thickness;
+            per.push((f.a, half));
+            per.push((f.b, half));
+        }
+        per.sort_by_key(|a| a.0);
+        self.slaves.clear();
+        self.area.clear();
+        for (c, a) in per {
+            if self.slaves.last() == Some(&c) {
+                *self.area.last_mut().unwrap() += a;
+            } else {
+                self.slaves.push(c);
+                self.area.push(a);
+            }
+        }
+        let mean = if self.faces.is_empty() { 1.0 } else { total_len / self.faces.len() as f64 };
+        self.skin = self.skin_cfg.unwrap_or(0.2 * mean);
+        self.dirty = true;
+    }
+
+    /// Follows a split: the faces of newly cut edges become surfaces, fresh (cohesive laws
+    /// act on them); pairs joining the two faces of each fresh edge are created at once.
+    pub fn on_split(&mut self, model: &Model, rec: &SplitRecord) {
+        for &(e, _) in &rec.cut_edges {
+            if !self.fresh_edge[e.idx()] {
+                self.fresh_edge[e.idx()] = true;
+                self.history.fresh_edges.push(e.0);
+            }
+        }
+        self.rebuild_surfaces(model);
+        let topo = &model.topo;
+        let mut added: Vec<Pair> = Vec::new();
+        for &(e, _) in &rec.cut_edges {
+            let ed = &topo.edges[e.idx()];
+            let [Some((ea, ka)), Some((eb, kb))] = ed.sides else { continue };
+            let (fa, fb) = (4 * ea.0 + ka as u32, 4 * eb.0 + kb as u32);
+            let (Some(a), Some(b)) = (self.face(fa), self.face(fb)) else { continue };
+            // One pass (slaves on the face of the lower element id): cohesion counted once.
+            let (sf, mf) = if fa < fb { (a, b) } else { (b, a) };
+            for s in [sf.a, sf.b] {
+                if s == mf.a || s == mf.b {
+                    continue;
+                }
+                added.push(Pair { slave: s, master: Master::Face(mf.id), state: PairState { fresh: true, ..Default::default() } });
+            }
+        }
+        added.sort_by_key(|p| (p.slave, p.master));
+        added.dedup_by_key(|p| p.slave);
+        let old = std::mem::take(&mut self.history.pairs);
+        let history = &mut self.history;
+        let (mut i, mut j) = (0, 0);
+        while i < old.len() || j < added.len() {
+            if j == added.len() || (i < old.len() && old[i].slave <= added[j].slave) {
+                if j < added.len() && old[i].slave == added[j].slave {
+                    j += 1;
+                }
+                history.pairs.push(old[i]);
+                i += 1;
+            } else {
+                history.pairs.push(added[j]);
+                j += 1;
+            }
+        }
+    }
+
+    /// Restores a checkpointed history (the model's topology must already be the checkpoint's):
+    /// surfaces are rebuilt and the Verlet list is rebuilt at the next step.
+    pub fn restore(&mut self, model: &Model, history: ContactHistory) {
+        self.fresh_edge.iter_mut().for_each(|f| *f = false);
+        for &e in &history.fresh_edges {
+            if let Some(f) = self.fresh_edge.get_mut(e as usize) {
+                *f = true;
+            }
+        }
+        self.rebuild_surfaces(model);
+        self.history = history;
+    }
+
+    fn face(&self, id: u32) -> Option<Face> {
+        match self.face_of_id.get(id as usize) {
+            Some(&i) if i != NONE => Some(self.faces[i as usize]),
+            _ => None,
+        }
+    }
+
+    /// Squared contact frequency bound for the stable step: `4 k A_max / m_min` over surface
+    /// nodes (each node carries its own pair and the pairs of the slaves on its faces; the
+    /// relative motion of two nodes doubles the rate), so `dt <= 2 / omega` includes
+    /// `2 sqrt(m / k_n)` per contact.
+    ///
+    /// With `crack_faces`, splits during the run create new surface nodes, lighter than any
+    /// node now; the bound then also covers every element corner as if it were a node of its
+    /// own with both its element edges as faces (`4 k (L1 + L2) t / 2 / m_corner`), so the step
+    /// chosen at the start stays stable after any split.
+    pub fn omega2(&self, model: &Model, mass: &[f64], fix: &[u8], k: f64) -> f64 {
+        let mut a_max: f64 = 0.0;
+        let mut m_min = f64::INFINITY;
+        for (&s, &a) in self.slaves.iter().zip(&self.area) {
+            a_max = a_max.max(a);
+            if fix[s as usize] != 3 && mass[s as usize] > 0.0 {
+                m_min = m_min.min(mass[s as usize]);
+            }
+        }
+        let mut w2 = if m_min.is_finite() { 4.0 * k * a_max / m_min } else { 0.0 };
+        if self.crack_faces {
+            for b in &model.blocks {
+                let (rho, t) = (b.material().density, b.material().thickness);
+                for i in 0..b.len() {
+                    let x = b.coords(i);
+                    let m: Vec<f64> = match x.len() {
+                        4 => element::lumped_mass::<Q4, 4>(&[x[0], x[1], x[2], x[3]], rho, t).to_vec(),
+                        _ => element::lumped_mass::<T3, 3>(&[x[0], x[1], x[2]], rho, t).to_vec(),
+                    };
+                    let n = x.len();
+                    let len = |a: usize, b: usize| ((x[a][0] - x[b][0]).powi(2) + (x[a][1] - x[b][1]).powi(2)).sqrt();
+                    for (a, &ma) in m.iter().enumerate() {
+                        let area = 0.5 * (len(a, (a + 1) % n) + len(a, (a + n - 1) % n)) * t;
+                        if ma > 0.0 {
+                            w2 = w2.max(4.0 * k * area / ma);
+                        }
+                    }
+                }
+            }
+        }
+        w2
+    }
+
+    /// Rebuilds the Verlet list: for every slave, the faces (not of its own element) within
+    /// `max_depth x L_max + skin` of it, ascending.
+    pub fn build_verlet(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]]) {
+        self.rebuilds += 1;
+        self.dirty = false;
+        let x = |c: u32| [x0[c as usize][0] + u[c as usize][0], x0[c as usize][1] + u[c as usize][1]];
+        self.u_build.clear();
+        self.u_build.extend(self.slaves.iter().map(|&s| u[s as usize]));
+        self.cand_off.clear();
+        self.cand.clear();
+        self.cand_off.push(0);
+        if self.faces.is_empty() {
+            self.cand_off.resize(self.slaves.len() + 1, 0);
+            return;
+        }
+        let (mut lo, mut hi, mut lmax) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2], 0.0f64);
+        for f in &self.faces {
+            let (p, q) = (x(f.a), x(f.b));
+            lmax = lmax.max(((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt());
+            for d in 0..2 {
+                lo[d] = lo[d].min(p[d].min(q[d]));
+                hi[d] = hi[d].max(p[d].max(q[d]));
+            }
+        }
+        let margin = self.max_depth * lmax + self.skin;
+        let mut h = lmax + 2.0 * margin;
+        for d in 0..2 {
+            lo[d] -= margin;
+            hi[d] += margin;
+        }
+        let cap = 4 * self.faces.len() + 64;
+        let dims = |h: f64| [((hi[0] - lo[0]) / h).floor() as usize + 1, ((hi[1] - lo[1]) / h).floor() as usize + 1];
+        while dims(h)[0] * dims(h)[1] > cap {
+            h *= 1.5;
+        }
+        let [nx, ny] = dims(h);
+        let cell = |p: [f64; 2]| -> Option<usize> {
+            let (i, j) = (((p[0] - lo[0]) / h).floor(), ((p[1] - lo[1]) / h).floor());
+            (i >= 0.0 && j >= 0.0 && (i as usize) < nx && (j as usize) < ny).then(|| j as usize * nx + i as usize)
+        };
+        let range = |f: &Face| {
+            let (p, q) = (x(f.a), x(f.b));
+            let c = |v: f64, o: f64, n: usize| (((v - o) / h).floor().max(0.0) as usize).min(n - 1);
+            (c(p[0].min(q[0]) - margin, lo[0], nx), c(p[0].max(q[0]) + margin, lo[0], nx), c(p[1].min(q[1]) - margin, lo[1], ny), c(p[1].max(q[1]) + margin, lo[1], ny))
+        };
+        // Counting sort of faces into cells (each cell's list ascending by face index).
+        self.cell_count.clear();
+        self.cell_count.resize(nx * ny + 1, 0);
+        for f in &self.faces {
+            let (i0, i1, j0, j1) = range(f);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    self.cell_count[j * nx + i + 1] += 1;
+                }
+            }
+        }
+        for k in 0..nx * ny {
+            self.cell_count[k + 1] += self.cell_count[k];
+        }
+        self.cell_items.clear();
+        self.cell_items.resize(self.cell_count[nx * ny] as usize, 0);
+        let mut cursor: Vec<u32> = self.cell_count[..nx * ny].to_vec();
+        for (fi, f) in self.faces.iter().enumerate() {
+            let (i0, i1, j0, j1) = range(f);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let k = j * nx + i;
+                    self.cell_items[cursor[k] as usize] = fi as u32;
+                    cursor[k] += 1;
+                }
+            }
+        }
+        let m2 = margin * margin;
+        for &s in &self.slaves {
+            let p = x(s);
+            if let Some(k) = cell(p) {
+                for &fi in &self.cell_items[self.cell_count[k] as usize..self.cell_count[k + 1] as usize] {
+                    let f = &self.faces[fi as usize];
+                    if f.elem.contains(&s) {
+                        continue;
+                    }
+                    if dist2_segment(p, x(f.a), x(f.b)) <= m2 {
+                        self.cand.push(fi);
+                    }
+                }
+            }
+            self.cand_off.push(self.cand.len() as u32);
+        }
+    }
+
+    fn needs_rebuild(&self, u: &[[f64; 2]]) -> bool {
+        if self.dirty || self.u_build.len() != self.slaves.len() {
+            return true;
+        }
+        let lim = 0.25 * self.skin * self.skin;
+        self.slaves.iter().zip(&self.u_build).any(|(&s, b)| {
+            let d = u[s as usize];
+            (d[0] - b[0]).powi(2) + (d[1] - b[1]).powi(2) > lim
+        })
+    }
+
+    /// Geometry of slave at `p` against face `f`: (gap, xi, length, n, t).
+    #[inline]
+    fn face_geo(p: [f64; 2], xa: [f64; 2], xb: [f64; 2]) -> (f64, f64, f64, [f64; 2], [f64; 2]) {
+        let (dx, dy) = (xb[0] - xa[0], xb[1] - xa[1]);
+        let len = (dx * dx + dy * dy).sqrt();
+        let t = [dx / len, dy / len];
+        let n = [t[1], -t[0]];
+        let r = [p[0] - xa[0], p[1] - xa[1]];
+        (r[0] * n[0] + r[1] * n[1], (r[0] * t[0] + r[1] * t[1]) / len, len, n, t)
+    }
+
+    /// One contact step: narrow phase, the law on the batch, forces into `f` (zeroed first).
+    /// Returns (stored energy, energy dissipated in this step).
+    pub fn compute(&mut self, law: &dyn ContactLaw, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64, f: &mut [[f64; 2]]) -> (f64, f64) {
+        if self.needs_rebuild(u) {
+            self.build_verlet(x0, u);
+        }
+        self.narrow(x0, u, v, dt);
+        let n = self.geo.len();
+        self.out.clear();
+        self.out.resize(n, PairForce::default());
+        law.evaluate(&self.kin, &mut self.st, &mut self.out);
+        f.iter_mut().for_each(|x| *x = [0.0; 2]);
+        self.next.clear();
+        self.reports.clear();
+        let (mut stored, mut diss) = (0.0, 0.0);
+        for k in 0..n {
+            let (g, o) = (&self.geo[k], &self.out[k]);
+            diss += o.dissipated;
+            if !o.active {
+                continue;
+            }
+            stored += o.stored;
+            let fv = [o.normal * g.n[0] + o.tangential * g.t[0], o.normal * g.n[1] + o.tangential * g.t[1]];
+            let s = g.slave as usize;
+            f[s][0] += fv[0];
+            f[s][1] += fv[1];
+            for (c, w) in [(g.i, 1.0 - g.xi), (g.j, g.xi)] {
+                f[c as usize][0] -= w * fv[0];
+                f[c as usize][1] -= w * fv[1];
+            }
+            self.next.push(Pair { slave: g.slave, master: g.master, state: self.st[k] });
+            self.reports.push(PairReport { slave: g.slave, master: g.master, force: fv, gap: self.kin[k].gap });
+        }
+        self.n_active = self.next.len();
+        std::mem::swap(&mut self.next, &mut self.history.pairs);
+        (stored, diss)
+    }
+
+    /// Builds `geo`, `kin`, `st` for this step from the history and the Verlet list.
+    fn narrow(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64) {
+        self.geo.clear();
+        self.kin.clear();
+        self.st.clear();
+        let x = |c: u32| [x0[c as usize][0] + u[c as usize][0], x0[c as usize][1] + u[c as usize][1]];
+        let mut h = 0usize;
+        let pairs = &self.history.pairs;
+        for (si, &s) in self.slaves.iter().enumerate() {
+            while h < pairs.len() && pairs[h].slave < s {
+                h += 1;
+            }
+            let old = (h < pairs.len() && pairs[h].slave == s).then(|| pairs[h]);
+            let p = x(s);
+            let cands = &self.cand[self.cand_off[si] as usize..self.cand_off[si + 1] as usize];
+            let mut found: Option<(Geo, f64, PairState, bool)> = None;
+            // 1. The pair's own face, or a neighbouring face sharing the end it slid past.
+            if let Some(Pair { master: Master::Face(id), state, .. }) = old {
+                if let Some(fc) = self.face(id) {
+                    let (gap, xi, len, n, t) = Self::face_geo(p, x(fc.a), x(fc.b));
+                    if -gap <= self.max_depth * len && (0.0..=1.0).contains(&xi) {
+                        found = Some((Geo { slave: s, master: Master::Face(id), i: fc.a, j: fc.b, xi, n, t }, gap, state, false));
+                    } else if -gap <= self.max_depth * len {
+                        let end = if xi < 0.0 { fc.a } else { fc.b };
+                        if (-XI_KEEP..=1.0 + XI_KEEP).contains(&xi) {
+                            found = Some((Geo { slave: s, master: Master::Face(id), i: fc.a, j: fc.b, xi: xi.clamp(0.0, 1.0), n, t }, gap, state, false));
+                        }
+                        for &fi in cands {
+                            let g = self.faces[fi as usize];
+                            if g.id == id || (g.a != end && g.b != end) {
+                                continue;
+                            }
+                            let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
+                            if -gap <= self.max_depth * len && (0.0..=1.0).contains(&xi) {
+                                found = Some((Geo { slave: s, master: Master::Face(g.id), i: g.a, j: g.b, xi, n, t }, gap, state, false));
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+            // 2. A new contact: the shallowest penetrated face; else a concave corner.
+            if found.is_none() {
+                let mut best: Option<(f64, Geo)> = None;
+                let mut corners: [(u32, u8); 4] = [(NONE, 0); 4];
+                for &fi in cands {
+                    let g = self.faces[fi as usize];
+                    let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
+                    if gap >= 0.0 || -gap > self.max_depth * len {
+                        continue;
+                    }
+                    if (-XI_NEW..=1.0 + XI_NEW).contains(&xi) {
+                        if best.as_ref().is_none_or(|b| -gap < b.0) {
+                            best = Some((-gap, Geo { slave: s, master: Master::Face(g.id), i: g.a, j: g.b, xi: xi.clamp(0.0, 1.0), n, t }));
+                        }
+                    } else {
+                        let q = if xi < 0.0 { g.a } else { g.b };
+                        if let Some(slot) = corners.iter_mut().find(|c| c.0 == q || c.0 == NONE) {
+                            slot.0 = q;
+                            slot.1 += 1;
+                        }
+                    }
+                }
+                if let Some((pen, g)) = best {
+                    let state = match old {
+                        Some(o) if o.master == g.master => o.state,
+                        _ => PairState::default(),
+                    };
+                    found = Some((g, -pen, state, !matches!(old, Some(o) if o.master == g.master)));
+                } else if let Some(&(q, _)) = corners.iter().find(|c| c.1 >= 2 && c.0 != s) {
+                    let xq = x(q);
+                    let d = ((xq[0] - p[0]).powi(2) + (xq[1] - p[1]).powi(2)).sqrt();
+                    if d > 0.0 {
+                        let n = [(xq[0] - p[0]) / d, (xq[1] - p[1]) / d];
+                        let master = Master::Node(q);
+                        let (state, new) = match old {
+                            Some(o) if o.master == master => (o.state, false),
+                            _ => (PairState::default(), true),
+                        };
+                        found = Some((Geo { slave: s, master, i: q, j: q, xi: 0.0, n, t: [-n[1], n[0]] }, -d, state, new));
+                    }
+                }
+            }
+            let Some((g, gap, state, new)) = found else { continue };
+            let (vp, vi, vj) = (v[s as usize], v[g.i as usize], v[g.j as usize]);
+            let vr = [vp[0] - (1.0 - g.xi) * vi[0] - g.xi * vj[0], vp[1] - (1.0 - g.xi) * vi[1] - g.xi * vj[1]];
+            let vn = vr[0] * g.n[0] + vr[1] * g.n[1];
+            let vs = vr[0] * g.t[0] + vr[1] * g.t[1];
+            self.kin.push(PairKinematics { gap, dgap: vn * dt, dslip: vs * dt, vn, vs, area: self.area[si], dt, new });
+            self.st.push(state);
+            self.geo.push(g);
+        }
+    }
+
+    /// The force of every active pair in the last step, in slave order.
+    pub fn forces(&self) -> &[PairReport] {
+        &self.reports
+    }
+}
+
+/// Squared distance from `p` to the segment `a`-`b`.
+fn dist2_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let l2 = dx * dx + dy * dy;
+    let s = if l2 > 0.0 { (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let (qx, qy) = (a[0] + s * dx - p[0], a[1] + s * dy - p[1]);
+    qx * qx + qy * qy
+}
