@@ -352,8 +352,12 @@ fn sigkill_during_output_leaves_every_file_whole() {
     let sp = dir.with_extension("toml");
     std::fs::write(&sp, &text).unwrap();
     let sps = sp.to_str().unwrap();
+    let t_ref = std::time::Instant::now();
     let r = flem_run(&["run", sps, "--quiet", "--out", ref_dir.to_str().unwrap()]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    // Kill delays scale with the uninterrupted run's wall time (the machine's speed varies), so
+    // that several kills land before the run completes.
+    let span_ms = (t_ref.elapsed().as_millis() as u64 / 4).max(40);
     flem_plugins::link();
     let hash = checkpoint::scene_hash(&Simulation::new(flem_core::scene::Scene::from_file(&sp).unwrap()).unwrap());
     let seed = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos() as u64;
@@ -368,7 +372,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
         }
         let mut child = Command::new(FLEM).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
         rng = flem_core::weibull::splitmix64(rng);
-        std::thread::sleep(Duration::from_millis(60 + rng % 400));
+        std::thread::sleep(Duration::from_millis(20 + rng % span_ms));
         let done = child.try_wait().unwrap().is_some();
         if !done {
             child.kill().unwrap();
