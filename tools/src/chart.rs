@@ -168,18 +168,39 @@ impl Reference {
     }
     fn new(sim: &Simulation, u: &[[f64; 2]]) -> Reference {
         let scale = sim.x0.iter().fold(0.0f64, |m, x| m.max(x[0].abs()).max(x[1].abs())).max(f64::MIN_POSITIVE);
-        Reference { at: sim.x0.iter().zip(u).map(|(x, u)| (Self::key(*x, scale), *u)).collect(), scale }
-    }
-    /// Relative L2 error of `u` at the points of `sim` found in the reference.
-    fn error(&self, sim: &Simulation) -> Option<f64> {
-        let (mut mine, mut refs) = (Vec::new(), Vec::new());
-        for (x, u) in sim.x0.iter().zip(&sim.state.u) {
-            if let Some(r) = self.at.get(&Self::key(*x, self.scale)) {
-                mine.push(*u);
-                refs.push(*r);
+        let mut at = std::collections::BTreeMap::new();
+        let mut twice = std::collections::BTreeSet::new();
+        for (x, u) in sim.x0.iter().zip(u) {
+            let k = Self::key(*x, scale);
+            if at.insert(k, *u).is_some() {
+                twice.insert(k);
             }
         }
-        (mine.len() == sim.x0.len()).then(|| rel_l2(&mine, &refs))
+        // Points with several clusters (pre-separated edges) are left out: which of them is
+        // which is not defined across meshes.
+        for k in twice {
+            at.remove(&k);
+        }
+        Reference { at, scale }
+    }
+    /// Relative L2 error of `u` at the points of `sim` found (once) in the reference; every
+    /// point of `sim` with one cluster must be found (a refinement of the reference's mesh).
+    fn error(&self, sim: &Simulation) -> Option<f64> {
+        let topo = &sim.model.topo;
+        let (mut mine, mut refs) = (Vec::new(), Vec::new());
+        for (c, (x, u)) in sim.x0.iter().zip(&sim.state.u).enumerate() {
+            if topo.point_clusters[topo.cluster_point[c].idx()].len() > 1 {
+                continue;
+            }
+            match self.at.get(&Self::key(*x, self.scale)) {
+                Some(r) => {
+                    mine.push(*u);
+                    refs.push(*r);
+                }
+                None => return None,
+            }
+        }
+        (!mine.is_empty()).then(|| rel_l2(&mine, &refs))
     }
 }
 
@@ -200,8 +221,19 @@ fn load(text: &str, scene: &Scene) -> Result<Scene> {
 }
 
 /// Runs the sweep; progress lines on stderr.
-pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analytic>) -> Result<Vec<Point>> {
-    let base: toml::Table = toml::from_str(text).context("the scene is not TOML")?;
+pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analytic>, stages: Option<usize>, no_cracking: bool) -> Result<Vec<Point>> {
+    let mut base: toml::Table = toml::from_str(text).context("the scene is not TOML")?;
+    if no_cracking {
+        // The elastic problem of a cracking scene (pre-separated edges stay separated).
+        base.remove("cracking");
+    }
+    if let Some(k) = stages {
+        // Only the first k stages (e.g. the elastic stage of a cracking scene).
+        if let Some(toml::Value::Array(st)) = base.get_mut("stage") {
+            anyhow::ensure!(k >= 1 && k <= st.len(), "--stages {k}: the scene has {} stages", st.len());
+            st.truncate(k);
+        }
+    }
     let rect = is_rectangle(&base);
     let refines: Vec<usize> = if rect { sweep.refines.clone() } else { vec![1] };
     let reference = if rect {
@@ -243,7 +275,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
                     let wall = t0.elapsed().as_secs_f64();
                     let steps: u64 = sim.stages_done.iter().map(|s| s.steps).sum();
                     let converged = sim.stages_done.iter().all(|s| s.converged);
-                    let split = sim.model.topo.n_clusters() != sim.model.topo.n_points;
+                    let split = sim.cracking.as_ref().is_some_and(|c| c.n_splits > 0);
                     let err_imp = if split { flem_plugins::check::static_solve(&sim).ok().map(|ui| rel_l2(&sim.state.u, &ui)) } else { Some(rel_l2(&sim.state.u, &implicit_u)) };
                     let err_ref = if split { None } else { reference.as_ref().and_then(|rf| rf.error(&sim)) };
                     let err_an = match analytic {
@@ -280,7 +312,7 @@ pub fn csv(pts: &[Point]) -> String {
 }
 
 /// `flem chart`: sweep, then chart.csv, chart.json and the pictures into `out`.
-pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Option<Analytic>) -> Result<()> {
+pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Option<Analytic>, stages: Option<usize>, no_cracking: bool) -> Result<()> {
     let text = std::fs::read_to_string(scene_path).with_context(|| format!("{}: cannot be read", scene_path.display()))?;
     let scene = Scene::from_file(scene_path)?;
     if let Some(a) = &analytic {
@@ -292,7 +324,7 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_chart")));
     flem_core::output::prepare_dir(&out)?;
     let sw = if quick { Sweep::quick() } else { Sweep::full() };
-    let pts = sweep(&scene, &text, &sw, analytic.as_ref())?;
+    let pts = sweep(&scene, &text, &sw, analytic.as_ref(), stages, no_cracking)?;
     flem_core::output::atomic_write(&out.join("chart.csv"), csv(&pts).as_bytes())?;
     flem_core::output::atomic_write(&out.join("chart.json"), serde_json::to_string_pretty(&pts)?.as_bytes())?;
     let kind = pts.iter().find(|p| p.method == "explicit").map_or("implicit", |p| p.error_kind());
@@ -309,6 +341,14 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
         })
         .collect();
     flem_plot::charts::speed_accuracy(&out.join("chart"), &format!("speed vs accuracy: {}", scene.file.title), label, &cp)?;
-    eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json, chart.png, chart.svg in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());
+    // The explicit solver's own error: against the implicit solve of the same mesh.
+    let mut solver: Vec<Point> = pts.iter().filter(|p| p.method == "explicit" && p.err_implicit.is_some()).cloned().map(|mut p| {
+        (p.err_analytic, p.err_reference) = (None, None);
+        p
+    }).collect();
+    mark_pareto(&mut solver);
+    let cp2: Vec<flem_plot::charts::ChartPoint> = solver.iter().map(|p| flem_plot::charts::ChartPoint { series: format!("{} x{}", p.damping, p.refine), wall_seconds: p.wall_seconds, error: p.err_implicit.unwrap_or(f64::NAN), pareto: p.pareto }).collect();
+    flem_plot::charts::speed_accuracy(&out.join("chart_solver"), &format!("explicit solver error: {}", scene.file.title), "rel. L2 error vs implicit (same mesh)", &cp2)?;
+    eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json, chart.png/svg, chart_solver.png/svg in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());
     Ok(())
 }

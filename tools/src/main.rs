@@ -79,6 +79,12 @@ enum Cmd {
         /// Analytic value of a probe's displacement: PROBE:x=VALUE or PROBE:y=VALUE.
         #[arg(long)]
         analytic: Option<chart::Analytic>,
+        /// Run only the first K stages (e.g. the elastic stage of a cracking scene).
+        #[arg(long, value_name = "K")]
+        stages: Option<usize>,
+        /// Drop the scene's [cracking] (the elastic problem; pre-separated edges stay).
+        #[arg(long)]
+        no_cracking: bool,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -158,7 +164,7 @@ fn main() -> ExitCode {
         Some(Cmd::Run { scene, out, quiet, resume, plot }) => load(&scene).and_then(|s| run(s, out, quiet, resume, plot)),
         Some(Cmd::Plot { run_dir }) => plot(&run_dir),
         Some(Cmd::Check { scenes }) => check(&scenes),
-        Some(Cmd::Chart { scene, out, quick, analytic }) => chart::chart(&scene, out, quick, analytic),
+        Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),

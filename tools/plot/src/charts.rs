@@ -44,7 +44,16 @@ fn speed_accuracy_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &
         .y_label_area_size(80)
         .build_cartesian_2d(log_range(pts.iter().map(|p| p.wall_seconds)).log_scale(), log_range(pts.iter().map(|p| y(p.error))).log_scale())
         .map_err(err)?;
-    chart.configure_mesh().x_desc("wall time (s)").y_desc(err_label).label_style(("sans-serif", 15)).axis_desc_style(("sans-serif", 17)).draw().map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("wall time (s)")
+        .y_desc(err_label)
+        .x_label_formatter(&|v| format!("{v:.0e}"))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .draw()
+        .map_err(err)?;
     let mut series: Vec<&str> = Vec::new();
     for p in pts {
         if !series.contains(&p.series.as_str()) {
