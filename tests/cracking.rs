@@ -34,13 +34,17 @@ fn tension_scene(criterion: &str) -> String {
 /// sigma_t (within 2 %), and every cut edge is horizontal (perpendicular to the load).
 /// Reference: the uniform analytic stress sigma_yy = traction. Run for each criterion whose
 /// uniaxial tensile strength is 1 (Rankine, Mohr-Coulomb with the tension branch, Hoek-Brown
-/// with s sigma_ci / m_b = 1): the same scene with only the criterion table changed.
+/// with s sigma_ci / m_b = 1, Drucker-Prager with k / (1/sqrt(3) + alpha) = 1): the same scene
+/// with only the criterion table changed.
 #[test]
 fn tension_specimen_cracks_at_sigma_t_perpendicular_to_load() {
     for crit in [
         "type = \"rankine\"\ntensile_strength = 1.0",
         "type = \"mohr_coulomb\"\ncohesion = 1.0\nfriction_angle_deg = 30.0\ntensile_strength = 1.0\nshear = false",
         "type = \"hoek_brown\"\nsigma_ci = 10.0\nm_b = 10.0\ns = 1.0\na = 0.5",
+        // Drucker-Prager in uniaxial plane-stress tension: sqrt(J2) = s/sqrt(3), I1 = -s, so
+        // s_t = k / (1/sqrt(3) + alpha) = 1 with alpha = 0.1, k = 0.1 + 1/sqrt(3).
+        "type = \"drucker_prager\"\nalpha = 0.1\nk = 0.6773502691896258",
     ] {
         let mut sim = Simulation::new(scene(&tension_scene(crit))).unwrap();
         let mut log = Log::default();
