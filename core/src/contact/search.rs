@@ -253,7 +253,8 @@ impl Contact {
     }
 
     /// Restores a checkpointed history (the model's topology must already be the checkpoint's):
-    /// surfaces are rebuilt and the Verlet list is rebuilt at the next step.
+    /// surfaces are rebuilt and the Verlet list is rebuilt at the next step, unless
+    /// [`Contact::restore_verlet`] then rebuilds it as it was at the checkpoint.
     pub fn restore(&mut self, model: &Model, history: ContactHistory) {
         self.fresh_edge.iter_mut().for_each(|f| *f = false);
         for &e in &history.fresh_edges {
