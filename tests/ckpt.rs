@@ -2,8 +2,8 @@
 //!
 //! Reference for every comparison: the same scene run uninterrupted; tolerance: none (bit for
 //! bit: displacements compared by `to_bits`, history/split log/PVD/VTU compared byte for byte).
-//! Contacts do not exist yet (issue 4): their state goes into a checkpoint section
-//! (core/src/checkpoint.rs) and needs a test here when they land.
+//! Contact pairs (issue 4) go into the checkpoint section "contact" (core/src/checkpoint.rs);
+//! `interrupted_with_splits_and_contacts_is_bit_identical` interrupts while pairs exist.
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -96,6 +96,12 @@ fn assert_same_results(reference: &Path, other: &Path, what: &str) {
 /// A run stopped after step `at` (checkpoint + snapshot), then resumed from its folder by a
 /// new `Simulation`, ends bit-identical to `reference` (final u and v, every result file).
 fn interrupt_and_resume(text: &str, at: u64, reference: &Simulation, ref_dir: &Path, tag: &str) {
+    interrupt_and_resume_checked(text, at, reference, ref_dir, tag, |_| {});
+}
+
+/// [`interrupt_and_resume`], calling `check` on the interrupted simulation (its state is the
+/// checkpoint's).
+fn interrupt_and_resume_checked(text: &str, at: u64, reference: &Simulation, ref_dir: &Path, tag: &str, check: impl Fn(&Simulation)) {
     let dir = tmp(tag);
     let mut sim = Simulation::new(scene(text)).unwrap();
     let w = OutputWriter::new(&dir, &sim).unwrap();
@@ -104,6 +110,7 @@ fn interrupt_and_resume(text: &str, at: u64, reference: &Simulation, ref_dir: &P
         Err(FlemError::Interrupted { step, .. }) => assert_eq!(step, at, "{tag}: stopped at the wrong step"),
         other => panic!("{tag}: expected an interruption at step {at}, got {other:?}"),
     }
+    check(&sim);
     assert!(std::fs::read_dir(&dir).unwrap().flatten().any(|e| e.file_name().to_string_lossy().contains("interrupted")), "{tag}: no final snapshot");
     let mut sim = Simulation::new(scene(text)).unwrap();
     let (ck, path, refused) = checkpoint::load_newest(&dir, &sim).unwrap();
@@ -118,6 +125,12 @@ fn interrupt_and_resume(text: &str, at: u64, reference: &Simulation, ref_dir: &P
     assert!(bits(&sim.state.v) == bits(&reference.state.v), "{tag}: final velocities differ");
     assert_eq!(sim.model.topo.n_clusters(), reference.model.topo.n_clusters(), "{tag}: clusters");
     assert_eq!(sim.ledger.residual().to_bits(), reference.ledger.residual().to_bits(), "{tag}: energy ledger");
+    if let (Some(a), Some(b)) = (&sim.contact, &reference.contact) {
+        // The Verlet list is rebuilt from the checkpoint's build state, not afresh: the same
+        // number of rebuilds (hence the same candidate sets) as the uninterrupted run.
+        assert_eq!(a.rebuilds, b.rebuilds, "{tag}: Verlet list rebuilds");
+        assert!(a.history == b.history, "{tag}: contact pairs and their history");
+    }
     let steps = |s: &Simulation| s.stages_done.iter().map(|r| (r.steps, r.converged, r.final_ratio.to_bits(), r.splits)).collect::<Vec<_>>();
     assert_eq!(steps(&sim), steps(reference), "{tag}: stage results");
     assert_same_results(ref_dir, &dir, tag);
@@ -146,6 +159,64 @@ fn interrupted_then_resumed_is_bit_identical() {
         }
         let _ = std::fs::remove_dir_all(&ref_dir);
     }
+}
+
+/// The notched plate of configs/verification/notched_crack.toml with cohesive contact on the
+/// crack faces: the notch faces are contact surfaces and every split creates a cohesive pair
+/// (at the new crack tip) that carries tension while the crack opens, so pairs and splits
+/// coexist; a third stage at the same load lets the crack grow four edges (the contact term
+/// shortens the stable step, so the crack stage alone ends after the first split).
+fn notch_contact_text() -> String {
+    std::fs::read_to_string(notch_path()).unwrap()
+        + "\n[contact]\nlaw = { type = \"cohesive\", normal_stiffness = 2000.0, shear_stiffness = 800.0, tensile_strength = 0.5, fracture_energy = 0.005, friction = 0.5 }\n"
+        + "\n[[stage]]\nname = \"more\"\nlevels = { pull = 0.6 }\nmax_steps = 30000\n"
+}
+
+/// Interrupted at several steps while contact pairs exist (right after a split, mid-crack,
+/// at arbitrary steps between history rows) and resumed: final u, v, energy ledger, stage
+/// results, split log and every result file are bit-identical to the uninterrupted run.
+/// Reference: the uninterrupted run; tolerance: none (bit for bit).
+#[test]
+fn interrupted_with_splits_and_contacts_is_bit_identical() {
+    let text = notch_contact_text();
+    let ref_dir = tmp("contact-ref");
+    let mut reference = Simulation::new(scene(&text)).unwrap();
+    // Steps (at history rows) where pairs exist, seen from the uninterrupted run.
+    let with_pairs = std::cell::RefCell::new(Vec::new());
+    let w = OutputWriter::new(&ref_dir, &reference).unwrap();
+    let mut obs = StopAt {
+        w,
+        at: u64::MAX,
+        hook: |s: &Simulation| {
+            let n = s.contact.as_ref().unwrap().history.pairs.len();
+            if n > 0 {
+                with_pairs.borrow_mut().push((s.state.step, n));
+            }
+        },
+    };
+    reference.run(&mut obs).unwrap();
+    let total = reference.state.step;
+    let with_pairs = with_pairs.into_inner();
+    let splits_log = std::fs::read_to_string(ref_dir.join("splits.csv")).unwrap();
+    let split_steps: Vec<u64> = splits_log.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
+    eprintln!("contact scene: {total} steps, {} splits at {:?}..., pairs at history rows: {:?}", split_steps.len(), &split_steps[..split_steps.len().min(5)], with_pairs);
+    assert!(split_steps.len() >= 3, "the crack must grow: {split_steps:?}");
+    assert!(with_pairs.len() >= 3, "pairs must exist through the crack growth: {with_pairs:?}");
+    // Right after the second split, an arbitrary step between history rows in the middle of
+    // the pair-carrying period, and the step after the last row with pairs.
+    let mid = with_pairs[with_pairs.len() / 2].0;
+    let mut stops = vec![split_steps[1] + 1, mid + 17, with_pairs[with_pairs.len() - 1].0 + 1];
+    stops.sort_unstable();
+    stops.dedup();
+    for at in stops {
+        let tag = format!("contact-{at}");
+        interrupt_and_resume_checked(&text, at, &reference, &ref_dir, &tag, |s| {
+            let c = s.contact.as_ref().unwrap();
+            assert!(!c.history.pairs.is_empty(), "{tag}: no contact pair at the interruption");
+            assert!(s.model.topo.n_clusters() > Simulation::new(scene(&text)).unwrap().model.topo.n_clusters(), "{tag}: no split before the interruption");
+        });
+    }
+    let _ = std::fs::remove_dir_all(&ref_dir);
 }
 
 /// Every single-byte flip anywhere in a checkpoint is refused (magic, version, length,

@@ -162,9 +162,12 @@ impl Checkpoint {
             n_splits,
             sections: Vec::new(),
         };
-        // Contact pairs with their history (the Verlet list is rebuilt on the next step).
+        // Contact pairs with their history, and the Verlet list's build state (section
+        // "contact_verlet": without it, as in older checkpoints, the list is rebuilt on the
+        // next step, which can change the candidate sets and the rebuild steps after).
         if let Some(c) = &sim.contact {
             ck.put_section("contact", 1, &c.history)?;
+            ck.put_section("contact_verlet", 1, &c.verlet_state())?;
         }
         Ok(ck)
     }
@@ -256,7 +259,12 @@ impl Checkpoint {
             cr.n_splits = self.n_splits;
         }
         match (sim.contact.as_mut(), self.section::<crate::contact::ContactHistory>("contact", 1)?) {
-            (Some(c), Some(h)) => c.restore(&sim.model, h),
+            (Some(c), Some(h)) => {
+                c.restore(&sim.model, h);
+                if let Some(v) = self.section::<crate::contact::search::VerletState>("contact_verlet", 1)? {
+                    c.restore_verlet(&sim.x0, v);
+                }
+            }
             (None, None) => {}
             (Some(_), None) => return Err(bad("the scene has [contact] and the checkpoint has no contact pairs".into())),
             (None, Some(_)) => return Err(bad("the checkpoint has contact pairs and the scene has no [contact]".into())),

@@ -9,7 +9,14 @@
 //!    too little (oscillates for long) to too much (crawls): `local` ratio and `viscous`
 //!    alpha as a multiple of the critical 2 omega_1 (omega_1 from the Rayleigh quotient of the
 //!    static solution).
-//! 3. Implicit after separation: a crack that cuts a fragment free leaves the stiffness
+//! 3. Contact stiffness against dt: a block pressed onto a fixed base (penalty contact, no
+//!    damping) for contact normal stiffness k_n over several decades, from below the elastic
+//!    stiffness (the element term of the step rules) to far above (the contact term rules):
+//!    the blow-up step by bisection on dt / dt_crit, where the prediction dt_crit includes the
+//!    contact term `omega^2 = omega_el^2 + 4 k_n A_max / m_min` (core/src/contact/search.rs).
+//!    Unilateral contact blows up non-monotonically in dt, so the threshold is the first
+//!    divergent factor of an upward scan (0.05 / 0.02 apart), refined by bisection.
+//! 4. Implicit after separation: a crack that cuts a fragment free leaves the stiffness
 //!    singular; the implicit check solver must name the fragment while the explicit run goes on.
 //!
 //! Writes stability.csv, stability.json and stability.md (the table of docs/stability.md).
@@ -22,7 +29,7 @@ use serde::Serialize;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Row {
-    /// "explicit_dt", "damping", "implicit_after_separation".
+    /// "explicit_dt", "contact_dt", "damping", "implicit_after_separation".
     pub study: String,
     pub case: String,
     /// The swept parameter's name and value.
@@ -90,6 +97,81 @@ fn explicit_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
             eprintln!("explicit dt {mesh:<13} {name:<10} threshold/prediction = {m:.4}");
             rows.push(Row { study: "explicit_dt".into(), case: format!("{mesh} / {name}"), parameter: "dt/dt_crit".into(), value: m, measured: m, outcome });
         }
+    }
+    Ok(())
+}
+
+/// A block (1 x 0.5, 4 x 2 Q4) 1e-7 above a fixed base, pressed by a pressure on its top;
+/// penalty contact of normal stiffness `kn` between `block_bottom` and `base_top` only
+/// (`crack_faces = false`: the bound is the surface one, not the every-corner one).
+fn contact_block(kn: f64, solver: &str, steps: u64) -> String {
+    format!(
+        "[mesh]\ntype = \"rectangles\"\nparts = [\n  {{ name = \"base\", origin = [0.0, 0.0], width = 2.0, height = 0.5, nx = 8, ny = 2 }},\n  {{ name = \"block\", origin = [0.5, 0.5000001], width = 1.0, height = 0.5, nx = 4, ny = 2 }},\n]\n\
+[[material]]\nyoung_modulus = 1e5\npoisson_ratio = 0.25\ndensity = 1.0\n\
+[contact]\nlaw = {{ type = \"penalty\", normal_stiffness = {kn:e} }}\nsurfaces = [\"block_bottom\", \"base_top\"]\ncrack_faces = false\n\
+[[support]]\nnodes = \"base_all\"\nfix = \"xy\"\n[[support]]\nnodes = \"block_top\"\nfix = \"x\"\n\
+[[load]]\nname = \"p\"\ntype = \"pressure\"\nedges = \"block_top\"\nvalue = 100.0\n\
+{solver}[solver.damping]\ntype = \"none\"\n[[stage]]\nlevels = {{ p = 1.0 }}\ndynamic = true\nmax_steps = {steps}\n"
+    )
+}
+
+/// A dynamic run of the pressed block at `factor` x its predicted dt_crit; Ok(true) when the
+/// solver's guard stopped it.
+fn contact_diverges(kn: f64, factor: f64, steps: u64) -> Result<bool> {
+    let probe = Simulation::new(scene(&contact_block(kn, "", steps))?)?;
+    let dt = factor * probe.stable.dt_crit;
+    let mut s = Simulation::new(scene(&contact_block(kn, &format!("[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n"), steps))?)?;
+    match s.run(&mut NoOutput) {
+        Ok(()) => Ok(false),
+        Err(flem_core::FlemError::Diverged { .. }) => Ok(true),
+        Err(e) => Err(e.into()),
+    }
+}
+
+fn contact_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
+    let steps = if quick { 3000 } else { 20000 };
+    let iters = if quick { 6 } else { 9 };
+    let grid = if quick { 0.05 } else { 0.02 };
+    let kns: &[f64] = if quick { &[1e4, 1e6, 1e8] } else { &[1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9] };
+    for &kn in kns {
+        let probe = Simulation::new(scene(&contact_block(kn, "", steps))?)?;
+        let share = (probe.stable.dt_crit / probe.stable.dt_contact).powi(2);
+        // Unilateral contact makes divergence non-monotone in dt (a run can blow up at 2.0 x and
+        // survive 2.25 x: separation interrupts the growth), so bisection from a wide bracket
+        // can miss the lowest threshold: scan a grid upwards to the first divergent factor,
+        // then bisect between it and the last stable grid point.
+        let (mut lo, mut hi) = (0.5, f64::INFINITY);
+        let mut f = 0.5;
+        while f <= 4.0 + 1e-9 {
+            if contact_diverges(kn, f, steps)? {
+                hi = f;
+                break;
+            }
+            lo = f;
+            f += grid;
+        }
+        if hi.is_finite() {
+            for _ in 0..iters {
+                let mid = 0.5 * (lo + hi);
+                if contact_diverges(kn, mid, steps)? {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+        } else {
+            hi = lo;
+        }
+        let m = 0.5 * (lo + hi);
+        let outcome = if lo >= 4.0 - 1e-9 {
+            "stable up to 4 x prediction (conservative)".to_string()
+        } else if lo < 0.98 {
+            format!("UNSAFE: blows up below the prediction ({m:.3})")
+        } else {
+            format!("blow-up at {m:.3} x prediction (contact share of omega^2: {share:.2})")
+        };
+        eprintln!("contact dt k_n = {kn:e}: threshold/prediction = {m:.4} (contact share of omega^2 {share:.3})");
+        rows.push(Row { study: "contact_dt".into(), case: format!("block on base / k_n = {kn:e}"), parameter: "k_n (measured: dt/dt_crit)".into(), value: kn, measured: m, outcome });
     }
     Ok(())
 }
@@ -174,6 +256,7 @@ pub fn run(out: Option<PathBuf>, quick: bool) -> Result<()> {
     flem_core::output::prepare_dir(&out)?;
     let mut rows = Vec::new();
     explicit_dt(quick, &mut rows).context("explicit step study")?;
+    contact_dt(quick, &mut rows).context("contact stiffness study")?;
     damping(quick, &mut rows).context("damping study")?;
     implicit_after_separation(&mut rows).context("implicit after separation")?;
     flem_core::output::atomic_write(&out.join("stability.csv"), csv(&rows).as_bytes())?;
@@ -183,6 +266,7 @@ pub fn run(out: Option<PathBuf>, quick: bool) -> Result<()> {
     for r in &rows {
         match r.study.as_str() {
             "explicit_dt" => d.thresholds.push((r.case.clone(), r.measured)),
+            "contact_dt" => d.thresholds.push((format!("contact k_n = {:.0e}", r.value), r.measured)),
             "damping" if r.case != "adaptive" => d.damping.push((r.case.clone(), r.value, r.measured, r.outcome == "at rest")),
             _ => {}
         }

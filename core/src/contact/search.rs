@@ -6,6 +6,7 @@
 //! deterministic candidate order (by face index) with no dependency; a tree would need a
 //! sort of its query results to be deterministic anyway.
 use super::{ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, PairKinematics, PairState};
+use serde::{Deserialize, Serialize};
 use crate::element::{self, Q4, T3};
 use crate::error::Result;
 use crate::ids::{EdgeId, ElemId};
@@ -87,6 +88,16 @@ pub struct PairReport {
     /// Force on the slave (global frame).
     pub force: [f64; 2],
     pub gap: f64,
+}
+
+/// What [`Contact::restore_verlet`] needs to rebuild the Verlet list of a checkpoint: the
+/// surface displacements at the last build (slave order), whether a rebuild was pending, and
+/// the rebuild count.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct VerletState {
+    pub u_build: Vec<[f64; 2]>,
+    pub dirty: bool,
+    pub rebuilds: u64,
 }
 
 impl Contact {
@@ -242,7 +253,8 @@ impl Contact {
     }
 
     /// Restores a checkpointed history (the model's topology must already be the checkpoint's):
-    /// surfaces are rebuilt and the Verlet list is rebuilt at the next step.
+    /// surfaces are rebuilt and the Verlet list is rebuilt at the next step, unless
+    /// [`Contact::restore_verlet`] then rebuilds it as it was at the checkpoint.
     pub fn restore(&mut self, model: &Model, history: ContactHistory) {
         self.fresh_edge.iter_mut().for_each(|f| *f = false);
         for &e in &history.fresh_edges {
@@ -252,6 +264,30 @@ impl Contact {
         }
         self.rebuild_surfaces(model);
         self.history = history;
+    }
+
+    /// The Verlet list's build state, for checkpoints: a resumed run must rebuild its list at
+    /// the same steps and from the same positions as the uninterrupted one, because the
+    /// candidate set (all faces within the margin at the build) is a superset that depends on
+    /// when it was built, and the concave-corner test counts every penetrated candidate face.
+    pub fn verlet_state(&self) -> VerletState {
+        VerletState { u_build: self.u_build.clone(), dirty: self.dirty, rebuilds: self.rebuilds }
+    }
+
+    /// Rebuilds the Verlet list as it was at the checkpoint (after [`Contact::restore`]): from
+    /// the saved surface displacements, so the list and its next rebuild step are the
+    /// uninterrupted run's. A state that does not fit the surfaces leaves the list dirty.
+    pub fn restore_verlet(&mut self, x0: &[[f64; 2]], st: VerletState) {
+        if !st.dirty && st.u_build.len() == self.slaves.len() && self.slaves.iter().all(|&s| (s as usize) < x0.len()) {
+            let mut u = vec![[0.0; 2]; x0.len()];
+            for (&s, b) in self.slaves.iter().zip(&st.u_build) {
+                u[s as usize] = *b;
+            }
+            self.build_verlet(x0, &u);
+        } else {
+            self.dirty = true;
+        }
+        self.rebuilds = st.rebuilds;
     }
 
     fn face(&self, id: u32) -> Option<Face> {

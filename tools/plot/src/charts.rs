@@ -97,7 +97,7 @@ fn stability_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, d: &Stability
     let lo = d.thresholds.iter().map(|t| t.1).fold(0.9f64, f64::min) - 0.02;
     let hi = d.thresholds.iter().map(|t| t.1).fold(1.1f64, f64::max) + 0.02;
     let mut c = ChartBuilder::on(&left)
-        .caption("explicit step: blow-up / predicted dt_crit", ("sans-serif", 18))
+        .caption("explicit step and contact stiffness: blow-up / predicted dt_crit", ("sans-serif", 18))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(170)
