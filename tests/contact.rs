@@ -3,6 +3,7 @@
 use flem_core::contact::Master;
 use flem_core::damping::Damping;
 use flem_core::solver::{NoOutput, Simulation};
+use flem_plugins::snippets::toml_blocks;
 
 use crate::common::sim;
 
@@ -541,25 +542,8 @@ max_steps = 1
 /// from the code). Reference: the docs; exact.
 #[test]
 fn contact_and_rectangles_doc_snippets_build_a_scene() {
-    fn blocks(src: &str) -> Vec<String> {
-        let (mut out, mut cur): (Vec<String>, Option<String>) = (Vec::new(), None);
-        for line in src.lines() {
-            let Some(doc) = line.trim_start().strip_prefix("//!") else { continue };
-            let doc = doc.strip_prefix(' ').unwrap_or(doc);
-            match (&mut cur, doc.trim()) {
-                (None, "```toml") => cur = Some(String::new()),
-                (Some(_), "```") => out.extend(cur.take()),
-                (Some(s), _) => {
-                    s.push_str(doc);
-                    s.push('\n');
-                }
-                _ => {}
-            }
-        }
-        out
-    }
-    let mesh = &blocks(include_str!("../core/src/mesh/rects.rs"))[0];
-    let contact = &blocks(include_str!("../core/src/contact/mod.rs"))[0];
+    let mesh = &toml_blocks(include_str!("../core/src/mesh/rects.rs"))[0];
+    let contact = &toml_blocks(include_str!("../core/src/contact/mod.rs"))[0];
     let text = format!("{mesh}\n{contact}\n[[material]]\nyoung_modulus = 1e4\npoisson_ratio = 0.25\ndensity = 1.0\n\n[[stage]]\n");
     let s = sim(&text);
     assert_eq!(s.contact.as_ref().unwrap().n_surface_nodes(), 17 + 5);
