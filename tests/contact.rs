@@ -187,15 +187,16 @@ levels = { p = 1.0 }
     assert!(s.contact.as_ref().unwrap().n_active >= 10);
 }
 
-/// Blocks on a fixed base, for the friction tests.
-fn block_on_base(law: &str, base_width: f64, block_x: f64) -> Simulation {
+/// Blocks on the fixed block `base` (`parts`: the lines of the `rectangles` mesh) under
+/// gravity 10, E = 1e5, nu = 0.25, local damping; `solver` adds to `[solver]`, `rest` gives
+/// the contact and stage tables.
+fn on_fixed_base(parts: &str, solver: &str, rest: &str) -> Simulation {
     sim(&format!(
         r#"
 [mesh]
 type = "rectangles"
 parts = [
-  {{ name = "base", origin = [0.0, 0.0], width = {base_width}, height = 0.5, nx = {nb}, ny = 2 }},
-  {{ name = "block", origin = [{block_x}, 0.5000001], width = 1.0, height = 0.5, nx = 4, ny = 2 }},
+{parts}
 ]
 
 [model]
@@ -206,13 +207,8 @@ young_modulus = 1e5
 poisson_ratio = 0.25
 density = 1.0
 
-[contact]
-law = {law}
-surfaces = ["block_bottom", "base_top"]
-
 [solver]
-tolerance = 1e-5
-max_steps = 40000
+{solver}
 
 [solver.damping]
 type = "local"
@@ -220,6 +216,22 @@ type = "local"
 [[support]]
 nodes = "base_all"
 fix = "xy"
+{rest}"#
+    ))
+}
+
+/// A block on a fixed base, for the friction tests.
+fn block_on_base(law: &str, base_width: f64, block_x: f64) -> Simulation {
+    let nb = (base_width * 4.0).round() as usize;
+    let parts = format!(
+        r#"  {{ name = "base", origin = [0.0, 0.0], width = {base_width}, height = 0.5, nx = {nb}, ny = 2 }},
+  {{ name = "block", origin = [{block_x}, 0.5000001], width = 1.0, height = 0.5, nx = 4, ny = 2 }},"#
+    );
+    let rest = format!(
+        r#"
+[contact]
+law = {law}
+surfaces = ["block_bottom", "base_top"]
 
 [[stage]]
 name = "settle"
@@ -228,9 +240,9 @@ name = "settle"
 name = "go"
 dynamic = true
 max_steps = 1
-"#,
-        nb = (base_width * 4.0).round() as usize
-    ))
+"#
+    );
+    on_fixed_base(&parts, "tolerance = 1e-5\nmax_steps = 40000", &rest)
 }
 
 const FRICTION_LAW: &str = r#"{ type = "spring_dashpot", normal_stiffness = 1e6, shear_stiffness = 4e5, normal_damping = 300.0, shear_damping = 300.0, friction = 0.5 }"#;
@@ -344,40 +356,18 @@ fn collision_conserves_energy_and_momentum() {
 /// Reference: statics; tolerance 0.5 % on the totals, 5 % per interior node.
 #[test]
 fn stack_of_blocks_rests_with_the_static_contact_forces() {
-    let mut s = sim(r#"
-[mesh]
-type = "rectangles"
-parts = [
-  { name = "base", origin = [-0.5, 0.0], width = 2.0, height = 0.5, nx = 8, ny = 2 },
+    let parts = r#"  { name = "base", origin = [-0.5, 0.0], width = 2.0, height = 0.5, nx = 8, ny = 2 },
   { name = "b1", origin = [0.0, 0.5000001], width = 1.0, height = 0.5, nx = 4, ny = 2 },
   { name = "b2", origin = [0.0, 1.0000002], width = 1.0, height = 0.5, nx = 4, ny = 2 },
-  { name = "b3", origin = [0.0, 1.5000003], width = 1.0, height = 0.5, nx = 4, ny = 2 },
-]
-
-[model]
-gravity = [0.0, -10.0]
-
-[[material]]
-young_modulus = 1e5
-poisson_ratio = 0.25
-density = 1.0
-
+  { name = "b3", origin = [0.0, 1.5000003], width = 1.0, height = 0.5, nx = 4, ny = 2 },"#;
+    let rest = r#"
 [contact]
 law = { type = "spring_dashpot", normal_stiffness = 1e6, shear_stiffness = 4e5, friction = 0.5 }
 surfaces = ["base_top", "b1_bottom", "b1_top", "b2_bottom", "b2_top", "b3_bottom"]
 
-[solver]
-tolerance = 1e-7
-
-[solver.damping]
-type = "local"
-
-[[support]]
-nodes = "base_all"
-fix = "xy"
-
 [[stage]]
-"#);
+"#;
+    let mut s = on_fixed_base(parts, "tolerance = 1e-7", rest);
     run_converged(&mut s);
     for (k, name) in ["b1", "b2", "b3"].iter().enumerate() {
         let bottom = clusters(&s, &format!("{name}_bottom"));
