@@ -3,11 +3,13 @@
 use flem_core::contact::Master;
 use flem_core::damping::Damping;
 use flem_core::solver::{NoOutput, Simulation};
+use flem_plugins::snippets::toml_blocks;
 
 use crate::common::sim;
 
-fn damping(s: &mut Simulation, toml_text: &str) {
-    let d: Box<dyn Damping> = toml::from_str(toml_text).unwrap();
+/// Switches the solver's damping off (for the dynamic part of a test).
+fn undamped(s: &mut Simulation) {
+    let d: Box<dyn Damping> = toml::from_str(r#"type = "none""#).unwrap();
     s.scene.file.solver.damping = Some(d);
 }
 
@@ -47,6 +49,97 @@ fn steps(s: &mut Simulation, n: usize) {
     }
 }
 
+/// Runs the scene's stages and asserts that the first one converged.
+fn run_converged(s: &mut Simulation) {
+    s.run(&mut NoOutput).unwrap();
+    assert!(s.stages_done[0].converged, "{:?}", s.stages_done);
+}
+
+/// Current position x0 + u of cluster `c`.
+fn pos(s: &Simulation, c: usize) -> [f64; 2] {
+    [s.x0[c][0] + s.state.u[c][0], s.x0[c][1] + s.state.u[c][1]]
+}
+
+/// Kinetic + strain + contact-spring energy (what a free, undamped system conserves).
+fn energy(s: &Simulation) -> f64 {
+    let l = &s.ledger;
+    l.kinetic + l.strain + l.contact_energy
+}
+
+/// (index in its block, mean stress) of every element, block after block.
+fn element_stresses(s: &Simulation) -> impl Iterator<Item = (usize, [f64; 3])> + '_ {
+    s.model.blocks.iter().flat_map(move |b| (0..b.len()).map(move |i| (i, b.mean_stress(i, &s.state.u))))
+}
+
+/// The 1 x 2 bar of 4 x 8 elements (E = 1000, nu = 0.25) whose mid-height grid line is the
+/// cut `cut`, on rollers at the bottom and pinned at the bottom-left corner; `rest` adds the
+/// contact law, the solver settings, the load and the stage.
+fn cut_bar(rest: &str) -> Simulation {
+    sim(&format!(
+        r#"
+[mesh]
+type = "rectangle"
+width = 1.0
+height = 2.0
+nx = 4
+ny = 8
+cuts = [1.0]
+
+[[material]]
+young_modulus = 1000.0
+poisson_ratio = 0.25
+density = 1.0
+
+[[support]]
+nodes = "bottom"
+fix = "y"
+
+[[support]]
+nodes = "bottom_left"
+fix = "xy"
+{rest}"#
+    ))
+}
+
+/// Two free 1-wide blocks `a` (at the origin) and `b` (at `b_origin`) of `height` with 4 x `ny`
+/// elements (E = 1e4, nu = 0.25), with the contact settings `contact`, no gravity and no damping.
+/// Runs the single one-step dynamic stage (the tests then step by hand) and returns the
+/// simulation with the clusters of a and of b.
+fn free_blocks(height: f64, ny: usize, b_origin: [f64; 2], corotational: bool, contact: &str) -> (Simulation, Vec<usize>, Vec<usize>) {
+    let mut s = sim(&format!(
+        r#"
+[mesh]
+type = "rectangles"
+parts = [
+  {{ name = "a", origin = [0.0, 0.0], width = 1.0, height = {height}, nx = 4, ny = {ny} }},
+  {{ name = "b", origin = {b_origin:?}, width = 1.0, height = {height}, nx = 4, ny = {ny} }},
+]
+
+[[material]]
+young_modulus = 1e4
+poisson_ratio = 0.25
+density = 1.0
+corotational = {corotational}
+
+[contact]
+{contact}
+
+[solver]
+dt_safety = 0.5
+
+[solver.damping]
+type = "none"
+
+[[stage]]
+dynamic = true
+max_steps = 1
+"#
+    ));
+    s.run_stage(0, &mut NoOutput).unwrap();
+    let (a, b) = (clusters(&s, "a_all"), clusters(&s, "b_all"));
+    (s, a, b)
+}
+
 /// A pre-cut specimen (the paper's shear model has a pre-cut plane): a rectangle whose
 /// mid-height grid line is separated over the whole width, pressed on top. The cut closes
 /// (the gap is the contact-spring compression only) and transmits the pressure: every
@@ -57,22 +150,10 @@ fn steps(s: &mut Simulation, n: usize) {
 /// conforming contact; tolerance 0.5 % of p (equilibrium tolerance 1e-6 and the springs).
 #[test]
 fn precut_specimen_closes_and_transmits_compression() {
-    let mut s = sim(r#"
-[mesh]
-type = "rectangle"
-width = 1.0
-height = 2.0
-nx = 4
-ny = 8
-cuts = [1.0]
-
+    let mut s = cut_bar(
+        r#"
 [model]
 separated = ["cut"]
-
-[[material]]
-young_modulus = 1000.0
-poisson_ratio = 0.25
-density = 1.0
 
 [contact]
 law = { type = "spring_dashpot", normal_stiffness = 1e5, shear_stiffness = 4e4, friction = 0.577 }
@@ -80,14 +161,6 @@ law = { type = "spring_dashpot", normal_stiffness = 1e5, shear_stiffness = 4e4, 
 [solver]
 tolerance = 1e-6
 max_steps = 200000
-
-[[support]]
-nodes = "bottom"
-fix = "y"
-
-[[support]]
-nodes = "bottom_left"
-fix = "xy"
 
 [[load]]
 name = "p"
@@ -97,35 +170,33 @@ value = 2.0
 
 [[stage]]
 levels = { p = 1.0 }
-"#);
+"#,
+    );
     assert_eq!(s.model.topo.n_clusters(), 45 + 5, "the cut line must be split into two rows of clusters");
-    s.run(&mut NoOutput).unwrap();
-    assert!(s.stages_done[0].converged, "{:?}", s.stages_done);
+    run_converged(&mut s);
     let p = 2.0;
-    for b in &s.model.blocks {
-        for i in 0..b.len() {
-            let st = b.mean_stress(i, &s.state.u);
-            assert!((st[1] + p).abs() < 5e-3 * p, "element {i}: s_yy = {} (want {})", st[1], -p);
-            assert!(st[0].abs() < 5e-3 * p && st[2].abs() < 5e-3 * p, "element {i}: {st:?}");
-        }
+    for (i, st) in element_stresses(&s) {
+        assert!((st[1] + p).abs() < 5e-3 * p, "element {i}: s_yy = {} (want {})", st[1], -p);
+        assert!(st[0].abs() < 5e-3 * p && st[2].abs() < 5e-3 * p, "element {i}: {st:?}");
     }
     // The two faces of the cut overlap by the spring compression only: p / (2 k_n) (two
     // passes), i.e. 1e-5 here; nothing passes through.
-    let ymid: Vec<f64> = (0..s.x0.len()).filter(|&c| (s.x0[c][1] - 1.0).abs() < 1e-12).map(|c| s.x0[c][1] + s.state.u[c][1]).collect();
+    let ymid: Vec<f64> = (0..s.x0.len()).filter(|&c| (s.x0[c][1] - 1.0).abs() < 1e-12).map(|c| pos(&s, c)[1]).collect();
     let (lo, hi) = ymid.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| (a.min(y), b.max(y)));
     assert!(hi - lo < 2.0 * p / 1e5, "overlap {}", hi - lo);
     assert!(s.contact.as_ref().unwrap().n_active >= 10);
 }
 
-/// Blocks on a fixed base, for the friction tests.
-fn block_on_base(law: &str, base_width: f64, block_x: f64) -> Simulation {
+/// Blocks on the fixed block `base` (`parts`: the lines of the `rectangles` mesh) under
+/// gravity 10, E = 1e5, nu = 0.25, local damping; `solver` adds to `[solver]`, `rest` gives
+/// the contact and stage tables.
+fn on_fixed_base(parts: &str, solver: &str, rest: &str) -> Simulation {
     sim(&format!(
         r#"
 [mesh]
 type = "rectangles"
 parts = [
-  {{ name = "base", origin = [0.0, 0.0], width = {base_width}, height = 0.5, nx = {nb}, ny = 2 }},
-  {{ name = "block", origin = [{block_x}, 0.5000001], width = 1.0, height = 0.5, nx = 4, ny = 2 }},
+{parts}
 ]
 
 [model]
@@ -136,13 +207,8 @@ young_modulus = 1e5
 poisson_ratio = 0.25
 density = 1.0
 
-[contact]
-law = {law}
-surfaces = ["block_bottom", "base_top"]
-
 [solver]
-tolerance = 1e-5
-max_steps = 40000
+{solver}
 
 [solver.damping]
 type = "local"
@@ -150,6 +216,22 @@ type = "local"
 [[support]]
 nodes = "base_all"
 fix = "xy"
+{rest}"#
+    ))
+}
+
+/// A block on a fixed base, for the friction tests.
+fn block_on_base(law: &str, base_width: f64, block_x: f64) -> Simulation {
+    let nb = (base_width * 4.0).round() as usize;
+    let parts = format!(
+        r#"  {{ name = "base", origin = [0.0, 0.0], width = {base_width}, height = 0.5, nx = {nb}, ny = 2 }},
+  {{ name = "block", origin = [{block_x}, 0.5000001], width = 1.0, height = 0.5, nx = 4, ny = 2 }},"#
+    );
+    let rest = format!(
+        r#"
+[contact]
+law = {law}
+surfaces = ["block_bottom", "base_top"]
 
 [[stage]]
 name = "settle"
@@ -158,9 +240,9 @@ name = "settle"
 name = "go"
 dynamic = true
 max_steps = 1
-"#,
-        nb = (base_width * 4.0).round() as usize
-    ))
+"#
+    );
+    on_fixed_base(&parts, "tolerance = 1e-5\nmax_steps = 40000", &rest)
 }
 
 const FRICTION_LAW: &str = r#"{ type = "spring_dashpot", normal_stiffness = 1e6, shear_stiffness = 4e5, normal_damping = 300.0, shear_damping = 300.0, friction = 0.5 }"#;
@@ -173,7 +255,7 @@ fn incline(theta_deg: f64) -> Simulation {
     assert!(s.stages_done[0].converged, "{:?}", s.stages_done);
     let th = theta_deg.to_radians();
     s.loads.gravity = [10.0 * th.sin(), -10.0 * th.cos()];
-    damping(&mut s, r#"type = "none""#);
+    undamped(&mut s);
     s.run_stage(1, &mut NoOutput).unwrap();
     s
 }
@@ -218,7 +300,7 @@ fn block_on_incline_slides_with_the_coulomb_acceleration() {
 fn sliding_block_stops_at_the_coulomb_distance() {
     let mut s = block_on_base(FRICTION_LAW, 3.0, 0.25);
     s.run_stage(0, &mut NoOutput).unwrap();
-    damping(&mut s, r#"type = "none""#);
+    undamped(&mut s);
     s.run_stage(1, &mut NoOutput).unwrap();
     let blk = clusters(&s, "block_all");
     launch(&mut s, &blk, [2.0, 0.0]);
@@ -242,36 +324,8 @@ fn sliding_block_stops_at_the_coulomb_distance() {
 /// Reference: conservation laws; tolerances 1 % and 1e-12.
 #[test]
 fn collision_conserves_energy_and_momentum() {
-    let mut s = sim(r#"
-[mesh]
-type = "rectangles"
-parts = [
-  { name = "a", origin = [0.0, 0.0], width = 1.0, height = 0.5, nx = 4, ny = 2 },
-  { name = "b", origin = [1.05, 0.0], width = 1.0, height = 0.5, nx = 4, ny = 2 },
-]
-
-[[material]]
-young_modulus = 1e4
-poisson_ratio = 0.25
-density = 1.0
-
-[contact]
-law = { type = "penalty", normal_stiffness = 1e5 }
-surfaces = ["a_right", "b_left"]
-
-[solver]
-dt_safety = 0.5
-
-[solver.damping]
-type = "none"
-
-[[stage]]
-dynamic = true
-max_steps = 1
-"#);
-    s.run_stage(0, &mut NoOutput).unwrap();
-    let a = clusters(&s, "a_all");
-    let b = clusters(&s, "b_all");
+    let law = "law = { type = \"penalty\", normal_stiffness = 1e5 }\nsurfaces = [\"a_right\", \"b_left\"]";
+    let (mut s, a, b) = free_blocks(0.5, 2, [1.05, 0.0], false, law);
     launch(&mut s, &a, [1.0, 0.0]);
     let mtot: f64 = s.state.mass.iter().sum();
     let ma: f64 = a.iter().map(|&c| s.state.mass[c]).sum();
@@ -282,8 +336,7 @@ max_steps = 1
     for k in 0..n {
         s.step().unwrap();
         if k > 2 {
-            let l = &s.ledger;
-            let e = l.kinetic + l.strain + l.contact_energy;
+            let e = energy(&s);
             emax = emax.max((e - e0).abs() / e0);
             let p: f64 = s.state.v.iter().zip(&s.state.mass).map(|(v, m)| m * v[0]).sum();
             assert!((p - p0).abs() < 1e-12 * p0, "momentum {p} vs {p0}");
@@ -303,42 +356,19 @@ max_steps = 1
 /// Reference: statics; tolerance 0.5 % on the totals, 5 % per interior node.
 #[test]
 fn stack_of_blocks_rests_with_the_static_contact_forces() {
-    let mut s = sim(r#"
-[mesh]
-type = "rectangles"
-parts = [
-  { name = "base", origin = [-0.5, 0.0], width = 2.0, height = 0.5, nx = 8, ny = 2 },
+    let parts = r#"  { name = "base", origin = [-0.5, 0.0], width = 2.0, height = 0.5, nx = 8, ny = 2 },
   { name = "b1", origin = [0.0, 0.5000001], width = 1.0, height = 0.5, nx = 4, ny = 2 },
   { name = "b2", origin = [0.0, 1.0000002], width = 1.0, height = 0.5, nx = 4, ny = 2 },
-  { name = "b3", origin = [0.0, 1.5000003], width = 1.0, height = 0.5, nx = 4, ny = 2 },
-]
-
-[model]
-gravity = [0.0, -10.0]
-
-[[material]]
-young_modulus = 1e5
-poisson_ratio = 0.25
-density = 1.0
-
+  { name = "b3", origin = [0.0, 1.5000003], width = 1.0, height = 0.5, nx = 4, ny = 2 },"#;
+    let rest = r#"
 [contact]
 law = { type = "spring_dashpot", normal_stiffness = 1e6, shear_stiffness = 4e5, friction = 0.5 }
 surfaces = ["base_top", "b1_bottom", "b1_top", "b2_bottom", "b2_top", "b3_bottom"]
 
-[solver]
-tolerance = 1e-7
-
-[solver.damping]
-type = "local"
-
-[[support]]
-nodes = "base_all"
-fix = "xy"
-
 [[stage]]
-"#);
-    s.run(&mut NoOutput).unwrap();
-    assert!(s.stages_done[0].converged, "{:?}", s.stages_done);
+"#;
+    let mut s = on_fixed_base(parts, "tolerance = 1e-7", rest);
+    run_converged(&mut s);
     for (k, name) in ["b1", "b2", "b3"].iter().enumerate() {
         let bottom = clusters(&s, &format!("{name}_bottom"));
         let total: f64 = bottom.iter().map(|&c| s.state.f_con[c][1]).sum();
@@ -364,37 +394,8 @@ fix = "xy"
 /// the least smooth events of a penalty method).
 #[test]
 fn corner_to_corner_contact_neither_penetrates_nor_blows_up() {
-    let mut s = sim(r#"
-[mesh]
-type = "rectangles"
-parts = [
-  { name = "a", origin = [0.0, 0.0], width = 1.0, height = 1.0, nx = 4, ny = 4 },
-  { name = "b", origin = [1.05, 1.05], width = 1.0, height = 1.0, nx = 4, ny = 4 },
-]
-
-[[material]]
-young_modulus = 1e4
-poisson_ratio = 0.25
-density = 1.0
-corotational = true
-
-[contact]
-law = { type = "penalty", normal_stiffness = 1e6 }
-boundary = true
-
-[solver]
-dt_safety = 0.5
-
-[solver.damping]
-type = "none"
-
-[[stage]]
-dynamic = true
-max_steps = 1
-"#);
-    s.run_stage(0, &mut NoOutput).unwrap();
-    let a = clusters(&s, "a_all");
-    let b = clusters(&s, "b_all");
+    let law = "law = { type = \"penalty\", normal_stiffness = 1e6 }\nboundary = true";
+    let (mut s, a, b) = free_blocks(1.0, 4, [1.05, 1.05], true, law);
     launch(&mut s, &a, [1.0, 1.0]);
     let e0: f64 = a.iter().map(|&c| s.state.mass[c]).sum::<f64>();
     let corner = |s: &Simulation, p: &str| ["bottom_left", "bottom_right", "top_right", "top_left"].map(|k| clusters(s, &format!("{p}_{k}"))[0]);
@@ -405,13 +406,12 @@ max_steps = 1
         s.step().unwrap();
         touched |= s.contact.as_ref().unwrap().n_active > 0;
         // Penetration of a's nodes into b's box and of b's into a's (both rigid-ish squares).
-        let x = |c: usize| [s.x0[c][0] + s.state.u[c][0], s.x0[c][1] + s.state.u[c][1]];
         // Depth of every node of one block inside the other (its current corners as a convex
         // quadrilateral, counter-clockwise: the blocks rotate after an off-centre impact).
         for (p, q) in [(&a, &corners_b), (&b, &corners_a)] {
-            let poly: Vec<[f64; 2]> = q.iter().map(|&c| x(c)).collect();
+            let poly: Vec<[f64; 2]> = q.iter().map(|&c| pos(&s, c)).collect();
             for &c in p.iter() {
-                let y = x(c);
+                let y = pos(&s, c);
                 let mut depth = f64::INFINITY;
                 for k in 0..4 {
                     let (e0, e1) = (poly[k], poly[(k + 1) % 4]);
@@ -422,8 +422,7 @@ max_steps = 1
                 worst = worst.max(depth);
             }
         }
-        let l = &s.ledger;
-        let e = l.kinetic + l.strain + l.contact_energy;
+        let e = energy(&s);
         assert!(e.is_finite() && e < 1.02 * e0, "energy {e} vs {e0}");
     }
     assert!(touched, "the corners never met");
@@ -465,10 +464,8 @@ corotational = {corot}
             s.state.u[c] = [c0[0] - r[1] - s.x0[c][0] + 0.7, c0[1] + r[0] - s.x0[c][1] - 0.4];
         }
         let mut smax: f64 = 0.0;
-        for b in &s.model.blocks {
-            for i in 0..b.len() {
-                smax = smax.max(b.mean_stress(i, &s.state.u).iter().fold(0.0, |m: f64, v| m.max(v.abs())));
-            }
+        for (_, st) in element_stresses(&s) {
+            smax = smax.max(st.iter().fold(0.0, |m: f64, v| m.max(v.abs())));
         }
         let (mut corner, mut nodal) = (Vec::new(), Vec::new());
         s.model.nodal_stress(&s.state.u, &mut corner, &mut nodal);
@@ -526,7 +523,7 @@ max_steps = 1
     assert!((e - e0).abs() < 0.01 * e0, "energy {e} vs {e0}");
     // A quarter turn: the point at (0.5, 0) is near (0, 0.5) (centrifugal stretch aside).
     let c = (0..s.x0.len()).find(|&c| (s.x0[c][0] - 0.5).abs() < 1e-12 && s.x0[c][1].abs() < 1e-12).unwrap();
-    let x = [s.x0[c][0] + s.state.u[c][0], s.x0[c][1] + s.state.u[c][1]];
+    let x = pos(&s, c);
     assert!(x[0].abs() < 0.02 && (x[1] - 0.5).abs() < 0.02, "{x:?}");
 }
 
@@ -535,25 +532,8 @@ max_steps = 1
 /// from the code). Reference: the docs; exact.
 #[test]
 fn contact_and_rectangles_doc_snippets_build_a_scene() {
-    fn blocks(src: &str) -> Vec<String> {
-        let (mut out, mut cur): (Vec<String>, Option<String>) = (Vec::new(), None);
-        for line in src.lines() {
-            let Some(doc) = line.trim_start().strip_prefix("//!") else { continue };
-            let doc = doc.strip_prefix(' ').unwrap_or(doc);
-            match (&mut cur, doc.trim()) {
-                (None, "```toml") => cur = Some(String::new()),
-                (Some(_), "```") => out.extend(cur.take()),
-                (Some(s), _) => {
-                    s.push_str(doc);
-                    s.push('\n');
-                }
-                _ => {}
-            }
-        }
-        out
-    }
-    let mesh = &blocks(include_str!("../core/src/mesh/rects.rs"))[0];
-    let contact = &blocks(include_str!("../core/src/contact/mod.rs"))[0];
+    let mesh = &toml_blocks(include_str!("../core/src/mesh/rects.rs"))[0];
+    let contact = &toml_blocks(include_str!("../core/src/contact/mod.rs"))[0];
     let text = format!("{mesh}\n{contact}\n[[material]]\nyoung_modulus = 1e4\npoisson_ratio = 0.25\ndensity = 1.0\n\n[[stage]]\n");
     let s = sim(&text);
     assert_eq!(s.contact.as_ref().unwrap().n_surface_nodes(), 17 + 5);
@@ -570,36 +550,15 @@ fn contact_and_rectangles_doc_snippets_build_a_scene() {
 /// stalls near 4e-6 here).
 #[test]
 fn cohesive_fresh_faces_carry_tension_then_fail() {
-    let text = |level: f64| {
+    let rest = |level: f64| {
         format!(
             r#"
-[mesh]
-type = "rectangle"
-width = 1.0
-height = 2.0
-nx = 4
-ny = 8
-cuts = [1.0]
-
-[[material]]
-young_modulus = 1000.0
-poisson_ratio = 0.25
-density = 1.0
-
 [contact]
 law = {{ type = "cohesive", normal_stiffness = 1e5, shear_stiffness = 4e4, tensile_strength = 1.0, fracture_energy = 0.01, friction = 0.5 }}
 
 [solver]
 tolerance = 1e-5
 max_steps = 100000
-
-[[support]]
-nodes = "bottom"
-fix = "y"
-
-[[support]]
-nodes = "bottom_left"
-fix = "xy"
 
 [[load]]
 name = "pull"
@@ -613,7 +572,7 @@ levels = {{ pull = 1.0 }}
         )
     };
     for level in [0.3, 1.5] {
-        let mut s = sim(&text(level));
+        let mut s = cut_bar(&rest(level));
         let edges = s.model.edge_set("cut", "test", "test").unwrap();
         let rec = s.model.topo.separate_edges(&edges);
         s.model.apply_record(&rec);
@@ -621,13 +580,9 @@ levels = {{ pull = 1.0 }}
         let fresh = s.contact.as_ref().unwrap().history.pairs.iter().filter(|p| p.state.fresh).count();
         assert_eq!(fresh, 5, "one cohesive pair per node of the cut");
         if level < 1.0 {
-            s.run(&mut NoOutput).unwrap();
-            assert!(s.stages_done[0].converged, "{:?}", s.stages_done);
-            for b in &s.model.blocks {
-                for i in 0..b.len() {
-                    let st = b.mean_stress(i, &s.state.u);
-                    assert!((st[1] - level).abs() < 0.01 * level, "element {i}: s_yy = {}", st[1]);
-                }
+            run_converged(&mut s);
+            for (i, st) in element_stresses(&s) {
+                assert!((st[1] - level).abs() < 0.01 * level, "element {i}: s_yy = {}", st[1]);
             }
             let c = s.contact.as_ref().unwrap();
             assert_eq!(c.n_active, 5);
@@ -635,7 +590,7 @@ levels = {{ pull = 1.0 }}
                 assert!((p.gap - level * 1e-5).abs() < 0.01 * level * 1e-5, "opening {}", p.gap);
             }
         } else {
-            damping(&mut s, r#"type = "none""#);
+            undamped(&mut s);
             s.scene.file.stages[0].dynamic = true;
             s.scene.file.stages[0].max_steps = Some(20000);
             s.run(&mut NoOutput).unwrap();

@@ -6,8 +6,8 @@ pub mod criteria;
 pub mod damping;
 pub mod import;
 pub mod separation;
-#[cfg(test)]
-mod snippets;
+#[doc(hidden)]
+pub mod snippets;
 
 /// Every built-in plugin as (kind, name), in a fixed order (`flem plugins`).
 pub fn registry() -> Vec<(&'static str, &'static str)> {

@@ -1,8 +1,9 @@
 //! Test support: the ```toml snippets in plugin docs are parsed by the tests, so the docs cannot
-//! drift from the code.
+//! drift from the code. Public (hidden from the docs) so that the integration tests share
+//! the parser.
 
 /// Reads the ```toml blocks of a module's `//!` doc comment.
-pub(crate) fn toml_blocks(src: &str) -> Vec<String> {
+pub fn toml_blocks(src: &str) -> Vec<String> {
     let mut out = Vec::new();
     let mut cur: Option<String> = None;
     for line in src.lines() {
@@ -24,6 +25,7 @@ pub(crate) fn toml_blocks(src: &str) -> Vec<String> {
 /// Deserialises the table at `path` (e.g. `["cracking", "criterion"]`) of every ```toml block
 /// of every source; panics naming the file on any failure, on a source without a block, or on
 /// a name of `names` that no snippet shows. Returns (file, value) pairs for further checks.
+#[cfg(test)]
 pub(crate) fn doc_snippets<T: serde::de::DeserializeOwned>(sources: &[(&str, &str)], path: &[&str], names: &[&str]) -> Vec<(String, T)> {
     let mut seen = Vec::new();
     let mut out = Vec::new();
