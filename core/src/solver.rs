@@ -526,6 +526,11 @@ impl Simulation {
         let mut f = std::mem::take(&mut self.f_const);
         self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
         self.f_const = f;
+        if !self.loads.has_follower {
+            // Without following pressures the external force is this constant part: set it
+            // here (levels changed or a split happened), not in every step.
+            self.state.f_ext.copy_from_slice(&self.f_const);
+        }
     }
 
     /// The external force at the current load levels, per cluster: the constant part (gravity,
@@ -550,8 +555,8 @@ impl Simulation {
     pub fn step(&mut self) -> Result<()> {
         let dt = self.dt;
         self.model.internal_forces(&self.state.u, &mut self.state.f_int);
-        self.state.f_ext.copy_from_slice(&self.f_const);
         if self.loads.has_follower {
+            self.state.f_ext.copy_from_slice(&self.f_const);
             self.loads.add_follower_force(&self.model, &self.levels, &self.x0, &self.state.u, &mut self.state.f_ext);
         }
         if let (Some(c), Some(cfg)) = (self.contact.as_mut(), self.scene.file.contact.as_ref()) {
