@@ -146,7 +146,7 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 /// `|a - b|_2 / |b|_2` over every component (`None` when `|b| = 0` and `a != b`, 0 when both 0).
-fn rel_l2<const N: usize>(a: &[[f64; N]], b: &[[f64; N]]) -> Option<f64> {
+pub fn rel_l2<const N: usize>(a: &[[f64; N]], b: &[[f64; N]]) -> Option<f64> {
     let (mut d, mut n) = (0.0, 0.0);
     for (x, y) in a.iter().zip(b) {
         for k in 0..N {

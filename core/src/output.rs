@@ -57,6 +57,13 @@ pub fn atomic_write_with(path: &Path, bytes: &[u8], durable: bool) -> Result<()>
     Ok(())
 }
 
+/// The mesh point nearest `at` (a probe's point; its first cluster carries its displacement).
+pub fn nearest_point(sim: &Simulation, at: [f64; 2]) -> usize {
+    let pts = &sim.model.mesh.points;
+    let d = |i: usize| (pts[i][0] - at[0]).powi(2) + (pts[i][1] - at[1]).powi(2);
+    (0..pts.len()).min_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap_or(0)
+}
+
 /// Checks that results can be written into `dir` (creating it), before any step is computed:
 /// a probe file is written through [`atomic_write`] and removed. Leftover temporary files of
 /// killed runs (`.NAME.tmpPID`, never a result) are removed.
@@ -224,12 +231,7 @@ impl OutputWriter {
         prepare_dir(dir)?;
         let mut probes = Vec::new();
         for p in &sim.scene.file.output.probes {
-            let pts = &sim.model.mesh.points;
-            let best = (0..pts.len()).min_by(|&a, &b| {
-                let d = |i: usize| (pts[i][0] - p.at[0]).powi(2) + (pts[i][1] - p.at[1]).powi(2);
-                d(a).total_cmp(&d(b))
-            });
-            probes.push((p.name.clone(), best.unwrap_or(0)));
+            probes.push((p.name.clone(), nearest_point(sim, p.at)));
         }
         let mut history = String::from("step,time,stage");
         for l in &sim.loads.loads {

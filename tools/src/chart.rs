@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use flem_core::check::rel_l2;
 use flem_core::scene::Scene;
 use flem_core::solver::{NoOutput, Simulation};
 use serde::Serialize;
@@ -143,19 +144,6 @@ fn is_rectangle(t: &toml::Table) -> bool {
     t.get("mesh").and_then(|m| m.get("type")).and_then(|v| v.as_str()) == Some("rectangle")
 }
 
-fn rel_l2(a: &[[f64; 2]], b: &[[f64; 2]]) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        num += (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2);
-        den += y[0] * y[0] + y[1] * y[1];
-    }
-    if den > 0.0 {
-        (num / den).sqrt()
-    } else {
-        num.sqrt()
-    }
-}
-
 /// Reference field keyed by position (rounded), for comparison at shared points.
 struct Reference {
     at: std::collections::BTreeMap<(i64, i64), [f64; 2]>,
@@ -200,20 +188,14 @@ impl Reference {
                 None => return None,
             }
         }
-        (!mine.is_empty()).then(|| rel_l2(&mine, &refs))
+        if mine.is_empty() { None } else { rel_l2(&mine, &refs) }
     }
 }
 
+/// The cluster of a probe (the same point the output writer's history follows).
 fn probe_index(sim: &Simulation, name: &str) -> Result<usize> {
     let p = sim.scene.file.output.probes.iter().find(|p| p.name == name).with_context(|| format!("--analytic: no probe {name:?} in [output] probes of the scene"))?;
-    let mut best = (f64::INFINITY, 0);
-    for (c, x) in sim.x0.iter().enumerate() {
-        let d = (x[0] - p.at[0]).powi(2) + (x[1] - p.at[1]).powi(2);
-        if d < best.0 {
-            best = (d, c);
-        }
-    }
-    Ok(best.1)
+    Ok(sim.model.topo.point_clusters[flem_core::output::nearest_point(sim, p.at)][0].idx())
 }
 
 fn load(text: &str, scene: &Scene) -> Result<Scene> {
@@ -276,7 +258,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
                     let steps: u64 = sim.stages_done.iter().map(|s| s.steps).sum();
                     let converged = sim.stages_done.iter().all(|s| s.converged);
                     let split = sim.cracking.as_ref().is_some_and(|c| c.n_splits > 0);
-                    let err_imp = if split { flem_plugins::check::static_solve(&sim).ok().map(|ui| rel_l2(&sim.state.u, &ui)) } else { Some(rel_l2(&sim.state.u, &implicit_u)) };
+                    let err_imp = if split { flem_plugins::check::static_solve(&sim).ok().and_then(|ui| rel_l2(&sim.state.u, &ui)) } else { rel_l2(&sim.state.u, &implicit_u) };
                     let err_ref = if split { None } else { reference.as_ref().and_then(|rf| rf.error(&sim)) };
                     let err_an = match analytic {
                         Some(a) => Some((sim.state.u[probe_index(&sim, &a.probe)?][a.comp] - a.value).abs() / a.value.abs()),
