@@ -54,17 +54,25 @@ fn mesh_block(kind: &str) -> &'static str {
 
 const BODY: &str = "[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"p\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [0.3, -0.2]\n";
 
-/// A dynamic run at `factor` x the predicted dt_crit; Ok(true) when it diverged.
-fn diverges(mesh: &str, damping: &str, factor: f64, steps: u64) -> Result<bool> {
-    let probe = Simulation::new(scene(&format!("{mesh}{BODY}[solver.damping]\n{damping}\n[[stage]]\n"))?)?;
-    let dt = factor * probe.stable.dt_crit;
-    let text = format!("{mesh}{BODY}[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n[solver.damping]\n{damping}\n[[stage]]\nlevels = {{ p = 1.0 }}\ndynamic = true\nmax_steps = {steps}\n");
-    let mut s = Simulation::new(scene(&text)?)?;
+/// Runs a scene; Ok(true) when the solver's divergence guard stopped it.
+fn blows_up(text: &str) -> Result<bool> {
+    let mut s = Simulation::new(scene(text)?)?;
     match s.run(&mut NoOutput) {
         Ok(()) => Ok(false),
         Err(flem_core::FlemError::Diverged { .. }) => Ok(true),
         Err(e) => Err(e.into()),
     }
+}
+
+/// The predicted dt_crit of a case (one power iteration, reused by every run of its bisection).
+fn predicted(text: &str) -> Result<f64> {
+    Ok(Simulation::new(scene(text)?)?.stable.dt_crit)
+}
+
+/// A dynamic run at `factor` x the predicted `dt_crit`; Ok(true) when it diverged.
+fn diverges(mesh: &str, damping: &str, dt_crit: f64, factor: f64, steps: u64) -> Result<bool> {
+    let dt = factor * dt_crit;
+    blows_up(&format!("{mesh}{BODY}[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n[solver.damping]\n{damping}\n[[stage]]\nlevels = {{ p = 1.0 }}\ndynamic = true\nmax_steps = {steps}\n"))
 }
 
 fn explicit_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
@@ -73,11 +81,12 @@ fn explicit_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
     let dampings = [("none", "type = \"none\""), ("viscous", "type = \"viscous\"\nalpha = 0.5"), ("local_0.8", "type = \"local\"\nratio = 0.8"), ("adaptive", "type = \"adaptive\"")];
     for mesh in ["q4", "q4_distorted", "t3"] {
         for (name, d) in dampings {
+            let crit = predicted(&format!("{}{BODY}[solver.damping]\n{d}\n[[stage]]\n", mesh_block(mesh)))?;
             let (mut lo, mut hi) = (0.5, 1.6);
-            if diverges(mesh_block(mesh), d, hi, steps)? {
+            if diverges(mesh_block(mesh), d, crit, hi, steps)? {
                 for _ in 0..iters {
                     let mid = 0.5 * (lo + hi);
-                    if diverges(mesh_block(mesh), d, mid, steps)? {
+                    if diverges(mesh_block(mesh), d, crit, mid, steps)? {
                         hi = mid;
                     } else {
                         lo = mid;
@@ -115,17 +124,11 @@ fn contact_block(kn: f64, solver: &str, steps: u64) -> String {
     )
 }
 
-/// A dynamic run of the pressed block at `factor` x its predicted dt_crit; Ok(true) when the
+/// A dynamic run of the pressed block at `factor` x its predicted `dt_crit`; Ok(true) when the
 /// solver's guard stopped it.
-fn contact_diverges(kn: f64, factor: f64, steps: u64) -> Result<bool> {
-    let probe = Simulation::new(scene(&contact_block(kn, "", steps))?)?;
-    let dt = factor * probe.stable.dt_crit;
-    let mut s = Simulation::new(scene(&contact_block(kn, &format!("[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n"), steps))?)?;
-    match s.run(&mut NoOutput) {
-        Ok(()) => Ok(false),
-        Err(flem_core::FlemError::Diverged { .. }) => Ok(true),
-        Err(e) => Err(e.into()),
-    }
+fn contact_diverges(kn: f64, dt_crit: f64, factor: f64, steps: u64) -> Result<bool> {
+    let dt = factor * dt_crit;
+    blows_up(&contact_block(kn, &format!("[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n"), steps))
 }
 
 fn contact_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
@@ -143,7 +146,7 @@ fn contact_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
         let (mut lo, mut hi) = (0.5, f64::INFINITY);
         let mut f = 0.5;
         while f <= 4.0 + 1e-9 {
-            if contact_diverges(kn, f, steps)? {
+            if contact_diverges(kn, probe.stable.dt_crit, f, steps)? {
                 hi = f;
                 break;
             }
@@ -153,7 +156,7 @@ fn contact_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
         if hi.is_finite() {
             for _ in 0..iters {
                 let mid = 0.5 * (lo + hi);
-                if contact_diverges(kn, mid, steps)? {
+                if contact_diverges(kn, probe.stable.dt_crit, mid, steps)? {
                     hi = mid;
                 } else {
                     lo = mid;
