@@ -39,6 +39,11 @@ pub trait Damping: Debug + Send + Sync {
     fn reset(&mut self) {}
     /// Coefficients for the next step, given the stats of the previous one.
     fn coeffs(&mut self, stats: &StepStats) -> DampingCoeffs;
+    /// Whether [`Self::coeffs`] reads `u_f_int` and `u_m_u` of [`StepStats`]: when it does not,
+    /// the node update does not sum them (they are then 0 between the ledger's full steps).
+    fn uses_rayleigh_stats(&self) -> bool {
+        true
+    }
     /// Factor (<= 1) on the critical time step that this scheme needs.
     fn stability_factor(&self) -> f64 {
         1.0

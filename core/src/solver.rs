@@ -202,9 +202,16 @@ pub struct Simulation {
     pub(crate) stats: StepStats,
     pub(crate) coeffs: DampingCoeffs,
     /// Ledger sums of each node chunk of the last step.
-    partials: Vec<[f64; 11]>,
+    partials: Vec<[f64; NSUM]>,
+    /// The unbalanced-force ratio of the last step when it was a full one.
+    step_ratio: Option<f64>,
     scratch: Vec<[f64; 2]>,
 }
+
+/// Sums of the node update: the ledger's eleven, then (full steps) the unbalanced-force ratio's
+/// largest squared residual of a node, the sum of the nodes' applied-force magnitudes and
+/// their count (see [`Simulation::unbalanced_ratio`]).
+const NSUM: usize = 14;
 
 /// Nodes per chunk of the node update (fixed: the ledger sums must not depend on threads).
 const NODE_CHUNK: usize = 4096;
@@ -218,66 +225,160 @@ struct NodeCtx<'a> {
     f_con: &'a [[f64; 2]],
     v_pres: &'a [[f64; 2]],
     dt: f64,
+    inv_dt: f64,
     c1: f64,
     c2: f64,
     beta: f64,
 }
 
+/// `max |F_unbal| / mean |F_applied|` from the largest residual, the sum of the applied-force
+/// magnitudes and their count.
+fn ratio_of(num: f64, sum: f64, cnt: f64) -> f64 {
+    if cnt == 0.0 || sum == 0.0 {
+        return if num == 0.0 { 0.0 } else { f64::INFINITY };
+    }
+    num / (sum / cnt)
+}
+
+/// The node update of a step (see [`NodeCtx::update`]).
+type UpdateFn = fn(&NodeCtx, usize, &mut [[f64; 2]], &mut [[f64; 2]]) -> [f64; NSUM];
+
+fn pick_update<const C: bool, const L: bool>(full: bool, stats: bool) -> UpdateFn {
+    match (full, stats) {
+        (true, _) => |x, k, u, v| x.update::<C, L, true, true>(k, u, v),
+        (false, true) => |x, k, u, v| x.update::<C, L, false, true>(k, u, v),
+        (false, false) => |x, k, u, v| x.update::<C, L, false, false>(k, u, v),
+    }
+}
+
 impl NodeCtx<'_> {
     /// Central-difference update of the clusters `c0..c0 + u.len()`; returns the ledger sums
     /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]` of the chunk. `CONTACT = false`
-    /// compiles the contact force out (a scene without contact pays nothing for it).
+    /// compiles the contact force out (a scene without contact pays nothing for it), `LOCAL =
+    /// false` the local damping term. `FULL = false` (a step whose ledger nobody reads) sums
+    /// only what accumulates over steps (work, damping, contact work) and the half-step kinetic
+    /// energy of the divergence guard, plus `u . F_int` and `u . M u` when `STATS` (a damping
+    /// that reads them); `FULL` sums everything. The sums run in four independent lanes (node parity x
+    /// dof), so that eleven running sums do not chain one add latency per dof; the lanes are
+    /// fixed by position, so the sums do not depend on the number of threads.
     #[inline]
-    fn update<const CONTACT: bool>(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; 11] {
-        let (dt, c1, c2, beta) = (self.dt, self.c1, self.c2, self.beta);
-        let inv_dt = 1.0 / dt;
-        let (mut w, mut dmp, mut pw, mut pd, mut ke, mut keh, mut ufi, mut umu, mut uf) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        let (mut wc, mut pc) = (0.0, 0.0);
-        for (i, (uc, vc)) in u.iter_mut().zip(v.iter_mut()).enumerate() {
-            let c = c0 + i;
-            let m = self.mass[c];
-            // One division per node instead of two per dof (the ledger stays exact to round-off).
-            let dt_m = dt / m;
-            let fix = self.fix[c];
-            for d in 0..2 {
-                let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
-                let fc = if CONTACT { self.f_con[c][d] } else { 0.0 };
-                let ud = uc[d];
-                uf += ud * fi;
-                let vp;
-                if fix & (1 << d) == 0 {
-                    let f = if CONTACT { fe + fc - fi } else { fe - fi };
-                    let s = if vm > 0.0 { 1.0 } else if vm < 0.0 { -1.0 } else { 0.0 };
-                    vp = (c1 * vm + dt_m * (f - beta * f.abs() * s)) * c2;
-                    let fd = f - m * (vp - vm) * inv_dt;
-                    let va = 0.5 * (vm + vp) * dt;
-                    w += fe * va;
-                    if CONTACT {
-                        wc += fc * va;
-                        pc += 0.5 * fc * vp * dt;
-                    }
-                    dmp += fd * va;
-                    pw += 0.5 * fe * vp * dt;
-                    pd += 0.5 * fd * vp * dt;
-                    ufi += ud * fi;
-                    umu += m * ud * ud;
-                } else {
-                    vp = self.v_pres[c][d];
-                    let va = 0.5 * (vm + vp) * dt;
-                    w += (fi - fc) * va;
-                    pw += 0.5 * (fi - fc) * vp * dt;
-                    if CONTACT {
-                        wc += fc * va;
-                        pc += 0.5 * fc * vp * dt;
-                    }
-                }
-                ke += 0.5 * m * vm * vp;
-                keh += 0.5 * m * vp * vp;
-                vc[d] = vp;
-                uc[d] = ud + dt * vp;
+    fn update<const CONTACT: bool, const LOCAL: bool, const FULL: bool, const STATS: bool>(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; NSUM] {
+        let mut acc = [[0.0f64; NSUM]; 4];
+        let n = u.len();
+        let mut i = 0;
+        while i + 1 < n {
+            let [a0, a1, a2, a3] = &mut acc;
+            self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i, &mut u[i], &mut v[i], a0, a1);
+            // A full step has too many sums for four lanes in registers: two.
+            if FULL {
+                self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i + 1, &mut u[i + 1], &mut v[i + 1], a0, a1);
+            } else {
+                self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i + 1, &mut u[i + 1], &mut v[i + 1], a2, a3);
+            }
+            i += 2;
+        }
+        if i < n {
+            let [a0, a1, ..] = &mut acc;
+            self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i, &mut u[i], &mut v[i], a0, a1);
+        }
+        let (h, hdt) = (0.5, 0.5 * self.dt);
+        let mut out = [0.0; NSUM];
+        for (k, o) in out.iter_mut().enumerate() {
+            // Factors common to every term are applied once, here.
+            let f = match k {
+                0..=3 | 9 | 10 => hdt,
+                4 | 5 => h,
+                _ => 1.0,
+            };
+            *o = if k == 11 { acc[0][k].max(acc[1][k]).max(acc[2][k]).max(acc[3][k]) } else { f * ((acc[0][k] + acc[1][k]) + (acc[2][k] + acc[3][k])) };
+        }
+        out
+    }
+
+    /// One node of [`Self::update`]: its two dofs into the lanes `a` (x) and `b` (y).
+    #[inline(always)]
+    fn node<const CONTACT: bool, const LOCAL: bool, const FULL: bool, const STATS: bool>(&self, c: usize, uc: &mut [f64; 2], vc: &mut [f64; 2], a: &mut [f64; NSUM], b: &mut [f64; NSUM]) {
+        let m = self.mass[c];
+        // One division per node instead of two per dof (the ledger stays exact to round-off).
+        let dt_m = self.dt / m;
+        let fix = self.fix[c];
+        let (ux, ax) = self.dof::<CONTACT, LOCAL, FULL, STATS>(c, 0, fix & 1 == 0, m, dt_m, uc, vc, a);
+        let (uy, ay) = self.dof::<CONTACT, LOCAL, FULL, STATS>(c, 1, fix & 2 == 0, m, dt_m, uc, vc, b);
+        if FULL {
+            // The unbalanced-force ratio of this step, fused (the same terms, in the same
+            // order per node, as `Simulation::unbalanced_ratio`).
+            let (un, ap) = (ux + uy, ax + ay);
+            a[11] = a[11].max(un);
+            if ap > 0.0 {
+                a[12] += ap.sqrt();
+                a[13] += 1.0;
             }
         }
-        [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]
+    }
+
+    /// One dof: the damped central-difference update and its terms of the ledger (without the
+    /// common factors dt/2 and 1/2, see [`Self::update`]); returns (full steps) its squared
+    /// unbalanced force and squared applied force.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn dof<const CONTACT: bool, const LOCAL: bool, const FULL: bool, const STATS: bool>(&self, c: usize, d: usize, free: bool, m: f64, dt_m: f64, uc: &mut [f64; 2], vc: &mut [f64; 2], s: &mut [f64; NSUM]) -> (f64, f64) {
+        let (dt, c1, c2) = (self.dt, self.c1, self.c2);
+        let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
+        let fc = if CONTACT { self.f_con[c][d] } else { 0.0 };
+        let ud = uc[d];
+        if FULL {
+            s[8] += ud * fi;
+        }
+        let vp;
+        let (un, ap);
+        if free {
+            let f = if CONTACT { fe + fc - fi } else { fe - fi };
+            let fa = if CONTACT { fe + fc } else { fe };
+            (un, ap) = (f * f, fa * fa);
+            // Local damping only when the scheme asks for it, and branch-free: the sign of a
+            // velocity that oscillates would mispredict half the time.
+            let fl = if LOCAL { f - self.beta * f.abs() * (((vm > 0.0) as i8 - (vm < 0.0) as i8) as f64) } else { f };
+            vp = (c1 * vm + dt_m * fl) * c2;
+            let fd = f - m * (vp - vm) * self.inv_dt;
+            let va = vm + vp;
+            s[0] += fe * va;
+            s[1] += fd * va;
+            if CONTACT {
+                s[9] += fc * va;
+            }
+            if FULL {
+                s[2] += fe * vp;
+                s[3] += fd * vp;
+                if CONTACT {
+                    s[10] += fc * vp;
+                }
+            }
+            if FULL || STATS {
+                s[6] += ud * fi;
+                s[7] += m * ud * ud;
+            }
+        } else {
+            vp = self.v_pres[c][d];
+            (un, ap) = (0.0, (fi - fc) * (fi - fc));
+            let va = vm + vp;
+            s[0] += (fi - fc) * va;
+            if CONTACT {
+                s[9] += fc * va;
+            }
+            if FULL {
+                s[2] += (fi - fc) * vp;
+                if CONTACT {
+                    s[10] += fc * vp;
+                }
+            }
+        }
+        if FULL {
+            s[4] += m * vm * vp;
+        }
+        s[5] += m * vp * vp;
+        vc[d] = vp;
+        uc[d] = ud + dt * vp;
+        (un, ap)
     }
 }
 
@@ -325,6 +426,7 @@ impl Simulation {
             stats: StepStats::default(),
             coeffs: DampingCoeffs::default(),
             partials: Vec::new(),
+            step_ratio: None,
             scratch: Vec::new(),
             scene,
             model,
@@ -551,8 +653,17 @@ impl Simulation {
         self.model.strain_energy(&self.state.u, &mut Vec::new())
     }
 
-    /// One central-difference step.
+    /// One central-difference step, with the whole energy ledger.
     pub fn step(&mut self) -> Result<()> {
+        self.step_as(true)
+    }
+
+    /// One step; `full = false` leaves the ledger's snapshot terms (kinetic, strain and the
+    /// pending half-step works) as they were at the last full step and updates only the terms
+    /// that accumulate (work, damping, contact work), so that the stage loop pays for the
+    /// ledger only on the steps after which it is read (ratio checks, history rows, snapshots,
+    /// the stage's last step). Displacements and velocities are the same either way.
+    pub fn step_as(&mut self, full: bool) -> Result<()> {
         let dt = self.dt;
         self.model.internal_forces(&self.state.u, &mut self.state.f_int);
         if self.loads.has_follower {
@@ -565,44 +676,55 @@ impl Simulation {
             self.ledger.contact_dissipated += diss;
         }
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
-        let corot_strain = if self.model.corotational { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
+        let corot_strain = if full && self.model.corotational { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
         let (a, beta) = (self.coeffs.viscous, self.coeffs.local);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
         // Node update in fixed chunks; the ledger sums are added chunk by chunk in chunk order,
         // so they do not depend on the number of threads.
         let State { u, v, f_int, f_ext, f_con, mass, fix, v_pres, .. } = &mut self.state;
-        let ctx = NodeCtx { mass, fix, f_int, f_ext, f_con, v_pres, dt, c1, c2, beta };
-        let contact = self.contact.is_some();
+        let ctx = NodeCtx { mass, fix, f_int, f_ext, f_con, v_pres, dt, inv_dt: 1.0 / dt, c1, c2, beta };
+        // One monomorphised node update per combination: a step pays only for what the scene
+        // has and for what is read after it.
+        let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
+        let update = match (self.contact.is_some(), beta != 0.0) {
+            (false, false) => pick_update::<false, false>(full, stats),
+            (false, true) => pick_update::<false, true>(full, stats),
+            (true, false) => pick_update::<true, false>(full, stats),
+            (true, true) => pick_update::<true, true>(full, stats),
+        };
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
         if self.partials.len() != n_chunks {
-            self.partials.resize(n_chunks, [0.0; 11]);
+            self.partials.resize(n_chunks, [0.0; NSUM]);
         }
         match self.model.pool.as_deref() {
             Some(pool) if n_chunks > 1 => {
                 use rayon::prelude::*;
                 let par = u.par_chunks_mut(NODE_CHUNK).zip(v.par_chunks_mut(NODE_CHUNK)).zip(self.partials.par_iter_mut()).enumerate();
-                pool.install(|| par.for_each(|(k, ((u, v), s))| *s = if contact { ctx.update::<true>(k * NODE_CHUNK, u, v) } else { ctx.update::<false>(k * NODE_CHUNK, u, v) }));
+                pool.install(|| par.for_each(|(k, ((u, v), s))| *s = update(&ctx, k * NODE_CHUNK, u, v)));
             }
             _ => {
                 let seq = u.chunks_mut(NODE_CHUNK).zip(v.chunks_mut(NODE_CHUNK)).zip(self.partials.iter_mut()).enumerate();
-                seq.for_each(|(k, ((u, v), s))| *s = if contact { ctx.update::<true>(k * NODE_CHUNK, u, v) } else { ctx.update::<false>(k * NODE_CHUNK, u, v) });
+                seq.for_each(|(k, ((u, v), s))| *s = update(&ctx, k * NODE_CHUNK, u, v));
             }
         }
-        let mut sum = [0.0; 11];
+        let mut sum = [0.0; NSUM];
         for p in &self.partials {
-            for (s, x) in sum.iter_mut().zip(p) {
-                *s += x;
+            for (k, (s, x)) in sum.iter_mut().zip(p).enumerate() {
+                *s = if k == 11 { f64::max(*s, *x) } else { *s + x };
             }
         }
-        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc] = sum;
+        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc, num, asum, cnt] = sum;
+        self.step_ratio = full.then(|| ratio_of(num.sqrt(), asum, cnt));
         self.ledger.external_work += w;
         self.ledger.damping += dmp;
-        self.ledger.pending_ext = pw;
-        self.ledger.pending_damp = pd;
         self.ledger.contact_work += wc;
-        self.ledger.pending_contact = pc;
-        self.ledger.kinetic = ke;
-        self.ledger.strain = corot_strain.unwrap_or(0.5 * uf);
+        if full {
+            self.ledger.pending_ext = pw;
+            self.ledger.pending_damp = pd;
+            self.ledger.pending_contact = pc;
+            self.ledger.kinetic = ke;
+            self.ledger.strain = corot_strain.unwrap_or(0.5 * uf);
+        }
         self.state.time += dt;
         self.state.step += 1;
         self.stats = StepStats { step: self.state.step, dt, omega_max: self.stable.omega_max, kinetic: keh, u_f_int: ufi, u_m_u: umu };
@@ -638,11 +760,12 @@ impl Simulation {
                 cnt += 1;
             }
         }
-        let num = num.sqrt();
-        if cnt == 0 || sum == 0.0 {
-            return if num == 0.0 { 0.0 } else { f64::INFINITY };
-        }
-        num / (sum / cnt as f64)
+        ratio_of(num.sqrt(), sum, cnt as f64)
+    }
+
+    /// [`Self::unbalanced_ratio`] of the last step: computed with it when that step was full.
+    fn step_unbalanced_ratio(&self) -> f64 {
+        self.step_ratio.unwrap_or_else(|| self.unbalanced_ratio())
     }
 
     /// Runs every stage.
@@ -676,6 +799,7 @@ impl Simulation {
         let (max_steps, tol, every) = (st.max_steps.unwrap_or(sc.max_steps), st.tolerance.unwrap_or(sc.tolerance), sc.ratio_every);
         let hist_every = self.scene.file.output.history_every;
         let snap_every = self.scene.file.output.snapshot_every;
+        let split_snap = self.scene.file.output.snapshot_on_split;
         let (check_every, check_at_eq, stall_steps) = match self.scene.file.cracking.as_ref() {
             Some(c) if c.at_equilibrium => (0, true, c.stall_steps),
             Some(c) => (c.check_every, false, 0),
@@ -703,13 +827,16 @@ impl Simulation {
                     return Err(FlemError::Interrupted { step: self.state.step, stage: i, stage_step: k });
                 }
             }
-            self.step()?;
+            // The ledger is summed in full only on steps after which it is read.
+            let kn = k + 1;
+            let full = kn % every == 0 || kn == max_steps || (hist_every > 0 && kn % hist_every == 0) || (snap_every > 0 && kn % snap_every == 0) || (split_snap && check_every > 0 && kn % check_every == 0);
+            self.step_as(full)?;
             k += 1;
             if check_every > 0 && k % check_every == 0 {
                 splits += self.check_failure(obs)?;
             }
             if k % every == 0 || k == max_steps {
-                ratio = self.unbalanced_ratio();
+                ratio = self.step_unbalanced_ratio();
                 self.last_ratio = ratio;
                 if ratio < 0.5 * best {
                     (best, best_step) = (ratio, k);
@@ -793,6 +920,8 @@ impl Simulation {
     /// The per-cluster arrays of [`Self::apply_split_record`] without the new stable-step
     /// estimate (a checkpoint restores that itself).
     pub(crate) fn apply_split_arrays(&mut self, rec: &SplitRecord) {
+        // The forces changed: the fused ratio of the last step no longer describes them.
+        self.step_ratio = None;
         let st = &mut self.state;
         for nc in &rec.new_clusters {
             let p = nc.parent.idx();

@@ -38,6 +38,9 @@ impl Damping for Viscous {
     fn validate(&self) -> Result<(), ParamError> {
         ParamError::range("alpha", self.alpha, 0.0, true, f64::INFINITY, false)
     }
+    fn uses_rayleigh_stats(&self) -> bool {
+        false
+    }
     fn coeffs(&mut self, _s: &StepStats) -> DampingCoeffs {
         DampingCoeffs { viscous: self.alpha, local: 0.0 }
     }
@@ -60,6 +63,9 @@ fn default_local() -> f64 {
 impl Damping for Local {
     fn validate(&self) -> Result<(), ParamError> {
         ParamError::range("ratio", self.ratio, 0.0, true, 1.0, false)
+    }
+    fn uses_rayleigh_stats(&self) -> bool {
+        false
     }
     fn coeffs(&mut self, _s: &StepStats) -> DampingCoeffs {
         DampingCoeffs { viscous: 0.0, local: self.ratio }
@@ -113,6 +119,9 @@ pub struct NoDamping {}
 impl Damping for NoDamping {
     fn validate(&self) -> Result<(), ParamError> {
         Ok(())
+    }
+    fn uses_rayleigh_stats(&self) -> bool {
+        false
     }
     fn coeffs(&mut self, _s: &StepStats) -> DampingCoeffs {
         DampingCoeffs::default()
