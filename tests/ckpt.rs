@@ -4,12 +4,16 @@
 //! bit: displacements compared by `to_bits`, history/split log/PVD/VTU compared byte for byte).
 //! Contact pairs (issue 4) go into the checkpoint section "contact" (core/src/checkpoint.rs);
 //! `interrupted_with_splits_and_contacts_is_bit_identical` interrupts while pairs exist.
+//! The CSV logs are appended row by row and a checkpoint records their length and CRC-32
+//! (core/src/output/csvlog.rs): `checkpoint_records_csv_lengths_not_contents`,
+//! `resume_checks_and_truncates_the_csv_logs`.
+use std::os::fd::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use flem_core::checkpoint::{self, Checkpoint};
-use flem_core::output::OutputWriter;
+use flem_core::output::{OutputWriter, WriterState, OUTPUT_SECTION, OUTPUT_SECTION_VERSION};
 use flem_core::solver::{Observer, Progress, Simulation, StagePos};
 use flem_core::topology::SplitRecord;
 use flem_core::FlemError;
@@ -242,6 +246,11 @@ fn corrupt_or_foreign_checkpoint_is_refused() {
         let e = Checkpoint::decode(&newest, &b, hash).err().unwrap_or_else(|| panic!("a flipped byte at {i} of {} was not detected", good.len()));
         assert!(e.to_string().contains(&newest.display().to_string()), "{e}");
     }
+    // A checkpoint of format version 1 (it carried the CSV contents): refused as older.
+    let mut b = good.clone();
+    b[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let e = Checkpoint::decode(&newest, &b, hash).unwrap_err().to_string();
+    assert!(e.contains(&newest.display().to_string()) && e.contains(&format!("format version 1, this program reads version {}", checkpoint::FORMAT_VERSION)) && e.contains("older FLEM"), "{e}");
     // Truncated (a half-written file that did not go through atomic_write).
     let e = Checkpoint::decode(&newest, &good[..good.len() / 2], hash).unwrap_err().to_string();
     assert!(e.contains("truncated"), "{e}");
@@ -262,33 +271,172 @@ fn corrupt_or_foreign_checkpoint_is_refused() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A write error in the middle of a run (here: history.csv turned into a folder, which even
-/// root cannot rename over) stops the run with a message naming the file; the last
-/// checkpoint stays whole and resumes.
+/// Replaces this process's open descriptor of `path` (the output writer's append handle) by
+/// one on /dev/full, so that every later write to it fails with ENOSPC as on a full disk; the
+/// file on disk keeps what was written. Returns whether such a descriptor was found.
+fn fill_disk_under(path: &Path) -> bool {
+    let target = std::fs::canonicalize(path).unwrap();
+    for e in std::fs::read_dir("/proc/self/fd").unwrap().flatten() {
+        let Ok(fd) = e.file_name().to_string_lossy().parse::<i32>() else { continue };
+        if std::fs::read_link(e.path()).is_ok_and(|l| l == target) {
+            let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+            // SAFETY: dup2 onto a descriptor this process owns (the writer's File, which stays
+            // open, now on /dev/full, until it is dropped); `full` is closed after.
+            assert!(unsafe { libc::dup2(full.as_raw_fd(), fd) } >= 0, "dup2 failed");
+            return true;
+        }
+    }
+    false
+}
+
+/// Resumes the run of `text` in `dir` from its newest checkpoint to the end (writing into `out`).
+fn resume_to_end(text: &str, dir: &Path, out: &Path) -> Simulation {
+    let mut sim = Simulation::new(scene(text)).unwrap();
+    let (ck, path, refused) = checkpoint::load_newest(dir, &sim).unwrap();
+    assert!(refused.is_empty(), "{refused:?}");
+    ck.restore(&mut sim).unwrap();
+    let mut w = OutputWriter::new(out, &sim).unwrap();
+    w.resume(&ck, &path).unwrap();
+    sim.run_from(ck.pos.clone(), &mut w).unwrap();
+    sim
+}
+
+/// A write error in the middle of a run (here: the disk fills up under history.csv, whose
+/// append handle is pointed at /dev/full) stops the run with a message naming the file; the
+/// last checkpoint stays whole, and resuming from it once there is room again gives the
+/// results of an uninterrupted run (reference; tolerance: none, byte for byte).
 #[test]
 fn write_error_stops_the_run_and_keeps_the_last_checkpoint() {
-    let dir = tmp("werr");
+    let (dir, ref_dir) = (tmp("werr"), tmp("werr-ref"));
     let text = tension_text();
+    let mut reference = Simulation::new(scene(&text)).unwrap();
+    let mut w = OutputWriter::new(&ref_dir, &reference).unwrap();
+    reference.run(&mut w).unwrap();
     let mut sim = Simulation::new(scene(&text)).unwrap();
     let w = OutputWriter::new(&dir, &sim).unwrap();
-    let d2 = dir.clone();
+    let (d2, mut full) = (dir.clone(), false);
     let mut obs = StopAt {
         w,
         at: u64::MAX,
-        hook: move |s: &Simulation| {
-            if s.state.step >= 700 && !d2.join("history.csv").is_dir() {
-                let _ = std::fs::remove_file(d2.join("history.csv"));
-                std::fs::create_dir(d2.join("history.csv")).unwrap();
+        hook: |s: &Simulation| {
+            if s.state.step >= 700 && !full {
+                full = fill_disk_under(&d2.join("history.csv"));
+                assert!(full, "history.csv is not held open by the writer");
             }
         },
     };
     let e = sim.run(&mut obs).unwrap_err().to_string();
-    assert!(e.contains("history.csv") && e.contains("cannot write"), "{e}");
+    assert!(e.contains("history.csv") && e.contains("cannot write") && e.contains("No space left"), "{e}");
+    drop(obs);
     let fresh = Simulation::new(scene(&text)).unwrap();
     let (ck, _, refused) = checkpoint::load_newest(&dir, &fresh).unwrap();
     assert!(refused.is_empty() && ck.step >= 600, "{refused:?} step {}", ck.step);
     assert!(std::fs::read_dir(&dir).unwrap().flatten().all(|e| !e.file_name().to_string_lossy().contains(".tmp")), "a temporary file was left");
+    let hist = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    assert!(hist.ends_with('\n'), "history.csv was left with a cut row");
+    resume_to_end(&text, &dir, &dir);
+    assert_same_results(&ref_dir, &dir, "disk full + resume");
     let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&ref_dir);
+}
+
+/// The output section of a checkpoint file.
+fn writer_state(path: &Path, text: &str) -> WriterState {
+    let hash = checkpoint::scene_hash(&Simulation::new(scene(text)).unwrap());
+    let ck = Checkpoint::decode(path, &std::fs::read(path).unwrap(), hash).unwrap();
+    ck.section::<WriterState>(OUTPUT_SECTION, OUTPUT_SECTION_VERSION).unwrap().expect("no output section")
+}
+
+/// A checkpoint records the byte length of each CSV log, not its contents: at the end of a run
+/// the last checkpoint's lengths are the files' lengths, and its size is the same (within a
+/// few bytes of varint lengths) with a history row every step as with a few rows, while
+/// history.csv grows by orders of magnitude. Reference: the files on disk.
+#[test]
+fn checkpoint_records_csv_lengths_not_contents() {
+    let mut sizes = Vec::new();
+    for every in [1000, 1] {
+        let dir = tmp(&format!("len-{every}"));
+        let text = tension_text().replace("history_every = 37", &format!("history_every = {every}"));
+        let mut sim = Simulation::new(scene(&text)).unwrap();
+        let mut w = OutputWriter::new(&dir, &sim).unwrap();
+        sim.run(&mut w).unwrap();
+        let newest = checkpoint::list(&dir).unwrap()[0].1.clone();
+        let st = writer_state(&newest, &text);
+        for (name, mark) in [("history.csv", st.history), ("splits.csv", st.splits)] {
+            let len = std::fs::metadata(dir.join(name)).unwrap().len();
+            assert_eq!(mark.map(|m| m.len), Some(len), "history_every = {every}: {name} length in the last checkpoint");
+        }
+        let ck_size = std::fs::metadata(&newest).unwrap().len();
+        let hist = std::fs::metadata(dir.join("history.csv")).unwrap().len();
+        eprintln!("history_every = {every}: {} steps, history.csv {hist} bytes, checkpoint {ck_size} bytes", sim.state.step);
+        sizes.push((hist, ck_size));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    assert!(sizes[1].0 > 50 * sizes[0].0, "{sizes:?}");
+    assert!(sizes[1].1.abs_diff(sizes[0].1) <= 16, "the checkpoint grows with the history: {sizes:?}");
+}
+
+/// `--resume` checks each CSV log against the checkpoint: shorter than recorded, or a changed
+/// byte in the recorded prefix, is refused with the file and the checkpoint named; rows
+/// written after the checkpoint and a row cut by a kill are truncated away, and the run then
+/// ends byte-identical to an uninterrupted one (reference; tolerance: none), also when resumed
+/// into another folder (the prefix is copied there).
+#[test]
+fn resume_checks_and_truncates_the_csv_logs() {
+    let text = tension_text();
+    let (ref_dir, dir, other) = (tmp("trunc-ref"), tmp("trunc"), tmp("trunc-other"));
+    let mut reference = Simulation::new(scene(&text)).unwrap();
+    let mut w = OutputWriter::new(&ref_dir, &reference).unwrap();
+    reference.run(&mut w).unwrap();
+    let at = reference.state.step / 2 + 5;
+    let mut sim = Simulation::new(scene(&text)).unwrap();
+    let w = OutputWriter::new(&dir, &sim).unwrap();
+    let mut obs = StopAt { w, at, hook: |_: &Simulation| {} };
+    assert!(matches!(sim.run(&mut obs), Err(FlemError::Interrupted { .. })));
+    drop(obs);
+    let hist = dir.join("history.csv");
+    let good = std::fs::read(&hist).unwrap();
+    let (ck_path, mark) = {
+        let p = checkpoint::list(&dir).unwrap()[0].1.clone();
+        let m = writer_state(&p, &text).history.unwrap();
+        (p, m)
+    };
+    assert_eq!(mark.len, good.len() as u64, "the interruption's checkpoint is taken after the last row");
+    let try_resume = || -> flem_core::Result<()> {
+        let mut sim = Simulation::new(scene(&text)).unwrap();
+        let (ck, path, _) = checkpoint::load_newest(&dir, &sim).unwrap();
+        ck.restore(&mut sim).unwrap();
+        OutputWriter::new(&dir, &sim).unwrap().resume(&ck, &path)
+    };
+    let named = |e: &str| e.contains(&hist.display().to_string()) && e.contains(&ck_path.display().to_string()) && e.contains("without --resume");
+    // Shorter than recorded.
+    std::fs::write(&hist, &good[..good.len() - 1]).unwrap();
+    let e = try_resume().unwrap_err().to_string();
+    assert!(named(&e) && e.contains("fewer than"), "{e}");
+    // One byte of the prefix changed (a digit of a middle row).
+    let mut b = good.clone();
+    let i = good.len() / 2 + good[good.len() / 2..].iter().position(|c| c.is_ascii_digit() && *c != b'7').unwrap();
+    b[i] = b'7';
+    std::fs::write(&hist, &b).unwrap();
+    let e = try_resume().unwrap_err().to_string();
+    assert!(named(&e) && e.contains("changed since the checkpoint"), "{e}");
+    // Missing.
+    std::fs::remove_file(&hist).unwrap();
+    let e = try_resume().unwrap_err().to_string();
+    assert!(named(&e) && e.contains("cannot be read"), "{e}");
+    // Whole rows after the checkpoint and a row cut by a kill: truncated away.
+    let mut b = good.clone();
+    b.extend_from_slice(b"999999,1e0,1,2e0\n12345,6.7e-");
+    std::fs::write(&hist, &b).unwrap();
+    resume_to_end(&text, &dir, &other);
+    resume_to_end(&text, &dir, &dir);
+    assert_same_results(&ref_dir, &dir, "resumed after extra and cut rows");
+    for name in ["history.csv", "splits.csv"] {
+        assert!(std::fs::read(ref_dir.join(name)).unwrap() == std::fs::read(other.join(name)).unwrap(), "resumed into another folder: {name} differs");
+    }
+    for d in [dir, ref_dir, other] {
+        let _ = std::fs::remove_dir_all(&d);
+    }
 }
 
 /// A folder we cannot write into: chmod 555 (or, when the tests run as root, who writes
@@ -365,10 +513,13 @@ fn sigint_then_resume_command_gives_the_same_results() {
     let _ = std::fs::remove_dir_all(&ref_dir);
 }
 
-/// Every result file left in `dir` is whole: VTU parse (vtkio), CSV rows have the header's
-/// field count and end with a newline, JSON parses, the PVD is closed and names existing
-/// files, every checkpoint decodes with a good checksum.
-fn check_all_whole(dir: &Path, hash: u64, round: usize) -> usize {
+/// Every result file left in `dir` is whole: VTU parse (vtkio), JSON parses, the PVD is closed
+/// and names existing files, every checkpoint decodes with a good checksum. The CSV logs are
+/// appended in place: each is a byte prefix of the uninterrupted run's (`ref_dir`) with its
+/// header, and its whole lines have the header's field count; a last row cut by SIGKILL (no
+/// newline; readers skip it, a resume truncates it away) is counted in `cut`, and refused
+/// when `complete` (the run has finished).
+fn check_all_whole(dir: &Path, ref_dir: &Path, hash: u64, round: usize, complete: bool, cut: &mut usize) -> usize {
     let mut n = 0;
     for e in std::fs::read_dir(dir).unwrap().flatten() {
         let name = e.file_name().to_string_lossy().to_string();
@@ -381,9 +532,16 @@ fn check_all_whole(dir: &Path, hash: u64, round: usize) -> usize {
         if name.ends_with(".vtu") {
             vtkio::Vtk::import(&p).unwrap_or_else(|e| panic!("{ctx}: {e}"));
         } else if name.ends_with(".csv") {
+            let reference = std::fs::read(ref_dir.join(&name)).unwrap_or_default();
+            assert!(reference.starts_with(&bytes), "{ctx}: not a prefix of the uninterrupted run's {name}");
             let t = String::from_utf8(bytes).unwrap();
-            assert!(t.ends_with('\n'), "{ctx}: truncated");
-            let mut lines = t.lines();
+            let whole = &t[..t.rfind('\n').map_or(0, |i| i + 1)];
+            assert!(!whole.is_empty(), "{ctx}: no header");
+            if whole.len() < t.len() {
+                assert!(!complete, "{ctx}: truncated");
+                *cut += 1;
+            }
+            let mut lines = whole.lines();
             let k = lines.next().unwrap().split(',').count();
             for l in lines {
                 assert_eq!(l.split(',').count(), k, "{ctx}: a short row: {l}");
@@ -411,7 +569,8 @@ fn check_all_whole(dir: &Path, hash: u64, round: usize) -> usize {
 
 /// A child `flem run` killed with SIGKILL at random moments, again and again (resuming from
 /// its checkpoints in between): after every kill, every file in the folder is whole (old or new
-/// version, never truncated), and the run finally completes with results identical to an
+/// version, never truncated; the CSV logs a prefix of the final ones, see [`check_all_whole`]),
+/// and the run finally completes with results identical to an
 /// uninterrupted run. Output is made very frequent (a history row every 10 steps, a snapshot
 /// every 500, a checkpoint every 250) so that kills land during writes.
 #[test]
@@ -434,7 +593,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
     let seed = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos() as u64;
     eprintln!("sigkill test: random seed {seed}");
     let mut rng = seed;
-    let (mut kills, mut checked) = (0, 0);
+    let (mut kills, mut checked, mut cut) = (0, 0, 0);
     for round in 0..12 {
         let resume = !checkpoint::list(&dir).unwrap().is_empty();
         let mut args = vec!["run", sps, "--quiet", "--out", dir.to_str().unwrap()];
@@ -451,12 +610,12 @@ fn sigkill_during_output_leaves_every_file_whole() {
         }
         child.wait().unwrap();
         // A kill before the first write leaves nothing: legitimate, counted below.
-        checked += check_all_whole(&dir, hash, round);
+        checked += check_all_whole(&dir, &ref_dir, hash, round, false, &mut cut);
         if done {
             break;
         }
     }
-    eprintln!("sigkill test: {kills} kills, {checked} files checked whole");
+    eprintln!("sigkill test: {kills} kills, {checked} files checked whole, {cut} CSV logs with a cut last row");
     assert!(checked >= 10, "too few files written to check ({checked})");
     assert!(kills >= 3, "the run finished before it could be killed enough ({kills} kills)");
     let resume = !checkpoint::list(&dir).unwrap().is_empty();
@@ -466,7 +625,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
     }
     let r = flem_run(&args);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    check_all_whole(&dir, hash, 99);
+    check_all_whole(&dir, &ref_dir, hash, 99, true, &mut cut);
     assert_same_results(&ref_dir, &dir, "after SIGKILLs and resumes");
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&ref_dir);

@@ -32,7 +32,10 @@
 //!   when capturing (the observer's [`crate::solver::Observer::checkpoint`] or [`Checkpoint::capture`]),
 //!   `ck.section::<Pairs>("contact", 1)` when restoring (in [`Checkpoint::restore`]). A section
 //!   has its own version; a reader that meets an unknown version refuses it by name. The output
-//!   writer keeps its history rows and snapshot list in section `"output"`.
+//!   writer keeps its snapshot list and the byte length + CRC-32 of `history.csv` and
+//!   `splits.csv` in section `"output"` (version 2; `crate::output::WriterState`): a resume
+//!   checks those files' prefixes and truncates them (`crate::output::csvlog`), so a checkpoint's
+//!   size does not grow with the number of rows.
 //! - a new field of [`Checkpoint`] itself: add it at the end and bump [`FORMAT_VERSION`]
 //!   (postcard is not self-describing, so old files are then refused with a clear message).
 use std::path::{Path, PathBuf};
@@ -45,8 +48,10 @@ use crate::ids::{ClusterId, EdgeId};
 use crate::solver::{Ledger, Simulation, StagePos, StageResult};
 
 pub const MAGIC: &[u8; 8] = b"FLEMCKPT";
-/// Version of the layout and of the [`Checkpoint`] payload.
-pub const FORMAT_VERSION: u32 = 1;
+/// Version of the layout and of the [`Checkpoint`] payload. 2: the output section records the
+/// CSV logs' lengths and checksums instead of their contents (the CSV files beside the
+/// checkpoint are part of the state).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// One named, versioned, opaque part of a checkpoint (postcard bytes).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -304,7 +309,8 @@ impl Checkpoint {
         let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().unwrap());
         let fv = u32_at(8);
         if fv != FORMAT_VERSION {
-            return Err(refuse(format!("format version {fv}, this program reads version {FORMAT_VERSION}")));
+            let hint = if fv < FORMAT_VERSION { "an older FLEM wrote it: resume with that FLEM, or start the run again without --resume" } else { "a newer FLEM wrote it" };
+            return Err(refuse(format!("format version {fv}, this program reads version {FORMAT_VERSION} ({hint})")));
         }
         let len = u64_at(16);
         if len != (bytes.len() - 24) as u64 {

@@ -1,6 +1,9 @@
 //! Results on disk: VTU snapshots with a PVD series, a history CSV, a split log, and
 //! `summary.json`. Every file is written to a temporary name and renamed into place, so a
-//! reader never sees half a file.
+//! reader never sees half a file, except the two CSV logs, which are appended to row by row
+//! ([`csvlog`]: at most a last row cut by SIGKILL, which readers ignore and resume removes).
+pub mod csvlog;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -18,16 +21,16 @@ use crate::topology::SplitRecord;
 /// (`.NAME.tmpPID`), fsync, rename over `path`, fsync of the folder. A reader, or a run killed
 /// at any moment, sees the old file or the new one, never a part. On any error the temporary
 /// file is removed and `path` is left as it was; the error names `path`. Every result file
-/// (VTU, PVD, CSV, JSON, PNG, checkpoints) goes through here or [`atomic_write_with`].
+/// (VTU, PVD, JSON, PNG, checkpoints, the CSV logs' headers) goes through here; the CSV logs'
+/// rows are appended by [`csvlog::CsvLog`].
 pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
     atomic_write_with(path, bytes, true)
 }
 
 /// [`atomic_write`], with the two fsyncs only when `durable`. Without them the file is still
 /// whole for readers and after a killed process (rename is atomic), but a power cut may lose
-/// it. fsync costs about 9 ms per file (+7 ms for the folder) on this machine's disk, so the
-/// files rewritten every few steps (history.csv, splits.csv) skip it: their content is also in
-/// every (durable) checkpoint and a resumed run rewrites them.
+/// it. fsync costs about 9 ms per file (+7 ms for the folder) on this machine's disk; used for
+/// the folder probe of [`prepare_dir`].
 pub fn atomic_write_with(path: &Path, bytes: &[u8], durable: bool) -> Result<()> {
     use std::io::Write;
     let err = |e: std::io::Error| FlemError::Output { path: path.display().to_string(), msg: e.to_string() };
@@ -84,21 +87,26 @@ pub fn prepare_dir(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// What the output writer keeps in a checkpoint (section "output", version 1): the history
-/// and split log so far and the snapshot series, so that a resumed run rewrites them exactly.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct WriterState {
-    snapshots: Vec<(f64, String)>,
-    history: String,
-    splits: String,
+/// Version of the checkpoint section [`OUTPUT_SECTION`].
+pub const OUTPUT_SECTION_VERSION: u32 = 2;
+/// The checkpoint section holding [`WriterState`].
+pub const OUTPUT_SECTION: &str = "output";
+
+/// What the output writer keeps in a checkpoint (section "output", version 2): the snapshot
+/// series, and the length and CRC-32 of each CSV log (`None`: not created yet). Version 1
+/// carried the logs' whole contents.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct WriterState {
+    pub snapshots: Vec<(f64, String)>,
+    pub history: Option<csvlog::LogMark>,
+    pub splits: Option<csvlog::LogMark>,
 }
 
-/// A CSV field: the number, or empty when it is not finite (not yet computed), never NaN.
-fn csv_num(v: f64) -> String {
+/// Appends a CSV field: the number, or nothing when it is not finite (not yet computed), never
+/// NaN.
+fn push_num(s: &mut String, v: f64) {
     if v.is_finite() {
-        format!("{v:e}")
-    } else {
-        String::new()
+        let _ = write!(s, "{v:e}");
     }
 }
 
@@ -209,8 +217,10 @@ pub fn vtu_bytes(vtk: Vtk, compress: bool) -> Result<Vec<u8>> {
 pub struct OutputWriter {
     pub dir: PathBuf,
     snapshots: Vec<(f64, String)>,
-    history: String,
-    splits: String,
+    history: csvlog::CsvLog,
+    splits: csvlog::CsvLog,
+    /// The row being written (kept to reuse its allocation).
+    row: String,
     compress: bool,
     probes: Vec<(String, usize)>,
     pub quiet: bool,
@@ -244,18 +254,23 @@ impl OutputWriter {
         // A new run in a folder holding an older run's checkpoints numbers its own after them,
         // so that they are the newest (and the old ones get pruned); `resume` renumbers.
         let ck_seq = crate::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
-        let w = OutputWriter { dir: dir.to_path_buf(), snapshots: Vec::new(), history, splits: String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"), compress: sim.scene.file.output.compress, probes, quiet: false, on_progress: None, stop: None, last_checkpoint: None, ck_seq, ck_keep: sim.scene.file.output.checkpoint_keep, ck_seconds: sim.scene.file.output.checkpoint_seconds, ck_time: std::time::Instant::now(), scene_hash: crate::checkpoint::scene_hash(sim) };
+        let history = csvlog::CsvLog::new(dir.join("history.csv"), history);
+        let splits = csvlog::CsvLog::new(dir.join("splits.csv"), String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"));
+        let w = OutputWriter { dir: dir.to_path_buf(), snapshots: Vec::new(), history, splits, row: String::new(), compress: sim.scene.file.output.compress, probes, quiet: false, on_progress: None, stop: None, last_checkpoint: None, ck_seq, ck_keep: sim.scene.file.output.checkpoint_keep, ck_seconds: sim.scene.file.output.checkpoint_seconds, ck_time: std::time::Instant::now(), scene_hash: crate::checkpoint::scene_hash(sim) };
         atomic_write(&dir.join("scene.resolved.toml"), sim.scene.resolved_toml().as_bytes())?;
         Ok(w)
     }
 
-    /// Continues from a restored checkpoint (read from `path`): the history, split log and
-    /// snapshot series as they were then, and the checkpoint numbering after it.
+    /// Continues from a restored checkpoint (read from `path`): the snapshot series as it was
+    /// then, the CSV logs truncated to the lengths it recorded (copied from the checkpoint's
+    /// folder when resuming into another one; a shorter or changed log is refused, naming it;
+    /// see [`csvlog::CsvLog::resume`]), and the checkpoint numbering after it.
     pub fn resume(&mut self, ck: &Checkpoint, path: &Path) -> Result<()> {
-        if let Some(w) = ck.section::<WriterState>("output", 1)? {
+        if let Some(w) = ck.section::<WriterState>(OUTPUT_SECTION, OUTPUT_SECTION_VERSION)? {
+            let src = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            self.history.resume(&src.join("history.csv"), w.history, path)?;
+            self.splits.resume(&src.join("splits.csv"), w.splits, path)?;
             self.snapshots = w.snapshots;
-            self.history = w.history;
-            self.splits = w.splits;
         }
         self.ck_seq = ck.seq + 1;
         self.last_checkpoint = Some(path.to_path_buf());
@@ -271,8 +286,11 @@ impl OutputWriter {
         atomic_write(&self.dir.join("results.pvd"), s.as_bytes())
     }
 
-    /// Writes `summary.json`.
+    /// Writes `summary.json` (the end of a run, also after a divergence or an interruption),
+    /// after an fsync of the CSV logs.
     pub fn write_summary(&self, sim: &Simulation, wall: f64) -> Result<()> {
+        self.history.sync()?;
+        self.splits.sync()?;
         let l = &sim.ledger;
         let (one, two) = sim.model.topo.crack_counts();
         let v = serde_json::json!({
@@ -300,18 +318,18 @@ impl OutputWriter {
 impl Observer for OutputWriter {
     fn history(&mut self, sim: &Simulation, stage: usize) -> Result<()> {
         let l = &sim.ledger;
-        let _ = write!(self.history, "{},{},{}", sim.state.step, csv_num(sim.state.time), stage);
-        let mut fields: Vec<f64> = sim.levels.clone();
-        for (_, p) in &self.probes {
-            let c = sim.model.topo.point_clusters[*p][0].idx();
-            fields.extend_from_slice(&sim.state.u[c]);
+        let r = &mut self.row;
+        r.clear();
+        let _ = write!(r, "{},", sim.state.step);
+        push_num(r, sim.state.time);
+        let _ = write!(r, ",{stage}");
+        let probes = self.probes.iter().flat_map(|(_, p)| sim.state.u[sim.model.topo.point_clusters[*p][0].idx()]);
+        for v in sim.levels.iter().copied().chain(probes).chain([l.external(), l.kinetic, l.strain, l.dissipated(), l.residual(), sim.last_ratio]) {
+            r.push(',');
+            push_num(r, v);
         }
-        fields.extend_from_slice(&[l.external(), l.kinetic, l.strain, l.dissipated(), l.residual(), sim.last_ratio]);
-        for v in fields {
-            let _ = write!(self.history, ",{}", csv_num(v));
-        }
-        self.history.push('\n');
-        atomic_write_with(&self.dir.join("history.csv"), self.history.as_bytes(), false)
+        r.push('\n');
+        self.history.append(self.row.as_bytes())
     }
 
     fn snapshot(&mut self, sim: &Simulation, _stage: usize, label: &str) -> Result<()> {
@@ -326,15 +344,16 @@ impl Observer for OutputWriter {
     }
 
     fn splits(&mut self, sim: &Simulation, _rec: &SplitRecord, events: &[SplitEvent]) -> Result<()> {
+        self.row.clear();
         for e in events {
             let x = sim.model.mesh.points[e.point.idx()];
             let edges: Vec<String> = e.edges.iter().map(|ed| {
                 let p = sim.model.topo.edges[ed.idx()].points;
                 format!("{}-{}", p[0], p[1])
             }).collect();
-            let _ = writeln!(self.splits, "{:e},{},{},{:e},{:e},{},{},{:?},{:e},{:.3},{:e},{:e},{:e},{}", e.time, e.step, e.point, x[0], x[1], e.cluster, e.new_cluster, e.mode, e.index, e.sigma1_deg, e.stress[0], e.stress[1], e.stress[2], edges.join(" "));
+            let _ = writeln!(self.row, "{:e},{},{},{:e},{:e},{},{},{:?},{:e},{:.3},{:e},{:e},{:e},{}", e.time, e.step, e.point, x[0], x[1], e.cluster, e.new_cluster, e.mode, e.index, e.sigma1_deg, e.stress[0], e.stress[1], e.stress[2], edges.join(" "));
         }
-        atomic_write_with(&self.dir.join("splits.csv"), self.splits.as_bytes(), false)?;
+        self.splits.append(self.row.as_bytes())?;
         if sim.scene.file.output.snapshot_on_split && !events.is_empty() {
             let n = sim.cracking.as_ref().map_or(0, |c| c.n_splits);
             self.snapshot(sim, sim.stages_done.len(), &format!("stage{}_split{n}", sim.stages_done.len()))?;
@@ -356,12 +375,15 @@ impl Observer for OutputWriter {
         self.ck_seconds > 0.0 && self.ck_time.elapsed().as_secs_f64() >= self.ck_seconds
     }
 
-    /// Writes `checkpoint_{seq}.bin` atomically, then removes the ones older than the
+    /// Syncs the CSV logs (the checkpoint records their lengths: they must be durable first),
+    /// writes `checkpoint_{seq}.bin` atomically, then removes the ones older than the
     /// `output.checkpoint_keep` newest (only after the new one is safely in place).
     fn checkpoint(&mut self, sim: &Simulation, pos: &StagePos) -> Result<()> {
         let mut ck = Checkpoint::capture(sim, pos)?;
         ck.seq = self.ck_seq;
-        ck.put_section("output", 1, &WriterState { snapshots: self.snapshots.clone(), history: self.history.clone(), splits: self.splits.clone() })?;
+        self.history.sync()?;
+        self.splits.sync()?;
+        ck.put_section(OUTPUT_SECTION, OUTPUT_SECTION_VERSION, &WriterState { snapshots: self.snapshots.clone(), history: self.history.mark(), splits: self.splits.mark() })?;
         let path = self.dir.join(crate::checkpoint::file_name(ck.seq));
         atomic_write(&path, &ck.encode(self.scene_hash)?)?;
         crate::checkpoint::prune(&self.dir, ck.seq, self.ck_keep)?;

@@ -267,7 +267,8 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     // Fail on an unwritable folder before any step is computed.
     flem_core::output::prepare_dir(&out)?;
     // SIGINT/SIGTERM set a flag the run polls once per step; a second signal while the flag is
-    // set ends the process at once (files stay whole: every write is atomic).
+    // set ends the process at once (files stay whole: every write is atomic, or one append of
+    // whole CSV rows, which a handled signal does not cut).
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register_conditional_shutdown(sig, 130, Arc::clone(&stop)).context("installing the signal handler")?;

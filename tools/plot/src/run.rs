@@ -123,6 +123,9 @@ impl History {
     pub fn read(dir: &Path) -> Result<History> {
         let path = dir.join("history.csv");
         let text = std::fs::read_to_string(&path).map_err(|e| FlemError::Other(format!("{}: cannot be read ({e})", path.display())))?;
+        // The log is appended row by row: a run killed by SIGKILL may leave its last row cut
+        // (no newline; flem_core::output::csvlog). Only whole lines are read.
+        let text = &text[..text.rfind('\n').map_or(0, |i| i + 1)];
         let mut lines = text.lines();
         let header: Vec<String> = lines.next().unwrap_or_default().split(',').map(str::to_string).collect();
         let rows = lines.filter(|l| !l.is_empty()).map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
@@ -153,4 +156,19 @@ pub fn stages(dir: &Path) -> Vec<(String, bool, u64)> {
         .as_array()
         .map(|a| a.iter().map(|s| (s["name"].as_str().unwrap_or("").to_string(), s["converged"].as_bool().unwrap_or(false), s["splits"].as_u64().unwrap_or(0))).collect())
         .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    /// A history whose last row was cut by a kill (no newline): only the whole rows are read.
+    #[test]
+    fn history_ignores_a_cut_last_row() {
+        let dir = std::env::temp_dir().join(format!("flem-plot-cut-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("history.csv"), "step,time\n1,1e-1\n2,2e-1\n3,3e").unwrap();
+        let h = super::History::read(&dir).unwrap();
+        assert_eq!(h.header, ["step", "time"]);
+        assert_eq!(h.rows, vec![vec![1.0, 0.1], vec![2.0, 0.2]]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
