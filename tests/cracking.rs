@@ -204,3 +204,36 @@ fn notched_plate_cracks_from_the_tip_at_p_crit() {
     assert!((sim.stable.dt_crit - cold).abs() < 1e-3 * cold, "dt_crit after splits {} vs cold {}", sim.stable.dt_crit, cold);
     assert!(sim.dt <= sim.stable.dt_crit);
 }
+
+/// Records, after every split, whether the stable-step estimate was deferred and the bound.
+struct StableWatch(Vec<(usize, f64, f64)>);
+impl Observer for StableWatch {
+    fn splits(&mut self, s: &Simulation, _r: &SplitRecord, _ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+        self.0.push((s.stable.iterations, s.dt, s.stable.dt_element_bound));
+        Ok(())
+    }
+}
+
+/// Deferred stable step after splits (undamped dynamic crack, check every step: the peers'
+/// notched plate). Reference: the element eigenvalue inequality (the highest frequency of an
+/// assembly with lumped masses is at most the highest element frequency, for any sharing of
+/// nodes, hence after any split), so a step below `dt_element_bound` needs no new estimate.
+/// Checks: every split defers (iterations = 0) while dt <= the bound; at the stage's end the
+/// estimate is made and agrees with a cold one on the split mesh (tolerance 1e-3, the power
+/// iteration's), and dt stays below it.
+#[test]
+fn stable_step_after_splits_is_deferred_below_the_element_bound() {
+    let mut sim = Simulation::new(flem_core::scene::Scene::from_file(&root().join("configs/bench/notch_q4_h0.25.toml")).unwrap()).unwrap();
+    let mut w = StableWatch(Vec::new());
+    sim.run(&mut w).unwrap();
+    assert!(w.0.len() >= 10, "only {} split events", w.0.len());
+    for &(it, dt, bound) in &w.0 {
+        assert!(dt <= bound, "dt {dt} above the element bound {bound}");
+        assert_eq!(it, 0, "a split re-estimated the stable step although dt <= the element bound");
+    }
+    assert!(sim.stable.iterations > 0, "the stage's end did not estimate the step again");
+    let cold = sim.estimate_stable_step().dt_crit;
+    assert!((sim.stable.dt_crit - cold).abs() < 1e-3 * cold, "dt_crit after the stage {} vs cold {}", sim.stable.dt_crit, cold);
+    assert!(sim.dt <= sim.stable.dt_crit);
+    println!("{} checks with splits deferred; dt {:.4e} <= element bound {:.4e}; dt_crit at the end {:.6e} (cold {:.6e})", w.0.len(), sim.dt, w.0[0].2, sim.stable.dt_crit, cold);
+}

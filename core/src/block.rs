@@ -74,13 +74,18 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     /// D with thickness and Gauss weight folded in.
     dk: [f64; 3],
     sched: Schedule,
+    /// Shape-function gradients at each corner's stress point, built at the first failure
+    /// check (a scene that never checks does not pay its 8 N^2 doubles per element).
+    corner_g: std::sync::OnceLock<Vec<[[[f64; 2]; N]; N]>>,
+    /// `max_omega_bound` (asked again at every new stable-step estimate, after splits).
+    omega_bound: std::sync::OnceLock<f64>,
     _s: PhantomData<S>,
 }
 
 impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     pub fn new(region: String, mat: Material) -> Self {
         let d = mat.dmat();
-        ElementBlock { region, d, dk: S::scaled_d(&d, mat.thickness), mat, elems: Vec::new(), x: Vec::new(), conn: Vec::new(), packs: Vec::new(), sched: Schedule::default(), _s: PhantomData }
+        ElementBlock { region, d, dk: S::scaled_d(&d, mat.thickness), mat, elems: Vec::new(), x: Vec::new(), conn: Vec::new(), packs: Vec::new(), sched: Schedule::default(), corner_g: std::sync::OnceLock::new(), omega_bound: std::sync::OnceLock::new(), _s: PhantomData }
     }
 
     /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.
@@ -113,6 +118,8 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
         self.elems.push(e);
         self.x.push(x);
+        self.corner_g = std::sync::OnceLock::new();
+        self.omega_bound = std::sync::OnceLock::new();
         self.conn.push(conn);
     }
     #[inline(always)]
@@ -197,11 +204,13 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         }
     }
     fn corner_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
-        for i in 0..self.len() {
+        // The same gradients as `element::stress_at` at `corner_xi` (bit for bit), computed once.
+        let cg = self.corner_g.get_or_init(|| self.x.iter().map(|x| std::array::from_fn(|a| element::gradients::<S, N>(x, element::corner_xi::<S, N>(a)).0)).collect());
+        for (i, g) in cg.iter().enumerate() {
             let ue = self.gather(i, u);
             let base = first[self.elems[i].idx()] as usize;
             for a in 0..N {
-                out[base + a] = element::stress_at::<S, N>(&self.x[i], &ue, &self.d, element::corner_xi::<S, N>(a));
+                out[base + a] = self.d.stress(element::strain(&g[a], &ue));
             }
         }
     }
@@ -231,6 +240,12 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         &self.x[i]
     }
     fn max_omega_bound(&self) -> f64 {
+        *self.omega_bound.get_or_init(|| self.compute_omega_bound())
+    }
+}
+
+impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
+    fn compute_omega_bound(&self) -> f64 {
         let mut kbuf = vec![0.0; 4 * N * N];
         let mut best: f64 = 0.0;
         for i in 0..self.len() {

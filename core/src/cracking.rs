@@ -5,7 +5,7 @@ use crate::model::Model;
 use crate::scene::CrackingCfg;
 use crate::topology::{SplitRecord, Topology};
 use crate::weibull::weibull_scale;
-use crate::traits::{principal, FailureCheck, FailureMode, FanView, LinkGeom, Principal};
+use crate::traits::{principal, principal_values, FailureCheck, FailureMode, FanView, LinkGeom, Principal};
 
 /// One applied split, for the split log.
 #[derive(Clone, Debug)]
@@ -29,6 +29,10 @@ pub struct Cracking {
     /// Strength factor per point (1 without scatter).
     pub scale: Vec<f64>,
     corner: Vec<[f64; 3]>,
+    /// Copies per cluster (scratch of the nodal average).
+    counts: Vec<u32>,
+    /// The material of each point (of its first copy's element).
+    point_mat: Vec<crate::element::Material>,
     pub nodal: Vec<[f64; 3]>,
     principal: Vec<Principal>,
     scales: Vec<f64>,
@@ -48,7 +52,7 @@ impl Cracking {
             Some(w) => (0..np as u64).map(|p| weibull_scale(w.modulus, w.seed, p)).collect(),
             None => vec![1.0; np],
         };
-        Cracking { scale, corner: Vec::new(), nodal: Vec::new(), principal: Vec::new(), scales: Vec::new(), checks: Vec::new(), index: vec![0.0; model.topo.n_clusters()], n_splits: 0, cuts: Vec::new() }
+        Cracking { scale, corner: Vec::new(), counts: Vec::new(), point_mat: Vec::new(), nodal: Vec::new(), principal: Vec::new(), scales: Vec::new(), checks: Vec::new(), index: vec![0.0; model.topo.n_clusters()], n_splits: 0, cuts: Vec::new() }
     }
 
     /// Direction (radians, [0, 2 pi)) of every joined edge of the fan, in the current configuration.
@@ -73,19 +77,35 @@ impl Cracking {
     /// A plugin that fails or panics (dynamic plugins) gives an error.
     pub fn check(&mut self, cfg: &CrackingCfg, model: &mut Model, u: &[[f64; 2]], x0: &[[f64; 2]], time: f64, step: u64) -> crate::Result<(SplitRecord, Vec<SplitEvent>)> {
         let mut nodal = std::mem::take(&mut self.nodal);
-        model.nodal_stress(u, &mut self.corner, &mut nodal);
+        model.nodal_stress_with(u, &mut self.corner, &mut nodal, &mut self.counts);
         self.nodal = nodal;
         let nc = model.topo.n_clusters();
         self.principal.clear();
         self.scales.clear();
+        // An isotropic criterion decides on the principal values alone: the sigma1 direction
+        // (an atan2 per point) is computed, and the criterion asked again, only where it fails.
+        let iso = cfg.criterion.isotropic();
+        // The material of a point (that of its first copy's element) never changes: its
+        // out-of-plane factor is looked up once, not through the blocks at every check.
+        if self.point_mat.len() != model.topo.n_points {
+            self.point_mat = (0..model.topo.n_points).map(|p| model.material_of(model.topo.copy_elem[model.topo.point_copies.row(p)[0].idx()]).clone()).collect();
+        }
+        let szz = |c: usize| self.point_mat[model.topo.cluster_point[c].idx()].szz(self.nodal[c]);
         for c in 0..nc {
-            let k = model.topo.point_copies.row(model.topo.cluster_point[c].idx())[0];
-            let mat = model.material_of(model.topo.copy_elem[k.idx()]);
-            self.principal.push(principal(self.nodal[c], mat.szz(self.nodal[c])));
+            let s = self.nodal[c];
+            self.principal.push(if iso { principal_values(s, szz(c)) } else { principal(s, szz(c)) });
             self.scales.push(self.scale[model.topo.cluster_point[c].idx()]);
         }
         self.checks.resize(nc, FailureCheck::default());
         cfg.criterion.try_check_batch(&self.principal, &self.scales, &mut self.checks).map_err(crate::FlemError::Other)?;
+        if iso {
+            for c in 0..nc {
+                if self.checks[c].failed() {
+                    self.principal[c] = principal(self.nodal[c], szz(c));
+                    cfg.criterion.try_check_batch(std::slice::from_ref(&self.principal[c]), std::slice::from_ref(&self.scales[c]), std::slice::from_mut(&mut self.checks[c])).map_err(crate::FlemError::Other)?;
+                }
+            }
+        }
         self.index.resize(nc, 0.0);
         let mut cands: Vec<(f64, u32)> = Vec::new();
         for c in 0..nc {

@@ -187,11 +187,18 @@ impl Model {
 
     /// Nodal stress of every cluster: the average over its copies (paper 2.1).
     pub fn nodal_stress(&self, u: &[[f64; 2]], corner: &mut Vec<[f64; 3]>, out: &mut Vec<[f64; 3]>) {
+        self.nodal_stress_with(u, corner, out, &mut Vec::new());
+    }
+
+    /// [`Self::nodal_stress`] with a caller-kept scratch for the copy counts (no allocation
+    /// once the buffers have grown: the failure check calls it every `check_every` steps).
+    pub fn nodal_stress_with(&self, u: &[[f64; 2]], corner: &mut Vec<[f64; 3]>, out: &mut Vec<[f64; 3]>, cnt: &mut Vec<u32>) {
         self.corner_stresses(u, corner);
         let nc = self.topo.n_clusters();
         out.clear();
         out.resize(nc, [0.0; 3]);
-        let mut cnt = vec![0u32; nc];
+        cnt.clear();
+        cnt.resize(nc, 0);
         for (k, s) in corner.iter().enumerate() {
             let c = self.topo.copy_cluster[k].idx();
             for d in 0..3 {
@@ -199,7 +206,7 @@ impl Model {
             }
             cnt[c] += 1;
         }
-        for (s, n) in out.iter_mut().zip(cnt) {
+        for (s, &n) in out.iter_mut().zip(cnt.iter()) {
             if n > 0 {
                 for v in s.iter_mut() {
                     *v /= n as f64;

@@ -84,6 +84,9 @@ pub struct StableStep {
     /// 2 / max element omega (Gershgorin bound: always <= the true limit).
     pub dt_element_bound: f64,
     pub omega_max: f64,
+    /// Power iterations of the estimate; 0 when the estimate after the last splits was
+    /// deferred (see `Simulation::update_stable_step`): `dt_crit` and `omega_max` are then
+    /// those before the splits until `Simulation::refresh_stable_step`.
     pub iterations: usize,
     /// 2 / omega_contact (infinite without contact); `dt_crit` uses
     /// `omega = sqrt(omega_max^2 + omega_contact^2)`.
@@ -557,6 +560,13 @@ impl Simulation {
     /// After splits: the highest frequency can rise (a split node keeps only part of its mass
     /// and of its stiffness), so the stable step is estimated again, warm-started from the last
     /// eigenvector. If it fell below `dt`, `dt` follows (`dt_safety x dt_crit`) with a warning.
+    ///
+    /// The estimate is deferred (to the stage's end, [`Self::refresh_stable_step`]) when the
+    /// step in use is provably stable whatever the splits: below the element-by-element bound
+    /// (the highest frequency of an assembly with lumped masses is at most the highest element
+    /// frequency, however the elements share nodes; with contact, combined with the contact
+    /// term of the new masses), and the damping does not read `omega_max`. A scene that checks
+    /// every step then does not pay a power iteration per split.
     fn update_stable_step(&mut self, rec: &SplitRecord) {
         let mut start = std::mem::take(&mut self.stable_vec);
         if start.is_empty() {
@@ -567,6 +577,37 @@ impl Simulation {
                 start.push(v);
             }
         }
+        let uses_omega = self.scene.file.solver.damping.as_deref().is_none_or(|d| d.uses_rayleigh_stats());
+        if !uses_omega && self.dt <= self.safe_step_bound() {
+            self.stable_vec = start;
+            self.stable.iterations = 0;
+            return;
+        }
+        self.estimate_from(start);
+    }
+
+    /// A step that is stable for any splitting of the current mesh: the element bound, with
+    /// the contact term of the current masses (the same combination as `dt_crit`).
+    fn safe_step_bound(&self) -> f64 {
+        let k = self.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
+        let w_el = 2.0 * k / self.stable.dt_element_bound;
+        let oc2 = match (&self.contact, &self.scene.file.contact) {
+            (Some(c), Some(cfg)) => c.omega2(&self.model, &self.state.mass, &self.state.fix, cfg.law.stiffness()),
+            _ => 0.0,
+        };
+        let w = (w_el * w_el + oc2).sqrt();
+        if w > 0.0 { k * 2.0 / w } else { f64::INFINITY }
+    }
+
+    /// Estimates the stable step again if the last splits deferred it (`iterations == 0`).
+    pub fn refresh_stable_step(&mut self) {
+        if self.stable.iterations == 0 {
+            let start = std::mem::take(&mut self.stable_vec);
+            self.estimate_from(start);
+        }
+    }
+
+    fn estimate_from(&mut self, start: Vec<[f64; 2]>) {
         let (st, x) = self.power_iteration(Some(start));
         self.stable_vec = x;
         self.stable = st;
@@ -870,6 +911,7 @@ impl Simulation {
         }
         ratio = self.unbalanced_ratio();
         self.last_ratio = ratio;
+        self.refresh_stable_step();
         if st.dynamic {
             converged = true;
         }

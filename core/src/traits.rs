@@ -26,9 +26,8 @@ pub struct Principal {
 /// compression-positive principal values. When s1 == s3 the direction is undefined; by
 /// convention it is then 0 (the +x axis).
 pub fn principal(s: [f64; 3], szz: f64) -> Principal {
-    // compression positive
+    let p = principal_values(s, szz);
     let (a, b, t) = (-s[0], -s[1], -s[2]);
-    let c = 0.5 * (a + b);
     let r = (0.25 * (a - b) * (a - b) + t * t).sqrt();
     let mut theta = if r > 0.0 { 0.5 * (2.0 * t).atan2(a - b) } else { 0.0 };
     if theta < 0.0 {
@@ -37,7 +36,17 @@ pub fn principal(s: [f64; 3], szz: f64) -> Principal {
     if theta >= std::f64::consts::PI {
         theta -= std::f64::consts::PI;
     }
-    Principal { s1: c + r, s3: c - r, s2: -szz, theta1: theta }
+    Principal { theta1: theta, ..p }
+}
+
+/// [`principal`] without the direction (`theta1 = 0`): the same `s1`, `s3`, `s2` bit for bit,
+/// without the `atan2` (for criteria that are [`FailureCriterion::isotropic`]).
+pub fn principal_values(s: [f64; 3], szz: f64) -> Principal {
+    // compression positive
+    let (a, b, t) = (-s[0], -s[1], -s[2]);
+    let c = 0.5 * (a + b);
+    let r = (0.25 * (a - b) * (a - b) + t * t).sqrt();
+    Principal { s1: c + r, s3: c - r, s2: -szz, theta1: 0.0 }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -78,6 +87,13 @@ pub trait FailureCriterion: Debug + Send + Sync {
     /// Checks the parameters; the error names the key and the allowed range.
     fn validate(&self) -> Result<(), ParamError>;
     fn check(&self, p: &Principal, scale: f64) -> FailureCheck;
+    /// `true` when whether a point fails, and its index, depend on the principal values only,
+    /// not on `theta1` (only the failure planes do). The core then computes the sigma1
+    /// direction only at the points that fail and asks again there. Default `false`: an
+    /// anisotropic criterion (a weak bedding plane, say) sees `theta1` at every point.
+    fn isotropic(&self) -> bool {
+        false
+    }
     /// Batch form (one dynamic call per check, not per point). Default: loops over `check`.
     fn check_batch(&self, p: &[Principal], scale: &[f64], out: &mut [FailureCheck]) {
         for i in 0..p.len() {

@@ -166,6 +166,11 @@ impl FailureCriterion for DruckerPrager {
         }
     }
 
+    /// Failure and index use the principal values only; `theta1` gives the planes.
+    fn isotropic(&self) -> bool {
+        true
+    }
+
     fn check(&self, p: &Principal, scale: f64) -> FailureCheck {
         let Some((alpha, k, phi)) = self.params() else { return holds(0.0) };
         let (i1, q) = invariants(p);

@@ -82,6 +82,11 @@ impl FailureCriterion for HoekBrown {
         ParamError::range("a", self.a, 0.0, false, 1.0, true)
     }
 
+    /// Failure and index use the principal values only; `theta1` gives the planes.
+    fn isotropic(&self) -> bool {
+        true
+    }
+
     fn check(&self, p: &Principal, scale: f64) -> FailureCheck {
         let st = self.tensile_strength(scale);
         let it = -p.s3 / st;

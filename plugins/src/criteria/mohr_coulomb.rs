@@ -108,6 +108,11 @@ impl FailureCriterion for MohrCoulomb {
         Ok(())
     }
 
+    /// Failure and index use the principal values only; `theta1` gives the planes.
+    fn isotropic(&self) -> bool {
+        true
+    }
+
     fn check(&self, p: &Principal, scale: f64) -> FailureCheck {
         let (c, phi, st) = (self.cohesion * scale, self.phi(), self.tensile_strength * scale);
         let (it, is) = mc_indices(p, c, phi, st);

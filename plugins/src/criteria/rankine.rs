@@ -33,6 +33,11 @@ impl FailureCriterion for Rankine {
         ParamError::range("tensile_strength", self.tensile_strength, 0.0, false, f64::INFINITY, false)
     }
 
+    /// Failure and index use the principal values only; `theta1` gives the planes.
+    fn isotropic(&self) -> bool {
+        true
+    }
+
     fn check(&self, p: &Principal, scale: f64) -> FailureCheck {
         let st = self.tensile_strength * scale;
         let index = -p.s3 / st;
