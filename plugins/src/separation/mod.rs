@@ -19,6 +19,7 @@
 //!
 //! Angles are radians from +x in the current configuration; the proposal lists the first and
 //! then the second chosen edge.
+pub mod coulomb_traction;
 pub mod shear_plane_nearest;
 pub mod sigma1_nearest;
 pub mod traction;
@@ -29,7 +30,7 @@ use flem_core::ids::EdgeId;
 use flem_core::traits::{line_angle, ray_angle, LinkGeom, Proposal};
 
 /// The registered rule names (typetag `type = "..."`), in documentation order.
-pub const NAMES: &[&str] = &["sigma1_nearest", "shear_plane_nearest", "traction"];
+pub const NAMES: &[&str] = &["sigma1_nearest", "shear_plane_nearest", "traction", "coulomb_traction"];
 
 /// Angular tie tolerance (radians).
 pub const TIE: f64 = 1e-9;
@@ -154,6 +155,7 @@ mod tests {
         ("sigma1_nearest.rs", include_str!("sigma1_nearest.rs")),
         ("shear_plane_nearest.rs", include_str!("shear_plane_nearest.rs")),
         ("traction.rs", include_str!("traction.rs")),
+        ("coulomb_traction.rs", include_str!("coulomb_traction.rs")),
     ];
 
     /// Every ```toml block of every rule's module doc parses, its `[cracking.separation]`
