@@ -171,3 +171,21 @@ fn chart_sweeps_and_marks_the_pareto_front() {
     assert!(std::fs::read_to_string(dir.join("chart.svg")).unwrap().contains("Pareto front"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A dynamic stage with `cracking.at_equilibrium = true` (the default) never checks failure:
+/// the scene is accepted with a warning naming the stage and the keys to set; with
+/// `at_equilibrium = false` there is no warning.
+#[test]
+fn dynamic_stage_with_checks_at_equilibrium_warns() {
+    let text = |eq: bool| {
+        format!(
+            "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 1.0\nnx = 2\nny = 2\n[[material]]\nyoung_modulus = 1.0\npoisson_ratio = 0.2\ndensity = 1.0\n[[support]]\nnodes = \"bottom\"\nfix = \"xy\"\n[cracking]\nat_equilibrium = {eq}\ncheck_every = 10\n[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 1.0\n[cracking.separation]\ntype = \"sigma1_nearest\"\n[[stage]]\nname = \"settle\"\n[[stage]]\nname = \"impact\"\ndynamic = true\nmax_steps = 10\n"
+        )
+    };
+    let s = crate::common::sim(&text(true));
+    let w: Vec<&String> = s.warnings.iter().filter(|w| w.contains("at_equilibrium")).collect();
+    assert_eq!(w.len(), 1, "{:?}", s.warnings);
+    assert!(w[0].contains("\"impact\"") && !w[0].contains("settle") && w[0].contains("cracking.check_every"), "{}", w[0]);
+    let s = crate::common::sim(&text(false));
+    assert!(s.warnings.iter().all(|w| !w.contains("at_equilibrium")), "{:?}", s.warnings);
+}

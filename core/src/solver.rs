@@ -404,6 +404,13 @@ impl Simulation {
             Some(c) => Some(Cracking::new(c, &model)),
             None => None,
         };
+        if scene.file.cracking.as_ref().is_some_and(|c| c.at_equilibrium) {
+            // A dynamic stage never comes to rest, so checks at equilibrium never run in it.
+            let dynamic: Vec<String> = scene.file.stages.iter().enumerate().filter(|(_, s)| s.dynamic).map(|(i, s)| if s.name.is_empty() { format!("stage[{i}]") } else { format!("\"{}\"", s.name) }).collect();
+            if !dynamic.is_empty() {
+                warnings.push(format!("{file}: cracking.at_equilibrium = true: failure is never checked in the dynamic stage(s) {} (they do not come to rest); set cracking.at_equilibrium = false and cracking.check_every to crack during them", dynamic.join(", ")));
+            }
+        }
         let contact = match &scene.file.contact {
             Some(c) => Some(crate::contact::Contact::new(c, &model, &file)?),
             None => None,
