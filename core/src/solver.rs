@@ -246,7 +246,7 @@ fn ratio_of(num: f64, sum: f64, cnt: f64) -> f64 {
 /// The node update of a step (see [`NodeCtx::update`]).
 type UpdateFn = fn(&NodeCtx, usize, &mut [[f64; 2]], &mut [[f64; 2]]) -> [f64; NSUM];
 
-fn pick_update<const C: bool, const L: bool>(full: bool, stats: bool) -> UpdateFn {
+fn pick_update<const C: bool, const L: u8>(full: bool, stats: bool) -> UpdateFn {
     match (full, stats) {
         (true, _) => |x, k, u, v| x.update::<C, L, true, true>(k, u, v),
         (false, true) => |x, k, u, v| x.update::<C, L, false, true>(k, u, v),
@@ -257,32 +257,29 @@ fn pick_update<const C: bool, const L: bool>(full: bool, stats: bool) -> UpdateF
 impl NodeCtx<'_> {
     /// Central-difference update of the clusters `c0..c0 + u.len()`; returns the ledger sums
     /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]` of the chunk. `CONTACT = false`
-    /// compiles the contact force out (a scene without contact pays nothing for it), `LOCAL =
-    /// false` the local damping term. `FULL = false` (a step whose ledger nobody reads) sums
+    /// compiles the contact force out (a scene without contact pays nothing for it), `DAMP`
+    /// (0 none, 1 viscous, 2 viscous and local) the damping terms. `FULL = false` (a step whose ledger nobody reads) sums
     /// only what accumulates over steps (work, damping, contact work) and the half-step kinetic
     /// energy of the divergence guard, plus `u . F_int` and `u . M u` when `STATS` (a damping
     /// that reads them); `FULL` sums everything. The sums run in four independent lanes (node parity x
     /// dof), so that eleven running sums do not chain one add latency per dof; the lanes are
     /// fixed by position, so the sums do not depend on the number of threads.
     #[inline]
-    fn update<const CONTACT: bool, const LOCAL: bool, const FULL: bool, const STATS: bool>(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; NSUM] {
+    fn update<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; NSUM] {
         let mut acc = [[0.0f64; NSUM]; 4];
         let n = u.len();
         let mut i = 0;
         while i + 1 < n {
             let [a0, a1, a2, a3] = &mut acc;
-            self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i, &mut u[i], &mut v[i], a0, a1);
-            // A full step has too many sums for four lanes in registers: two.
-            if FULL {
-                self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i + 1, &mut u[i + 1], &mut v[i + 1], a0, a1);
-            } else {
-                self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i + 1, &mut u[i + 1], &mut v[i + 1], a2, a3);
-            }
+            self.node::<CONTACT, DAMP, FULL, STATS>(c0 + i, &mut u[i], &mut v[i], a0, a1);
+            // The same lanes in full and lean steps: the accumulated sums do not depend on
+            // which steps were full.
+            self.node::<CONTACT, DAMP, FULL, STATS>(c0 + i + 1, &mut u[i + 1], &mut v[i + 1], a2, a3);
             i += 2;
         }
         if i < n {
             let [a0, a1, ..] = &mut acc;
-            self.node::<CONTACT, LOCAL, FULL, STATS>(c0 + i, &mut u[i], &mut v[i], a0, a1);
+            self.node::<CONTACT, DAMP, FULL, STATS>(c0 + i, &mut u[i], &mut v[i], a0, a1);
         }
         let (h, hdt) = (0.5, 0.5 * self.dt);
         let mut out = [0.0; NSUM];
@@ -300,13 +297,13 @@ impl NodeCtx<'_> {
 
     /// One node of [`Self::update`]: its two dofs into the lanes `a` (x) and `b` (y).
     #[inline(always)]
-    fn node<const CONTACT: bool, const LOCAL: bool, const FULL: bool, const STATS: bool>(&self, c: usize, uc: &mut [f64; 2], vc: &mut [f64; 2], a: &mut [f64; NSUM], b: &mut [f64; NSUM]) {
+    fn node<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c: usize, uc: &mut [f64; 2], vc: &mut [f64; 2], a: &mut [f64; NSUM], b: &mut [f64; NSUM]) {
         let m = self.mass[c];
         // One division per node instead of two per dof (the ledger stays exact to round-off).
         let dt_m = self.dt / m;
         let fix = self.fix[c];
-        let (ux, ax) = self.dof::<CONTACT, LOCAL, FULL, STATS>(c, 0, fix & 1 == 0, m, dt_m, uc, vc, a);
-        let (uy, ay) = self.dof::<CONTACT, LOCAL, FULL, STATS>(c, 1, fix & 2 == 0, m, dt_m, uc, vc, b);
+        let (ux, ax) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 0, fix & 1 == 0, m, dt_m, uc, vc, a);
+        let (uy, ay) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 1, fix & 2 == 0, m, dt_m, uc, vc, b);
         if FULL {
             // The unbalanced-force ratio of this step, fused (the same terms, in the same
             // order per node, as `Simulation::unbalanced_ratio`).
@@ -324,7 +321,7 @@ impl NodeCtx<'_> {
     /// unbalanced force and squared applied force.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn dof<const CONTACT: bool, const LOCAL: bool, const FULL: bool, const STATS: bool>(&self, c: usize, d: usize, free: bool, m: f64, dt_m: f64, uc: &mut [f64; 2], vc: &mut [f64; 2], s: &mut [f64; NSUM]) -> (f64, f64) {
+    fn dof<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c: usize, d: usize, free: bool, m: f64, dt_m: f64, uc: &mut [f64; 2], vc: &mut [f64; 2], s: &mut [f64; NSUM]) -> (f64, f64) {
         let (dt, c1, c2) = (self.dt, self.c1, self.c2);
         let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
         let fc = if CONTACT { self.f_con[c][d] } else { 0.0 };
@@ -340,18 +337,23 @@ impl NodeCtx<'_> {
             (un, ap) = (f * f, fa * fa);
             // Local damping only when the scheme asks for it, and branch-free: the sign of a
             // velocity that oscillates would mispredict half the time.
-            let fl = if LOCAL { f - self.beta * f.abs() * (((vm > 0.0) as i8 - (vm < 0.0) as i8) as f64) } else { f };
-            vp = (c1 * vm + dt_m * fl) * c2;
-            let fd = f - m * (vp - vm) * self.inv_dt;
+            let fl = if DAMP == 2 { f - self.beta * f.abs() * (((vm > 0.0) as i8 - (vm < 0.0) as i8) as f64) } else { f };
+            vp = if DAMP == 0 { vm + dt_m * fl } else { (c1 * vm + dt_m * fl) * c2 };
+            // Undamped: the damping force is zero (to round-off) and not summed.
+            let fd = if DAMP == 0 { 0.0 } else { f - m * (vp - vm) * self.inv_dt };
             let va = vm + vp;
             s[0] += fe * va;
-            s[1] += fd * va;
+            if DAMP != 0 {
+                s[1] += fd * va;
+            }
             if CONTACT {
                 s[9] += fc * va;
             }
             if FULL {
                 s[2] += fe * vp;
-                s[3] += fd * vp;
+                if DAMP != 0 {
+                    s[3] += fd * vp;
+                }
                 if CONTACT {
                     s[10] += fc * vp;
                 }
@@ -734,11 +736,15 @@ impl Simulation {
         // One monomorphised node update per combination: a step pays only for what the scene
         // has and for what is read after it.
         let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
-        let update = match (self.contact.is_some(), beta != 0.0) {
-            (false, false) => pick_update::<false, false>(full, stats),
-            (false, true) => pick_update::<false, true>(full, stats),
-            (true, false) => pick_update::<true, false>(full, stats),
-            (true, true) => pick_update::<true, true>(full, stats),
+        // Damping: 0 none, 1 viscous only, 2 with the local term.
+        let damp = if beta != 0.0 { 2 } else if a != 0.0 { 1 } else { 0 };
+        let update = match (self.contact.is_some(), damp) {
+            (false, 0) => pick_update::<false, 0>(full, stats),
+            (false, 1) => pick_update::<false, 1>(full, stats),
+            (false, _) => pick_update::<false, 2>(full, stats),
+            (true, 0) => pick_update::<true, 0>(full, stats),
+            (true, 1) => pick_update::<true, 1>(full, stats),
+            (true, _) => pick_update::<true, 2>(full, stats),
         };
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
         if self.partials.len() != n_chunks {
@@ -877,13 +883,15 @@ impl Simulation {
             }
             // The ledger is summed in full only on steps after which it is read.
             let kn = k + 1;
-            let full = kn % every == 0 || kn == max_steps || (hist_every > 0 && kn % hist_every == 0) || (snap_every > 0 && kn % snap_every == 0) || (split_snap && check_every > 0 && kn % check_every == 0);
+            // A dynamic stage does not stop at equilibrium: its ratio is taken only on steps
+            // that are full for another reason (and at its end).
+            let full = (!st.dynamic && kn % every == 0) || kn == max_steps || (hist_every > 0 && kn % hist_every == 0) || (snap_every > 0 && kn % snap_every == 0) || (split_snap && check_every > 0 && kn % check_every == 0);
             self.step_as(full)?;
             k += 1;
             if check_every > 0 && k % check_every == 0 {
                 splits += self.check_failure(obs)?;
             }
-            if k % every == 0 || k == max_steps {
+            if (k % every == 0 && (full || !st.dynamic)) || k == max_steps {
                 ratio = self.step_unbalanced_ratio();
                 self.last_ratio = ratio;
                 if ratio < 0.5 * best {

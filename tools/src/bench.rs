@@ -157,6 +157,31 @@ fn stage_time(text: &str, steps: u64) -> Result<(f64, f64)> {
     Ok((wall, cpu))
 }
 
+/// The bare explicit step: kernel plus the textbook central-difference update.
+struct Bare {
+    u: Vec<[f64; 2]>,
+    v: Vec<[f64; 2]>,
+    f: Vec<[f64; 2]>,
+    fe: Vec<[f64; 2]>,
+    m: Vec<f64>,
+    fix: Vec<u8>,
+    dt: f64,
+}
+
+impl Bare {
+    fn step(&mut self, s: &Simulation) {
+        s.model.internal_forces(&self.u, &mut self.f);
+        for c in 0..self.u.len() {
+            for d in 0..2 {
+                if self.fix[c] & (1 << d) == 0 {
+                    self.v[c][d] += self.dt * (self.fe[c][d] - self.f[c][d]) / self.m[c];
+                    self.u[c][d] += self.dt * self.v[c][d];
+                }
+            }
+        }
+    }
+}
+
 /// Full step against the bare kernel and a bare step; failure checks every k steps.
 fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts) -> Result<Value> {
     let mut s = sim(&scene_text(nx, ny, kind, threads, 1, None))?;
@@ -167,46 +192,33 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
     let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
     let (kernel, kernel_cpu) = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
     // The bare explicit step: kernel plus the textbook update (no damping, no ledger).
-    let (mut bu, mut bv, fe, m, fix, dt) = (s.state.u.clone(), s.state.v.clone(), s.state.f_ext.clone(), s.state.mass.clone(), s.state.fix.clone(), s.dt);
-    let (bare, bare_cpu) = time_per_call(o.min_time, || {
-        s.model.internal_forces(&bu, &mut f);
-        for c in 0..bu.len() {
-            for d in 0..2 {
-                if fix[c] & (1 << d) == 0 {
-                    bv[c][d] += dt * (fe[c][d] - f[c][d]) / m[c];
-                    bu[c][d] += dt * bv[c][d];
-                }
-            }
-        }
-    });
+    let mut bare_state = Bare { u: s.state.u.clone(), v: s.state.v.clone(), f, fe: s.state.f_ext.clone(), m: s.state.mass.clone(), fix: s.state.fix.clone(), dt: s.dt };
+    let (bare, bare_cpu) = time_per_call(o.min_time, || bare_state.step(&s));
     let n_steps = ((2.0 * o.min_time / step).ceil() as u64).clamp(200, 100_000);
     let n_steps = n_steps.div_ceil(100) * 100;
     let (stage, stage_cpu) = stage_time(&scene_text(nx, ny, kind, threads, n_steps, None), n_steps)?;
     // What a scene without contact or failure pays over the bare step, measured as a whole
     // stage (ledger, damping, ratio checks every `ratio_every` steps) against as many bare
     // steps, interleaved round by round so that the load of a shared machine hits both; the
-    // best round of each.
+    // best round of each. Twice: with the default (adaptive) damping, and undamped.
     let n_il = (((0.2 / step).ceil() as u64).clamp(50, 20_000)).div_ceil(10) * 10;
-    let (mut il_stage, mut il_bare) = (f64::INFINITY, f64::INFINITY);
-    for _ in 0..7 {
-        let mut t = sim(&scene_text(nx, ny, kind, threads, n_il, None))?;
-        let t0 = Instant::now();
-        t.run_stage(0, &mut NoOutput)?;
-        il_stage = il_stage.min(t0.elapsed().as_secs_f64() / n_il as f64);
-        let t0 = Instant::now();
-        for _ in 0..n_il {
-            t.model.internal_forces(&bu, &mut f);
-            for c in 0..bu.len() {
-                for d in 0..2 {
-                    if fix[c] & (1 << d) == 0 {
-                        bv[c][d] += dt * (fe[c][d] - f[c][d]) / m[c];
-                        bu[c][d] += dt * bv[c][d];
-                    }
-                }
+    let il = |damping: &str| -> Result<Value> {
+        let (mut il_stage, mut il_bare) = (f64::INFINITY, f64::INFINITY);
+        for _ in 0..7 {
+            let mut t = sim(&(scene_text(nx, ny, kind, threads, n_il, None) + damping))?;
+            let t0 = Instant::now();
+            t.run_stage(0, &mut NoOutput)?;
+            il_stage = il_stage.min(t0.elapsed().as_secs_f64() / n_il as f64);
+            let mut b = Bare { u: t.state.u.clone(), v: t.state.v.clone(), f: vec![[0.0; 2]; t.state.u.len()], fe: t.state.f_ext.clone(), m: t.state.mass.clone(), fix: t.state.fix.clone(), dt: t.dt };
+            let t0 = Instant::now();
+            for _ in 0..n_il {
+                b.step(&t);
             }
+            il_bare = il_bare.min(t0.elapsed().as_secs_f64() / n_il as f64);
         }
-        il_bare = il_bare.min(t0.elapsed().as_secs_f64() / n_il as f64);
-    }
+        Ok(json!({"steps": n_il, "rounds": 7, "stage_ns_per_elem": il_stage * 1e9 / ne, "bare_step_ns_per_elem": il_bare * 1e9 / ne, "stage_over_bare_step": il_stage / il_bare}))
+    };
+    let (il_adaptive, il_none) = (il("")?, il("[solver.damping]\ntype = \"none\"\n")?);
     let mut checks = Vec::new();
     for k in [1u64, 10, 100] {
         let t = stage_time(&scene_text(nx, ny, kind, threads, n_steps, Some(k)), n_steps)?;
@@ -232,7 +244,7 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
         "cpu_step_over_bare_step": step_cpu / bare_cpu,
         "step_over_bare_step": step / bare,
         "stage_over_bare_step": stage / bare,
-        "interleaved": {"steps": n_il, "rounds": 7, "stage_ns_per_elem": il_stage * 1e9 / ne, "bare_step_ns_per_elem": il_bare * 1e9 / ne, "stage_over_bare_step": il_stage / il_bare},
+        "interleaved": il_adaptive, "interleaved_undamped": il_none,
         "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks},
     }))
 }
