@@ -30,6 +30,22 @@ struct Face {
     b: u32,
     /// Clusters of the face's element (a slave of the same element is never its contact).
     elem: [u32; 4],
+    /// Mesh points of the ends `a`, `b`, and the cluster across the face's edge at each end
+    /// (the other side's node there when the edge is separated at that end, else `NONE`).
+    pts: [u32; 2],
+    across: [u32; 2],
+}
+
+impl Face {
+    /// The slave `s` (at mesh point `sp`) sits at a vertex of this face without being the
+    /// node across the face's edge there: a third body meeting at that point (the V of a
+    /// crack branch, a junction of cracks). It touches the face only at the face's own end,
+    /// where the normal gap is a round-off of the rotation of the face about that point, not
+    /// a penetration: no pair (the contact of those bodies is carried by their other nodes).
+    #[inline]
+    fn vertex_only(&self, s: u32, sp: u32) -> bool {
+        (sp == self.pts[0] && s != self.across[0]) || (sp == self.pts[1] && s != self.across[1])
+    }
 }
 
 /// Geometry of one pair in this step.
@@ -59,6 +75,12 @@ pub struct Contact {
     face_of_id: Vec<u32>,
     /// Slave clusters, ascending, with their tributary area (length x thickness).
     slaves: Vec<u32>,
+    /// Mesh point of every slave.
+    slave_pt: Vec<u32>,
+    /// Faces of every slave (`side[side_off[i]..side_off[i + 1]]`): reference outward normal
+    /// and half the face area.
+    side_off: Vec<u32>,
+    side: Vec<([f64; 2], f64)>,
     area: Vec<f64>,
     cand_off: Vec<u32>,
     cand: Vec<u32>,
@@ -121,6 +143,9 @@ impl Contact {
             faces: Vec::new(),
             face_of_id: Vec::new(),
             slaves: Vec::new(),
+            slave_pt: Vec::new(),
+            side_off: Vec::new(),
+            side: Vec::new(),
             area: Vec::new(),
             cand_off: Vec::new(),
             cand: Vec::new(),
@@ -161,7 +186,19 @@ impl Contact {
             for (a, x) in elem.iter_mut().enumerate().take(n) {
                 *x = cl(a);
             }
-            faces.push(Face { id: 4 * e.0 + k as u32, a: cl(k as usize), b: cl((k as usize + 1) % n), elem });
+            let (pa, pb) = (topo.copy_point[r.start + k as usize], topo.copy_point[r.start + (k as usize + 1) % n]);
+            let (a, b) = (cl(k as usize), cl((k as usize + 1) % n));
+            let mut across = [NONE; 2];
+            if let Some(&(o, _)) = topo.edge_between(pa, pb).and_then(|ed| topo.edges[ed.idx()].sides.iter().flatten().find(|(x, _)| *x != e)) {
+                for (x, (p, own)) in across.iter_mut().zip([(pa, a), (pb, b)]) {
+                    if let Some(c) = topo.copy_at(o, p).map(|c| topo.copy_cluster[c.idx()].0) {
+                        if c != own {
+                            *x = c;
+                        }
+                    }
+                }
+            }
+            faces.push(Face { id: 4 * e.0 + k as u32, a, b, elem, pts: [pa.0, pb.0], across });
         };
         for (ei, ed) in topo.edges.iter().enumerate() {
             let on = match ed.sides {
@@ -181,24 +218,37 @@ impl Contact {
             self.face_of_id[f.id as usize] = i as u32;
         }
         let x0 = |c: u32| model.mesh.points[topo.cluster_point[c as usize].idx()];
-        let mut per: Vec<(u32, f64)> = Vec::with_capacity(2 * self.faces.len());
+        let mut per: Vec<(u32, f64, [f64; 2])> = Vec::with_capacity(2 * self.faces.len());
         let mut total_len = 0.0;
         for f in &self.faces {
             let (p, q) = (x0(f.a), x0(f.b));
             let len = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt();
             total_len += len;
             let half = 0.5 * len * model.material_of(ElemId(f.id / 4)).thickness;
-            per.push((f.a, half));
-            per.push((f.b, half));
+            let n = if len > 0.0 { [(q[1] - p[1]) / len, -(q[0] - p[0]) / len] } else { [0.0; 2] };
+            per.push((f.a, half, n));
+            per.push((f.b, half, n));
         }
         per.sort_by_key(|a| a.0);
+        self.side.clear();
+        self.side_off.clear();
+        self.side_off.push(0);
+        for (k, &(c, half, n)) in per.iter().enumerate() {
+            self.side.push((n, half));
+            if per.get(k + 1).is_none_or(|x| x.0 != c) {
+                self.side_off.push(self.side.len() as u32);
+            }
+        }
+        let per: Vec<(u32, f64)> = per.into_iter().map(|(c, h, _)| (c, h)).collect();
         self.slaves.clear();
+        self.slave_pt.clear();
         self.area.clear();
         for (c, a) in per {
             if self.slaves.last() == Some(&c) {
                 *self.area.last_mut().unwrap() += a;
             } else {
                 self.slaves.push(c);
+                self.slave_pt.push(topo.cluster_point[c as usize].0);
                 self.area.push(a);
             }
         }
@@ -208,7 +258,18 @@ impl Contact {
     }
 
     /// Follows a split: the faces of newly cut edges become surfaces, fresh (cohesive laws
-    /// act on them); pairs joining the two faces of each fresh edge are created at once.
+    /// act on them).
+    ///
+    /// - Pairs are keyed by slave cluster, and a split may hand the copies that face a pair's
+    ///   master to the new cluster: a pair whose slave was split and lies at an end of its
+    ///   master face is re-keyed to the part (parent or new cluster) across that face's edge at
+    ///   that point (the only node there that faces it), so its history (e_n, e_s, largest opening) stays with the
+    ///   node that carries it.
+    /// - A fresh pair is created only at the end where an edge was cut in this split, where
+    ///   both faces are still at the same place (gap 0, no stored energy). The other end of an
+    ///   edge cut earlier has opened already: a pair born there with an empty history would
+    ///   count the whole opening as if the law had acted over it (stored and released energy
+    ///   out of nothing) and pull again across a gap that opened free of traction.
     pub fn on_split(&mut self, model: &Model, rec: &SplitRecord) {
         for &(e, _) in &rec.cut_edges {
             if !self.fresh_edge[e.idx()] {
@@ -218,24 +279,37 @@ impl Contact {
         }
         self.rebuild_surfaces(model);
         let topo = &model.topo;
+        let mut old = std::mem::take(&mut self.history.pairs);
+        for p in old.iter_mut() {
+            let Master::Face(id) = p.master else { continue };
+            let split = |c: u32| rec.new_clusters.iter().any(|nc| nc.parent.0 == p.slave && (nc.id.0 == c || nc.parent.0 == c));
+            if let Some(s) = slave_across(model, id, p.slave).filter(|&c| split(c)) {
+                p.slave = s;
+            }
+        }
+        old.sort_by_key(|p| (p.slave, p.master));
+        old.dedup_by_key(|p| p.slave);
         let mut added: Vec<Pair> = Vec::new();
-        for &(e, _) in &rec.cut_edges {
+        for &(e, end) in &rec.cut_edges {
             let ed = &topo.edges[e.idx()];
             let [Some((ea, ka)), Some((eb, kb))] = ed.sides else { continue };
             let (fa, fb) = (4 * ea.0 + ka as u32, 4 * eb.0 + kb as u32);
-            let (Some(a), Some(b)) = (self.face(fa), self.face(fb)) else { continue };
-            // One pass (slaves on the face of the lower element id): cohesion counted once.
-            let (sf, mf) = if fa < fb { (a, b) } else { (b, a) };
-            for s in [sf.a, sf.b] {
-                if s == mf.a || s == mf.b {
-                    continue;
-                }
-                added.push(Pair { slave: s, master: Master::Face(mf.id), state: PairState { fresh: true, ..Default::default() } });
+            if self.face(fa).is_none() || self.face(fb).is_none() {
+                continue;
             }
+            // One pass (slave on the face of the lower element id): cohesion counted once.
+            let (se, me) = if fa < fb { (ea, eb) } else { (eb, ea) };
+            let pt = ed.points[end as usize];
+            let (Some(cs), Some(cm)) = (topo.copy_at(se, pt), topo.copy_at(me, pt)) else { continue };
+            let (s, m) = (topo.copy_cluster[cs.idx()].0, topo.copy_cluster[cm.idx()].0);
+            if s == m {
+                continue;
+            }
+            let mf = if fa < fb { fb } else { fa };
+            added.push(Pair { slave: s, master: Master::Face(mf), state: PairState { fresh: true, ..Default::default() } });
         }
         added.sort_by_key(|p| (p.slave, p.master));
         added.dedup_by_key(|p| p.slave);
-        let old = std::mem::take(&mut self.history.pairs);
         let history = &mut self.history;
         let (mut i, mut j) = (0, 0);
         while i < old.len() || j < added.len() {
@@ -412,12 +486,12 @@ impl Contact {
             }
         }
         let m2 = margin * margin;
-        for &s in &self.slaves {
+        for (&s, &sp) in self.slaves.iter().zip(&self.slave_pt) {
             let p = x(s);
             if let Some(k) = cell(p) {
                 for &fi in &self.cell_items[self.cell_count[k] as usize..self.cell_count[k + 1] as usize] {
                     let f = &self.faces[fi as usize];
-                    if f.elem.contains(&s) {
+                    if f.elem.contains(&s) || f.vertex_only(s, sp) {
                         continue;
                     }
                     if dist2_segment(p, x(f.a), x(f.b)) <= m2 {
@@ -507,7 +581,7 @@ impl Contact {
             let mut found: Option<(Geo, f64, PairState, bool)> = None;
             // 1. The pair's own face, or a neighbouring face sharing the end it slid past.
             if let Some(Pair { master: Master::Face(id), state, .. }) = old {
-                if let Some(fc) = self.face(id) {
+                if let Some(fc) = self.face(id).filter(|fc| !fc.vertex_only(s, self.slave_pt[si])) {
                     let (gap, xi, len, n, t) = Self::face_geo(p, x(fc.a), x(fc.b));
                     if -gap <= self.max_depth * len && (0.0..=1.0).contains(&xi) {
                         found = Some((Geo { slave: s, master: Master::Face(id), i: fc.a, j: fc.b, xi, n, t }, gap, state, false));
@@ -558,7 +632,7 @@ impl Contact {
                         _ => PairState::default(),
                     };
                     found = Some((g, -pen, state, !matches!(old, Some(o) if o.master == g.master)));
-                } else if let Some(&(q, _)) = corners.iter().find(|c| c.1 >= 2 && c.0 != s) {
+                } else if let Some(&(q, _)) = corners.iter().find(|c| c.1 >= 2 && c.0 != s && x0[c.0 as usize] != x0[s as usize]) {
                     let xq = x(q);
                     let d = ((xq[0] - p[0]).powi(2) + (xq[1] - p[1]).powi(2)).sqrt();
                     if d > 0.0 {
@@ -577,9 +651,38 @@ impl Contact {
             let vr = [vp[0] - (1.0 - g.xi) * vi[0] - g.xi * vj[0], vp[1] - (1.0 - g.xi) * vi[1] - g.xi * vj[1]];
             let vn = vr[0] * g.n[0] + vr[1] * g.n[1];
             let vs = vr[0] * g.t[0] + vr[1] * g.t[1];
-            self.kin.push(PairKinematics { gap, dgap: vn * dt, dslip: vs * dt, vn, vs, area: self.area[si], dt, new });
+            let area = match g.master {
+                Master::Face(_) => self.facing_area(si, x0[g.i as usize], x0[g.j as usize]),
+                Master::Node(_) => self.area[si],
+            };
+            self.kin.push(PairKinematics { gap, dgap: vn * dt, dslip: vs * dt, vn, vs, area, dt, new });
             self.st.push(state);
             self.geo.push(g);
+        }
+    }
+
+    /// Tributary area of slave `si` against a master face from `xa` to `xb` (reference
+    /// positions): half the area of each of the slave's faces that faces the master (reference
+    /// normals within 60 degrees of opposite, `n_s . n_m < -1/2`); the whole
+    /// tributary area when none does. A node where a crack branches has faces on two cracks:
+    /// only those across this master carry this pair, and the area does not change when a
+    /// later split adds faces of another crack at the node (a jump of the area of an open
+    /// cohesive or penalty pair would change its stored energy with no work done).
+    #[inline]
+    fn facing_area(&self, si: usize, xa: [f64; 2], xb: [f64; 2]) -> f64 {
+        let (dx, dy) = (xb[0] - xa[0], xb[1] - xa[1]);
+        let nm = [dy, -dx];
+        let lm = (dx * dx + dy * dy).sqrt();
+        let mut a = 0.0;
+        for &(n, half) in &self.side[self.side_off[si] as usize..self.side_off[si + 1] as usize] {
+            if n[0] * nm[0] + n[1] * nm[1] < -0.5 * lm {
+                a += half;
+            }
+        }
+        if a > 0.0 {
+            a
+        } else {
+            self.area[si]
         }
     }
 
@@ -587,6 +690,26 @@ impl Contact {
     pub fn forces(&self) -> &[PairReport] {
         &self.reports
     }
+}
+
+/// The cluster across master face `id` (element `id / 4`, local edge `id % 4`) at the point
+/// of cluster `slave`, when that point is an end of the face and the edge has a second side
+/// separated from the face there; `None` otherwise (the pair is then left as it is).
+fn slave_across(model: &Model, id: u32, slave: u32) -> Option<u32> {
+    let topo = &model.topo;
+    let (e, k) = (ElemId(id / 4), (id % 4) as usize);
+    let r = topo.elem_copies(e);
+    let n = r.len();
+    let (pa, pb) = (topo.copy_point[r.start + k], topo.copy_point[r.start + (k + 1) % n]);
+    let ps = *topo.cluster_point.get(slave as usize)?;
+    if ps != pa && ps != pb {
+        return None;
+    }
+    let ed = &topo.edges[topo.edge_between(pa, pb)?.idx()];
+    let (other, _) = ed.sides.iter().flatten().find(|(x, _)| *x != e).copied()?;
+    let s = topo.copy_cluster[topo.copy_at(other, ps)?.idx()].0;
+    let own = topo.copy_cluster[topo.copy_at(e, ps)?.idx()].0;
+    (s != own).then_some(s)
 }
 
 /// Squared distance from `p` to the segment `a`-`b`.
