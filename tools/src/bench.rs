@@ -201,7 +201,8 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
     // stage (ledger, damping, ratio checks every `ratio_every` steps) against as many bare
     // steps, interleaved round by round so that the load of a shared machine hits both; the
     // best round of each. Twice: with the default (adaptive) damping, and undamped.
-    let n_il = (((0.2 / step).ceil() as u64).clamp(50, 20_000)).div_ceil(10) * 10;
+    // About 1 s per stage, so that the stage set-up (loads, constraints) is a small share.
+    let n_il = (((1.0 / step).ceil() as u64).clamp(50, 50_000)).div_ceil(10) * 10;
     let il = |damping: &str| -> Result<Value> {
         let (mut il_stage, mut il_bare) = (f64::INFINITY, f64::INFINITY);
         for _ in 0..7 {
