@@ -24,7 +24,9 @@ pub struct StepStats {
     pub dt: f64,
     /// Highest natural frequency of the mesh (rad/time), from the stable-step estimate.
     pub omega_max: f64,
-    /// Kinetic energy at the half step, sum 1/2 m v+^2.
+    /// Kinetic energy at the half step, sum 1/2 m v+^2. Like `u_f_int` and `u_m_u`, summed on
+    /// every step only when the scheme `uses_rayleigh_stats`; otherwise on the stage loop's
+    /// full steps (the others leave the last value).
     pub kinetic: f64,
     /// Sum u . F_int (for the Rayleigh quotient).
     pub u_f_int: f64,
