@@ -342,9 +342,10 @@ impl NodeCtx<'_> {
             // Undamped: the damping force is zero (to round-off) and not summed.
             let fd = if DAMP == 0 { 0.0 } else { f - m * (vp - vm) * self.inv_dt };
             let va = vm + vp;
-            // Loads act on few dofs (a boundary): a predictable branch skips the rest (the
-            // same sum: the skipped terms are zeros).
-            if fe != 0.0 {
+            // Loads act on few dofs (a boundary): undamped, a predictable branch skips the
+            // rest (the same sum: the skipped terms are zeros); damped, the branch-free loop
+            // measured faster.
+            if DAMP != 0 || fe != 0.0 {
                 s[0] += fe * va;
             }
             if DAMP != 0 {
