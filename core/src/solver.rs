@@ -259,9 +259,9 @@ impl NodeCtx<'_> {
     /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]` of the chunk. `CONTACT = false`
     /// compiles the contact force out (a scene without contact pays nothing for it), `DAMP`
     /// (0 none, 1 viscous, 2 viscous and local) the damping terms. `FULL = false` (a step whose ledger nobody reads) sums
-    /// only what accumulates over steps (work, damping, contact work) and the half-step kinetic
-    /// energy of the divergence guard, plus `u . F_int` and `u . M u` when `STATS` (a damping
-    /// that reads them); `FULL` sums everything. The sums run in four independent lanes (node parity x
+    /// only what accumulates over steps (work, damping, contact work), plus the half-step
+    /// kinetic energy, `u . F_int` and `u . M u` when `STATS` (a damping that reads them);
+    /// `FULL` sums everything. The sums run in four independent lanes (node parity x
     /// dof), so that eleven running sums do not chain one add latency per dof; the lanes are
     /// fixed by position, so the sums do not depend on the number of threads.
     #[inline]
@@ -584,22 +584,19 @@ impl Simulation {
     /// term of the new masses), and the damping does not read `omega_max`. A scene that checks
     /// every step then does not pay a power iteration per split.
     fn update_stable_step(&mut self, rec: &SplitRecord) {
-        let mut start = std::mem::take(&mut self.stable_vec);
-        if start.is_empty() {
-            start = self.power_iteration(None).1;
-        } else {
+        // New clusters start from their parent's entry of the last eigenvector.
+        if !self.stable_vec.is_empty() {
             for nc in &rec.new_clusters {
-                let v = start[nc.parent.idx()];
-                start.push(v);
+                let v = self.stable_vec[nc.parent.idx()];
+                self.stable_vec.push(v);
             }
         }
         let uses_omega = self.scene.file.solver.damping.as_deref().is_none_or(|d| d.uses_rayleigh_stats());
         if !uses_omega && self.dt <= self.safe_step_bound() {
-            self.stable_vec = start;
             self.stable.iterations = 0;
             return;
         }
-        self.estimate_from(start);
+        self.estimate_again();
     }
 
     /// A step that is stable for any splitting of the current mesh: the element bound, with
@@ -618,13 +615,14 @@ impl Simulation {
     /// Estimates the stable step again if the last splits deferred it (`iterations == 0`).
     pub fn refresh_stable_step(&mut self) {
         if self.stable.iterations == 0 {
-            let start = std::mem::take(&mut self.stable_vec);
-            self.estimate_from(start);
+            self.estimate_again();
         }
     }
 
-    fn estimate_from(&mut self, start: Vec<[f64; 2]>) {
-        let (st, x) = self.power_iteration(Some(start));
+    /// Power iteration warm-started from the last eigenvector (cold without one).
+    fn estimate_again(&mut self) {
+        let start = std::mem::take(&mut self.stable_vec);
+        let (st, x) = self.power_iteration((!start.is_empty()).then_some(start));
         self.stable_vec = x;
         self.stable = st;
         let s = &self.scene.file.solver;

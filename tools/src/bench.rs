@@ -169,6 +169,12 @@ struct Bare {
 }
 
 impl Bare {
+    /// The state, loads, masses and step of `s`.
+    fn of(s: &Simulation) -> Bare {
+        let st = &s.state;
+        Bare { u: st.u.clone(), v: st.v.clone(), f: vec![[0.0; 2]; st.u.len()], fe: st.f_ext.clone(), m: st.mass.clone(), fix: st.fix.clone(), dt: s.dt }
+    }
+
     fn step(&mut self, s: &Simulation) {
         s.model.internal_forces(&self.u, &mut self.f);
         for c in 0..self.u.len() {
@@ -192,7 +198,7 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
     let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
     let (kernel, kernel_cpu) = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
     // The bare explicit step: kernel plus the textbook update (no damping, no ledger).
-    let mut bare_state = Bare { u: s.state.u.clone(), v: s.state.v.clone(), f, fe: s.state.f_ext.clone(), m: s.state.mass.clone(), fix: s.state.fix.clone(), dt: s.dt };
+    let mut bare_state = Bare::of(&s);
     let (bare, bare_cpu) = time_per_call(o.min_time, || bare_state.step(&s));
     let n_steps = ((2.0 * o.min_time / step).ceil() as u64).clamp(200, 100_000);
     let n_steps = n_steps.div_ceil(100) * 100;
@@ -210,7 +216,7 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
             let t0 = Instant::now();
             t.run_stage(0, &mut NoOutput)?;
             il_stage = il_stage.min(t0.elapsed().as_secs_f64() / n_il as f64);
-            let mut b = Bare { u: t.state.u.clone(), v: t.state.v.clone(), f: vec![[0.0; 2]; t.state.u.len()], fe: t.state.f_ext.clone(), m: t.state.mass.clone(), fix: t.state.fix.clone(), dt: t.dt };
+            let mut b = Bare::of(&t);
             let t0 = Instant::now();
             for _ in 0..n_il {
                 b.step(&t);

@@ -75,6 +75,19 @@ fn diverges(mesh: &str, damping: &str, dt_crit: f64, factor: f64, steps: u64) ->
     blows_up(&format!("{mesh}{BODY}[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n[solver.damping]\n{damping}\n[[stage]]\nlevels = {{ p = 1.0 }}\ndynamic = true\nmax_steps = {steps}\n"))
 }
 
+/// `iters` halvings of `[lo, hi]` (`lo` stable, `hi` divergent) around the divergence threshold.
+fn bisect(mut lo: f64, mut hi: f64, iters: usize, mut diverges: impl FnMut(f64) -> Result<bool>) -> Result<(f64, f64)> {
+    for _ in 0..iters {
+        let mid = 0.5 * (lo + hi);
+        if diverges(mid)? {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Ok((lo, hi))
+}
+
 fn explicit_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
     let steps = if quick { 3000 } else { 20000 };
     let iters = if quick { 6 } else { 9 };
@@ -84,14 +97,7 @@ fn explicit_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
             let crit = predicted(&format!("{}{BODY}[solver.damping]\n{d}\n[[stage]]\n", mesh_block(mesh)))?;
             let (mut lo, mut hi) = (0.5, 1.6);
             if diverges(mesh_block(mesh), d, crit, hi, steps)? {
-                for _ in 0..iters {
-                    let mid = 0.5 * (lo + hi);
-                    if diverges(mesh_block(mesh), d, crit, mid, steps)? {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
-                }
+                (lo, hi) = bisect(lo, hi, iters, |f| diverges(mesh_block(mesh), d, crit, f, steps))?;
             } else {
                 lo = hi;
             }
@@ -154,14 +160,7 @@ fn contact_dt(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
             f += grid;
         }
         if hi.is_finite() {
-            for _ in 0..iters {
-                let mid = 0.5 * (lo + hi);
-                if contact_diverges(kn, probe.stable.dt_crit, mid, steps)? {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
+            (lo, hi) = bisect(lo, hi, iters, |f| contact_diverges(kn, probe.stable.dt_crit, f, steps))?;
         } else {
             hi = lo;
         }
