@@ -9,9 +9,9 @@ use super::{ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, Pai
 use serde::{Deserialize, Serialize};
 use crate::element::{self, Q4, T3};
 use crate::error::Result;
-use crate::ids::{EdgeId, ElemId};
+use crate::ids::{EdgeId, ElemId, PointId};
 use crate::model::Model;
-use crate::topology::SplitRecord;
+use crate::topology::{SplitRecord, Topology};
 
 const NONE: u32 = u32::MAX;
 /// A new node-to-edge contact is accepted for `-XI_NEW <= xi <= 1 + XI_NEW` (faces ending at
@@ -189,13 +189,9 @@ impl Contact {
             let (pa, pb) = (topo.copy_point[r.start + k as usize], topo.copy_point[r.start + (k as usize + 1) % n]);
             let (a, b) = (cl(k as usize), cl((k as usize + 1) % n));
             let mut across = [NONE; 2];
-            if let Some(&(o, _)) = topo.edge_between(pa, pb).and_then(|ed| topo.edges[ed.idx()].sides.iter().flatten().find(|(x, _)| *x != e)) {
-                for (x, (p, own)) in across.iter_mut().zip([(pa, a), (pb, b)]) {
-                    if let Some(c) = topo.copy_at(o, p).map(|c| topo.copy_cluster[c.idx()].0) {
-                        if c != own {
-                            *x = c;
-                        }
-                    }
+            for (x, (p, own)) in across.iter_mut().zip([(pa, a), (pb, b)]) {
+                if let Some(c) = cluster_across(topo, e, pa, pb, p, own) {
+                    *x = c;
                 }
             }
             faces.push(Face { id: 4 * e.0 + k as u32, a, b, elem, pts: [pa.0, pb.0], across });
@@ -705,11 +701,17 @@ fn slave_across(model: &Model, id: u32, slave: u32) -> Option<u32> {
     if ps != pa && ps != pb {
         return None;
     }
+    let own = topo.copy_cluster[topo.copy_at(e, ps)?.idx()].0;
+    cluster_across(topo, e, pa, pb, ps, own)
+}
+
+/// The cluster of the element across the face of `e` on edge `pa`-`pb`, at its end `p`, when it
+/// is not `own` (the face's own cluster there), i.e. when the edge is separated at `p`.
+fn cluster_across(topo: &Topology, e: ElemId, pa: PointId, pb: PointId, p: PointId, own: u32) -> Option<u32> {
     let ed = &topo.edges[topo.edge_between(pa, pb)?.idx()];
     let (other, _) = ed.sides.iter().flatten().find(|(x, _)| *x != e).copied()?;
-    let s = topo.copy_cluster[topo.copy_at(other, ps)?.idx()].0;
-    let own = topo.copy_cluster[topo.copy_at(e, ps)?.idx()].0;
-    (s != own).then_some(s)
+    let c = topo.copy_cluster[topo.copy_at(other, p)?.idx()].0;
+    (c != own).then_some(c)
 }
 
 /// Squared distance from `p` to the segment `a`-`b`.
