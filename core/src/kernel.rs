@@ -63,6 +63,21 @@ fn abh(v0: f64, v1: f64, v2: f64, v3: f64) -> (f64, f64, f64) {
     (0.25 * ((v1 - v0) + (v2 - v3)), 0.25 * ((v3 - v0) + (v2 - v1)), 0.25 * ((v0 - v1) + (v2 - v3)))
 }
 
+/// The integrand at one Gauss point: strain from the displacement derivatives along the
+/// parent axes, stress, and the stress pulled back to the parent axes (unscaled by 1/det J,
+/// which cancels against the Gauss weight's det J): `(P_x,s, P_x,e, P_y,s, P_y,e)`.
+#[inline(always)]
+fn parent_stress(j: [f64; 4], inv: f64, du: [f64; 4], d: &[f64; 3]) -> (f64, f64, f64, f64) {
+    let [j11, j12, j21, j22] = j;
+    let [uxs, uxe, uys, uye] = du;
+    let [d11, d12, d33] = *d;
+    let exx = inv * (j22 * uxs - j12 * uxe);
+    let eyy = inv * (j11 * uye - j21 * uys);
+    let gxy = inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs));
+    let (sxx, syy, sxy) = (d11 * exx + d12 * eyy, d12 * exx + d11 * eyy, d33 * gxy);
+    (j22 * sxx - j21 * sxy, j11 * sxy - j12 * sxx, j22 * sxy - j21 * syy, j11 * syy - j12 * sxy)
+}
+
 impl Blocked<4> for Q4 {
     type Pack = Q4Pack;
     fn pack(x: &[[[f64; 2]; 4]]) -> Q4Pack {
@@ -84,7 +99,6 @@ impl Blocked<4> for Q4 {
     }
     #[inline(always)]
     fn forces(p: &Q4Pack, d: &[f64; 3], u: &[[[f64; LANES]; 2]; 4], f: &mut [[[f64; LANES]; 2]; 4]) {
-        let [d11, d12, d33] = *d;
         for l in 0..LANES {
             let (aux, bux, hux) = abh(u[0][0][l], u[1][0][l], u[2][0][l], u[3][0][l]);
             let (auy, buy, huy) = abh(u[0][1][l], u[1][1][l], u[2][1][l], u[3][1][l]);
@@ -95,13 +109,7 @@ impl Blocked<4> for Q4 {
             for (g, &[xi, eta]) in Q4_GP.iter().enumerate() {
                 let (j11, j12, j21, j22) = (ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy);
                 let (uxs, uxe, uys, uye) = (aux + eta * hux, bux + xi * hux, auy + eta * huy, buy + xi * huy);
-                let inv = p.inv[g][l];
-                let exx = inv * (j22 * uxs - j12 * uxe);
-                let eyy = inv * (j11 * uye - j21 * uys);
-                let gxy = inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs));
-                let (sxx, syy, sxy) = (d11 * exx + d12 * eyy, d12 * exx + d11 * eyy, d33 * gxy);
-                let (pxs, pxe) = (j22 * sxx - j21 * sxy, j11 * sxy - j12 * sxx);
-                let (pys, pye) = (j22 * sxy - j21 * syy, j11 * syy - j12 * sxy);
+                let (pxs, pxe, pys, pye) = parent_stress([j11, j12, j21, j22], p.inv[g][l], [uxs, uxe, uys, uye], d);
                 sxs += pxs;
                 txs += eta * pxs;
                 sxe += pxe;
@@ -152,17 +160,10 @@ impl Blocked<3> for T3 {
     }
     #[inline(always)]
     fn forces(p: &T3Pack, d: &[f64; 3], u: &[[[f64; LANES]; 2]; 3], f: &mut [[[f64; LANES]; 2]; 3]) {
-        let [d11, d12, d33] = *d;
         for l in 0..LANES {
-            let (j11, j12, j21, j22, inv) = (p.j11[l], p.j12[l], p.j21[l], p.j22[l], p.inv[l]);
             let (uxs, uxe) = (u[1][0][l] - u[0][0][l], u[2][0][l] - u[0][0][l]);
             let (uys, uye) = (u[1][1][l] - u[0][1][l], u[2][1][l] - u[0][1][l]);
-            let exx = inv * (j22 * uxs - j12 * uxe);
-            let eyy = inv * (j11 * uye - j21 * uys);
-            let gxy = inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs));
-            let (sxx, syy, sxy) = (d11 * exx + d12 * eyy, d12 * exx + d11 * eyy, d33 * gxy);
-            let (pxs, pxe) = (j22 * sxx - j21 * sxy, j11 * sxy - j12 * sxx);
-            let (pys, pye) = (j22 * sxy - j21 * syy, j11 * syy - j12 * sxy);
+            let (pxs, pxe, pys, pye) = parent_stress([p.j11[l], p.j12[l], p.j21[l], p.j22[l]], p.inv[l], [uxs, uxe, uys, uye], d);
             f[0][0][l] = -pxs - pxe;
             f[1][0][l] = pxs;
             f[2][0][l] = pxe;

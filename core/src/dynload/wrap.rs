@@ -107,31 +107,50 @@ impl Serialize for Instance {
 /// call costs ~10 ns, so per point the call is negligible.
 const CHUNK: usize = 256;
 
-/// A failure criterion from a loaded library.
-#[derive(Debug, Serialize)]
-#[serde(transparent)]
-pub struct DynCriterion(Instance);
+/// A plugin instance behind one of the core's traits: the newtype, its constructor and its
+/// library's info (the same for every plugin kind).
+macro_rules! dyn_wrapper {
+    ($(#[$doc:meta])* $name:ident) => {
+        $(#[$doc])*
+        #[derive(Debug, Serialize)]
+        #[serde(transparent)]
+        pub struct $name(Instance);
 
-impl DynCriterion {
-    pub(super) fn new(info: PluginInfo, entry: &'static PluginEntry, table: toml::Value) -> Self {
-        DynCriterion(Instance::new(info, entry, table))
-    }
-    pub fn info(&self) -> &PluginInfo {
-        &self.0.info
-    }
+        impl $name {
+            pub(super) fn new(info: PluginInfo, entry: &'static PluginEntry, table: toml::Value) -> Self {
+                $name(Instance::new(info, entry, table))
+            }
+            pub fn info(&self) -> &PluginInfo {
+                &self.0.info
+            }
+        }
+    };
 }
 
-impl FailureCriterion for DynCriterion {
-    #[doc(hidden)]
-    fn typetag_name(&self) -> &'static str {
-        self.0.info.name
-    }
-    #[doc(hidden)]
-    fn typetag_deserialize(&self) {}
+/// The trait methods every wrapper answers from its instance: the typetag name is the
+/// plugin's, and `validate` returns the error the plugin gave when it was made.
+macro_rules! instance_methods {
+    () => {
+        #[doc(hidden)]
+        fn typetag_name(&self) -> &'static str {
+            self.0.info.name
+        }
+        #[doc(hidden)]
+        fn typetag_deserialize(&self) {}
 
-    fn validate(&self) -> Result<(), ParamError> {
-        self.0.error.clone().map_or(Ok(()), Err)
-    }
+        fn validate(&self) -> Result<(), ParamError> {
+            self.0.error.clone().map_or(Ok(()), Err)
+        }
+    };
+}
+
+dyn_wrapper!(
+    /// A failure criterion from a loaded library.
+    DynCriterion
+);
+
+impl FailureCriterion for DynCriterion {
+    instance_methods!();
 
     /// One point. The core always calls the batch form; an error here (only possible from a
     /// broken plugin) is reported as a panic of the host with the plugin's message.
@@ -177,31 +196,13 @@ impl FailureCriterion for DynCriterion {
     }
 }
 
-/// A separation rule from a loaded library.
-#[derive(Debug, Serialize)]
-#[serde(transparent)]
-pub struct DynSeparation(Instance);
-
-impl DynSeparation {
-    pub(super) fn new(info: PluginInfo, entry: &'static PluginEntry, table: toml::Value) -> Self {
-        DynSeparation(Instance::new(info, entry, table))
-    }
-    pub fn info(&self) -> &PluginInfo {
-        &self.0.info
-    }
-}
+dyn_wrapper!(
+    /// A separation rule from a loaded library.
+    DynSeparation
+);
 
 impl SeparationRule for DynSeparation {
-    #[doc(hidden)]
-    fn typetag_name(&self) -> &'static str {
-        self.0.info.name
-    }
-    #[doc(hidden)]
-    fn typetag_deserialize(&self) {}
-
-    fn validate(&self) -> Result<(), ParamError> {
-        self.0.error.clone().map_or(Ok(()), Err)
-    }
+    instance_methods!();
 
     fn propose(&self, fan: &FanView, failure: &FailureCheck) -> Option<Proposal> {
         self.try_propose(fan, failure).unwrap_or_else(|e| panic!("{e}"))
