@@ -136,7 +136,10 @@ impl CsvLog {
         }
         let mut prefix = Vec::with_capacity(m.len as usize);
         (&mut f).take(m.len).read_to_end(&mut prefix).map_err(|e| refuse(format!("{} cannot be read ({e})", src.display())))?;
-        let crc = crc32fast::hash(&prefix);
+        // One pass over the prefix: the hasher that checks it goes on hashing the appended rows.
+        let mut hasher = crc32fast::Hasher::new();
+        hasher.update(&prefix);
+        let crc = hasher.clone().finalize();
         if prefix.len() as u64 != m.len || crc != m.crc {
             return Err(refuse(format!("the first {} bytes of {} changed since the checkpoint (CRC-32 {crc:08x}, recorded {:08x})", m.len, src.display(), m.crc)));
         }
@@ -150,7 +153,7 @@ impl CsvLog {
         }
         self.open_append()?;
         self.len = m.len;
-        self.crc.update(&prefix);
+        self.crc = hasher;
         Ok(())
     }
 }
