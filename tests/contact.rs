@@ -665,7 +665,7 @@ fn dynamic_crack_with_cohesive_contact_keeps_the_energy_balance() {
 /// energy created (signed residual). Measured before the fix: 0.23 at p = 180 (energy created:
 /// a pair born 6.3e-2 deep, behind the face of a column its slave had been sliding under, took
 /// the whole overlap as spring compression, 3.2e4 erg from nothing), 0.031 at p = 260 (a split
-/// halved a loaded pair's area and kept its force: twice the energy); after: at most 5e-3.
+/// halved a loaded pair's area and kept its force: twice the energy); after: at most 1.3e-3.
 #[test]
 fn contact_between_faces_split_in_compression_creates_no_energy() {
     flem_plugins::link();
