@@ -24,7 +24,8 @@
 //!   `contact_between_faces_split_in_compression_creates_no_energy`): a pair born with its
 //!   slave already behind the face takes as spring compression only the approach of its first
 //!   step (what the trapezoidal work sum credits); the rest of the overlap is its zero
-//!   (`PairState::offset`). A slave that passes to another master (not a neighbouring face)
+//!   (`PairState::offset`). Only the run's first contact step takes overlaps whole: they are
+//!   the scene's (parts placed pressed into each other). A slave that passes to another master (not a neighbouring face)
 //!   keeps its history, and the new master's gap is shifted to continue the old one's. When a
 //!   pair's area changes (a split gives part of the slave's faces to another node) its springs
 //!   are scaled by `sqrt(A_new / A_old)`, which keeps their energy. A pair lost by geometry

@@ -527,10 +527,13 @@ impl Contact {
     /// One contact step: narrow phase, the law on the batch, forces into `f` (zeroed first).
     /// Returns (stored energy, energy dissipated in this step).
     pub fn compute(&mut self, law: &dyn ContactLaw, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64, f: &mut [[f64; 2]]) -> (f64, f64) {
+        // The first contact step of a run meets the initial overlaps: they are the scene's
+        // (parts placed pressed into each other), and the springs take them whole.
+        let first = self.rebuilds == 0;
         if self.needs_rebuild(u) {
             self.build_verlet(x0, u);
         }
-        self.narrow(x0, u, v, dt);
+        self.narrow(x0, u, v, dt, first);
         let n = self.geo.len();
         self.out.clear();
         self.out.resize(n, PairForce::default());
@@ -564,7 +567,7 @@ impl Contact {
     }
 
     /// Builds `geo`, `kin`, `st` for this step from the history and the Verlet list.
-    fn narrow(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64) {
+    fn narrow(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64, first: bool) {
         self.geo.clear();
         self.kin.clear();
         self.st.clear();
@@ -669,7 +672,7 @@ impl Contact {
                     // nothing, or lost). Cohesion stays with the faces of the split edge.
                     state = PairState { fresh: false, offset: gap - ga, ..o.state };
                     new = false;
-                } else {
+                } else if !first {
                     // Born overlapped: the spring counts the approach of this step (the
                     // trapezoidal work sum credits exactly 1/2 f x that approach to a force
                     // that appears in one step); an overlap reached earlier with no pair (the
