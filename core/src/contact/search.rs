@@ -98,6 +98,8 @@ pub struct Contact {
     cell_items: Vec<u32>,
     /// Energy of the springs of the pairs lost in this step's narrow phase.
     released: f64,
+    /// The surfaces changed since the last narrow phase: pairs' areas are recomputed.
+    areas_stale: bool,
     /// Number of Verlet-list builds so far.
     pub rebuilds: u64,
     /// Pairs in contact after the last step.
@@ -163,6 +165,7 @@ impl Contact {
             cell_count: Vec::new(),
             cell_items: Vec::new(),
             released: 0.0,
+            areas_stale: true,
             rebuilds: 0,
             n_active: 0,
         };
@@ -254,6 +257,7 @@ impl Contact {
         let mean = if self.faces.is_empty() { 1.0 } else { total_len / self.faces.len() as f64 };
         self.skin = self.skin_cfg.unwrap_or(0.2 * mean);
         self.dirty = true;
+        self.areas_stale = true;
     }
 
     /// Follows a split: the faces of newly cut edges become surfaces, fresh (cohesive laws
@@ -682,7 +686,10 @@ impl Contact {
                     state.offset = (gap + depth).min(0.0);
                 }
             }
+            // The facing area depends only on the slave's faces and the master's reference
+            // geometry: a pair that keeps its master keeps it until the surfaces change.
             let area = match g.master {
+                Master::Face(_) if !self.areas_stale && state.area > 0.0 && old.is_some_and(|o| o.master == g.master) => state.area,
                 Master::Face(_) => self.facing_area(si, x0[g.i as usize], x0[g.j as usize]),
                 Master::Node(_) => self.area[si],
             };
@@ -699,6 +706,7 @@ impl Contact {
             self.st.push(state);
             self.geo.push(g);
         }
+        self.areas_stale = false;
     }
 
     /// The gap the law of pair `o` would see with its slave at `p` now (its master's gap less
