@@ -77,6 +77,8 @@ pub struct Contact {
     slaves: Vec<u32>,
     /// Mesh point of every slave.
     slave_pt: Vec<u32>,
+    /// Mesh point of every cluster (as `Topology::cluster_point`).
+    cluster_pt: Vec<u32>,
     /// Faces of every slave (`side[side_off[i]..side_off[i + 1]]`): reference outward normal
     /// and half the face area.
     side_off: Vec<u32>,
@@ -148,6 +150,7 @@ impl Contact {
             face_of_id: Vec::new(),
             slaves: Vec::new(),
             slave_pt: Vec::new(),
+            cluster_pt: Vec::new(),
             side_off: Vec::new(),
             side: Vec::new(),
             area: Vec::new(),
@@ -258,6 +261,8 @@ impl Contact {
         self.skin = self.skin_cfg.unwrap_or(0.2 * mean);
         self.dirty = true;
         self.areas_stale = true;
+        self.cluster_pt.clear();
+        self.cluster_pt.extend(topo.cluster_point.iter().map(|p| p.0));
     }
 
     /// Follows a split: the faces of newly cut edges become surfaces, fresh (cohesive laws
@@ -640,7 +645,7 @@ impl Contact {
                         _ => PairState::default(),
                     };
                     found = Some((g, -pen, state, !matches!(old, Some(o) if o.master == g.master)));
-                } else if let Some(&(q, _)) = corners.iter().find(|c| c.1 >= 2 && c.0 != s && x0[c.0 as usize] != x0[s as usize]) {
+                } else if let Some(&(q, _)) = corners.iter().find(|c| c.1 >= 2 && c.0 != s && self.cluster_pt[c.0 as usize] != self.slave_pt[si]) {
                     let xq = x(q);
                     let d = ((xq[0] - p[0]).powi(2) + (xq[1] - p[1]).powi(2)).sqrt();
                     if d > 0.0 {
