@@ -167,11 +167,11 @@ impl Checkpoint {
             n_splits,
             sections: Vec::new(),
         };
-        // Contact pairs with their history, and the Verlet list's build state (section
+        // Contact pairs with their history (version 2: PairState::offset), and the Verlet list's build state (section
         // "contact_verlet": without it, as in older checkpoints, the list is rebuilt on the
         // next step, which can change the candidate sets and the rebuild steps after).
         if let Some(c) = &sim.contact {
-            ck.put_section("contact", 1, &c.history)?;
+            ck.put_section("contact", 2, &c.history)?;
             ck.put_section("contact_verlet", 1, &c.verlet_state())?;
         }
         Ok(ck)
@@ -263,7 +263,7 @@ impl Checkpoint {
             cr.index.resize(nc, 0.0);
             cr.n_splits = self.n_splits;
         }
-        match (sim.contact.as_mut(), self.section::<crate::contact::ContactHistory>("contact", 1)?) {
+        match (sim.contact.as_mut(), self.section::<crate::contact::ContactHistory>("contact", 2)?) {
             (Some(c), Some(h)) => {
                 c.restore(&sim.model, h);
                 if let Some(v) = self.section::<crate::contact::search::VerletState>("contact_verlet", 1)? {

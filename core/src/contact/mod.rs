@@ -20,6 +20,17 @@
 //!   across rebuilds and splits, plain serde (checkpoints). When a slave slides past the end
 //!   of its face onto the neighbouring face (sharing that end node), the pair's history
 //!   carries over.
+//! - No energy from nothing (a split under compression makes all of these happen; test
+//!   `contact_between_faces_split_in_compression_creates_no_energy`): a pair born with its
+//!   slave already behind the face takes as spring compression only the approach of its first
+//!   step (what the trapezoidal work sum credits); the rest of the overlap is its zero
+//!   (`PairState::offset`). Only the run's first contact step takes overlaps whole: they are
+//!   the scene's (parts placed pressed into each other). A slave that passes to another master (not a neighbouring face)
+//!   keeps its history, and the new master's gap is shifted to continue the old one's. When a
+//!   pair's area changes (a split gives part of the slave's faces to another node) its springs
+//!   are scaled by `sqrt(A_new / A_old)`, which keeps their energy. A pair lost by geometry
+//!   (its slave slid off the end of its face, no neighbour took it) releases its springs'
+//!   energy, counted as dissipated.
 //! - The law ([`ContactLaw`], a plugin chosen by `law = { type = "..." }`) is called once per
 //!   step on the whole batch of pairs; forces go to the slave and, with the opposite sign, to
 //!   the face ends by the division ratio (eq. 16-17), so momentum is conserved exactly.
@@ -94,7 +105,8 @@ impl ContactCfg {
 /// `n` the master's outward normal, `t` along the face (from its start to its end).
 #[derive(Copy, Clone, Debug, Default)]
 pub struct PairKinematics {
-    /// Signed gap along n (length): > 0 open, < 0 penetrated.
+    /// Signed gap along n (length): > 0 open, < 0 penetrated; less the pair's
+    /// [`PairState::offset`] (an overlap that is not its springs', see there).
     pub gap: f64,
     /// Increment of the gap over the last step (relative displacement increment . n, eq. 8-9).
     pub dgap: f64,
@@ -137,6 +149,25 @@ pub struct PairState {
     pub max_open: f64,
     /// The pair joins the two faces of an edge split during the run (eligible for cohesion).
     pub fresh: bool,
+    /// Gap offset (length): the law sees `gap - offset`. A pair born with its slave already
+    /// behind the face by more than the approach of its first step takes that earlier overlap
+    /// as its zero (offset < 0): a spring born at the full overlap would store
+    /// `1/2 k A overlap^2` that no force ever worked for. A pair whose slave passed to another
+    /// master continues the old pair's law gap (offset of either sign).
+    #[serde(default)]
+    pub offset: f64,
+    /// The pair's area (length x thickness) in its last step (0: not yet known). When a split
+    /// or a change of master changes it, the springs `e_n`, `e_s` are scaled by
+    /// `sqrt(A_new / A_old)`, which keeps their energy `e^2 / (2 k A)`: a force kept on a
+    /// smaller area would store more energy with no work done (on a larger one, less).
+    #[serde(default)]
+    pub area: f64,
+    /// Energy stored in the pair's springs after its last step (written by the core from
+    /// [`PairForce::stored`]): released, i.e. counted as dissipated, when the pair is lost
+    /// without its law opening it (its slave slid off the end of its face with no neighbouring
+    /// face to take it, or a split kept it off its master).
+    #[serde(default)]
+    pub stored: f64,
 }
 
 /// The master of a pair.

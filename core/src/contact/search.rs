@@ -77,6 +77,8 @@ pub struct Contact {
     slaves: Vec<u32>,
     /// Mesh point of every slave.
     slave_pt: Vec<u32>,
+    /// Mesh point of every cluster (as `Topology::cluster_point`).
+    cluster_pt: Vec<u32>,
     /// Faces of every slave (`side[side_off[i]..side_off[i + 1]]`): reference outward normal
     /// and half the face area.
     side_off: Vec<u32>,
@@ -96,6 +98,10 @@ pub struct Contact {
     reports: Vec<PairReport>,
     cell_count: Vec<u32>,
     cell_items: Vec<u32>,
+    /// Energy of the springs of the pairs lost in this step's narrow phase.
+    released: f64,
+    /// The surfaces changed since the last narrow phase: pairs' areas are recomputed.
+    areas_stale: bool,
     /// Number of Verlet-list builds so far.
     pub rebuilds: u64,
     /// Pairs in contact after the last step.
@@ -144,6 +150,7 @@ impl Contact {
             face_of_id: Vec::new(),
             slaves: Vec::new(),
             slave_pt: Vec::new(),
+            cluster_pt: Vec::new(),
             side_off: Vec::new(),
             side: Vec::new(),
             area: Vec::new(),
@@ -160,6 +167,8 @@ impl Contact {
             reports: Vec::new(),
             cell_count: Vec::new(),
             cell_items: Vec::new(),
+            released: 0.0,
+            areas_stale: true,
             rebuilds: 0,
             n_active: 0,
         };
@@ -251,6 +260,9 @@ impl Contact {
         let mean = if self.faces.is_empty() { 1.0 } else { total_len / self.faces.len() as f64 };
         self.skin = self.skin_cfg.unwrap_or(0.2 * mean);
         self.dirty = true;
+        self.areas_stale = true;
+        self.cluster_pt.clear();
+        self.cluster_pt.extend(topo.cluster_point.iter().map(|p| p.0));
     }
 
     /// Follows a split: the faces of newly cut edges become surfaces, fresh (cohesive laws
@@ -524,10 +536,13 @@ impl Contact {
     /// One contact step: narrow phase, the law on the batch, forces into `f` (zeroed first).
     /// Returns (stored energy, energy dissipated in this step).
     pub fn compute(&mut self, law: &dyn ContactLaw, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64, f: &mut [[f64; 2]]) -> (f64, f64) {
+        // The first contact step of a run meets the initial overlaps: they are the scene's
+        // (parts placed pressed into each other), and the springs take them whole.
+        let first = self.rebuilds == 0;
         if self.needs_rebuild(u) {
             self.build_verlet(x0, u);
         }
-        self.narrow(x0, u, v, dt);
+        self.narrow(x0, u, v, dt, first);
         let n = self.geo.len();
         self.out.clear();
         self.out.resize(n, PairForce::default());
@@ -535,7 +550,7 @@ impl Contact {
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
         self.next.clear();
         self.reports.clear();
-        let (mut stored, mut diss) = (0.0, 0.0);
+        let (mut stored, mut diss) = (0.0, self.released);
         for k in 0..n {
             let (g, o) = (&self.geo[k], &self.out[k]);
             diss += o.dissipated;
@@ -551,8 +566,9 @@ impl Contact {
                 f[c as usize][0] -= w * fv[0];
                 f[c as usize][1] -= w * fv[1];
             }
+            self.st[k].stored = o.stored;
             self.next.push(Pair { slave: g.slave, master: g.master, state: self.st[k] });
-            self.reports.push(PairReport { slave: g.slave, master: g.master, force: fv, gap: self.kin[k].gap });
+            self.reports.push(PairReport { slave: g.slave, master: g.master, force: fv, gap: self.kin[k].gap + self.st[k].offset });
         }
         self.n_active = self.next.len();
         std::mem::swap(&mut self.next, &mut self.history.pairs);
@@ -560,10 +576,11 @@ impl Contact {
     }
 
     /// Builds `geo`, `kin`, `st` for this step from the history and the Verlet list.
-    fn narrow(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64) {
+    fn narrow(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64, first: bool) {
         self.geo.clear();
         self.kin.clear();
         self.st.clear();
+        self.released = 0.0;
         let x = |c: u32| [x0[c as usize][0] + u[c as usize][0], x0[c as usize][1] + u[c as usize][1]];
         let mut h = 0usize;
         let pairs = &self.history.pairs;
@@ -628,7 +645,7 @@ impl Contact {
                         _ => PairState::default(),
                     };
                     found = Some((g, -pen, state, !matches!(old, Some(o) if o.master == g.master)));
-                } else if let Some(&(q, _)) = corners.iter().find(|c| c.1 >= 2 && c.0 != s && x0[c.0 as usize] != x0[s as usize]) {
+                } else if let Some(&(q, _)) = corners.iter().find(|c| c.1 >= 2 && c.0 != s && self.cluster_pt[c.0 as usize] != self.slave_pt[si]) {
                     let xq = x(q);
                     let d = ((xq[0] - p[0]).powi(2) + (xq[1] - p[1]).powi(2)).sqrt();
                     if d > 0.0 {
@@ -642,19 +659,76 @@ impl Contact {
                     }
                 }
             }
-            let Some((g, gap, state, new)) = found else { continue };
+            let Some((g, gap, mut state, mut new)) = found else {
+                // A pair lost by geometry (not opened by its law) lets its springs go: their
+                // energy leaves the model, and the ledger counts it as dissipated.
+                if let Some(o) = old {
+                    self.released += o.state.stored;
+                }
+                continue;
+            };
             let (vp, vi, vj) = (v[s as usize], v[g.i as usize], v[g.j as usize]);
             let vr = [vp[0] - (1.0 - g.xi) * vi[0] - g.xi * vj[0], vp[1] - (1.0 - g.xi) * vi[1] - g.xi * vj[1]];
             let vn = vr[0] * g.n[0] + vr[1] * g.n[1];
             let vs = vr[0] * g.t[0] + vr[1] * g.t[1];
+            if new {
+                if let Some((o, ga)) = old.and_then(|o| self.law_gap(o, p, &x).map(|ga| (o, ga))) {
+                    // The slave passed from its master to another (a concave corner, a
+                    // junction of cracks): its history carries over as onto a neighbouring
+                    // face, and the new master's gap is shifted to continue the old pair's, so
+                    // neither an incremental nor a total-gap law sees its springs jump (the
+                    // energy of a spring reset to the new face's overlap was made from
+                    // nothing, or lost). Cohesion stays with the faces of the split edge.
+                    state = PairState { fresh: false, offset: gap - ga, ..o.state };
+                    new = false;
+                } else if !first {
+                    // Born overlapped: the spring counts the approach of this step (the
+                    // trapezoidal work sum credits exactly 1/2 f x that approach to a force
+                    // that appears in one step); an overlap reached earlier with no pair (the
+                    // slave held by another face, or kept off this one by the vertex rule
+                    // after a split) is the pair's zero.
+                    let depth = (-gap).min((-vn * dt).max(0.0));
+                    state.offset = (gap + depth).min(0.0);
+                }
+            }
+            // The facing area depends only on the slave's faces and the master's reference
+            // geometry: a pair that keeps its master keeps it until the surfaces change.
             let area = match g.master {
+                Master::Face(_) if !self.areas_stale && state.area > 0.0 && old.is_some_and(|o| o.master == g.master) => state.area,
                 Master::Face(_) => self.facing_area(si, x0[g.i as usize], x0[g.j as usize]),
                 Master::Node(_) => self.area[si],
             };
-            self.kin.push(PairKinematics { gap, dgap: vn * dt, dslip: vs * dt, vn, vs, area, dt, new });
+            if state.area > 0.0 && area != state.area {
+                // A split gave part of the slave's faces to another node, or the master
+                // changed: the springs keep their energy e^2 / (2 k A), not their force (a
+                // force kept on half the area would store twice the energy, no work done).
+                let r = (area / state.area).sqrt();
+                state.en *= r;
+                state.es *= r;
+            }
+            state.area = area;
+            self.kin.push(PairKinematics { gap: gap - state.offset, dgap: vn * dt, dslip: vs * dt, vn, vs, area, dt, new });
             self.st.push(state);
             self.geo.push(g);
         }
+        self.areas_stale = false;
+    }
+
+    /// The gap the law of pair `o` would see with its slave at `p` now (its master's gap less
+    /// its offset); `None` when the master face no longer exists.
+    #[inline]
+    fn law_gap(&self, o: Pair, p: [f64; 2], x: &impl Fn(u32) -> [f64; 2]) -> Option<f64> {
+        let gap = match o.master {
+            Master::Face(id) => {
+                let f = self.face(id)?;
+                Self::face_geo(p, x(f.a), x(f.b)).0
+            }
+            Master::Node(q) => {
+                let xq = x(q);
+                -((xq[0] - p[0]).powi(2) + (xq[1] - p[1]).powi(2)).sqrt()
+            }
+        };
+        Some(gap - o.state.offset)
     }
 
     /// Tributary area of slave `si` against a master face from `xa` to `xb` (reference
