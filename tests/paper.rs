@@ -172,7 +172,11 @@ fn direct_shear(file: &str, to_the_end: bool) -> (usize, usize, Vec<ShearRow>, f
             (pts[q[0].idx()][1] - 4.0).abs() > 1e-6 || (pts[q[1].idx()][1] - 4.0).abs() > 1e-6
         }).count();
         let row = (sim.levels[kp], sim.stages_done[i].converged, open, cracked, off, log.events.len(), sim.ledger.relative_residual());
-        println!("{file}: p/(rho g) = {:5.0}: in equilibrium {:5}, cd edges open {}/{} (cracked {}), crack faces off the plane {}, splits {}, energy residual {:.1e}", row.0, row.1, row.2, cd.len(), row.3, row.4, row.5, row.6);
+        // Points beyond the criterion at the stage's last check that no rule split (an open fan
+        // whose joined edges lie more than 45 deg from sigma1 is not cut): they carry stress
+        // above their strength, the method has no plasticity.
+        let beyond = sim.cracking.as_ref().map_or(0, |c| c.index.iter().filter(|&&x| x >= 1.0).count());
+        println!("{file}: p/(rho g) = {:5.0}: in equilibrium {:5}, cd edges open {}/{} (cracked {}), crack faces off the plane {}, splits {}, energy residual {:.1e}, points beyond the criterion {beyond}", row.0, row.1, row.2, cd.len(), row.3, row.4, row.5, row.6);
         rows.push(row);
         if !to_the_end && (open == cd.len() || !row.1) {
             break;
@@ -194,14 +198,13 @@ fn direct_shear(file: &str, to_the_end: bool) -> (usize, usize, Vec<ShearRow>, f
 /// (3) cd with friction only (mu = tan(phi), c lost): p_f = 8 q tan(phi) / (4 - 2 tan(phi)) =
 ///     162.3 rho g: on the coarse mesh, with contact, the block holds at every stage up to p_f;
 /// (4) energy balance (central differences with the paper's contact law and co-rotational
-///     elements): relative residual below 1e-2 at every stage up to and including the first
-///     one with a split; on the fine mesh at every stage.
-/// Not asserted, measured (docs/paper.md): on the coarse mesh the first stage with many splits
-/// under compression (p = 180: 11 splits) breaks the energy balance (residual 0.23, 0.98 after
-/// p = 280): contact between faces split while in compression still creates energy there, so
-/// the loads beyond (the block "holds" to p = 400 = 1.49 p_lim, beyond the 321.6 of shearing the
-/// whole specimen over y = 2) are not physical. The held row is clamped point by point, so that
-/// y = 2 mechanism is not open to the model anyway.
+///     elements): relative residual below 1e-2 at every stage (measured: at most 1.3e-3 coarse,
+///     1.2e-4 fine, since session 4's contact fix; 0.23-0.98 before it).
+/// Not asserted, measured (docs/paper.md): the coarse block "holds" to p = 400 = 1.49 p_lim,
+/// beyond the 321.6 of shearing the whole specimen over y = 2, with 28 points beyond the
+/// criterion that no rule splits (open fans whose joined edges lie more than 45 deg from
+/// sigma1): the method has no plasticity, such points carry stress above their strength. The
+/// held row is clamped point by point, so the y = 2 mechanism is not open to the model anyway.
 /// Measured and asserted as measured: the paper's separation along cd (fig. 8) is NOT
 /// reproduced; when equilibrium is lost, cd is not open along its whole length (the points on
 /// cd fail with sigma1 steeper than 45 deg and cut vertical edges; on these structured fans
@@ -224,9 +227,7 @@ fn paper_direct_shear_with_contact_does_not_open_cd() {
         assert!(first.0 < p_lim, "{file}: first split at {} above the limit {p_lim:.1}", first.0);
         assert!(!end.1, "{file}: the block still holds at p = {}", end.0);
         println!("{file}: energy residual at the end {residual:.2e}");
-        let first_split = rows.iter().position(|r| r.5 > 0).unwrap();
-        let balanced = if file.contains("fine") { rows.len() } else { first_split + 1 };
-        for r in &rows[..balanced] {
+        for r in &rows {
             assert!(r.6 < 1e-2, "{file}: energy residual {} at p = {}", r.6, r.0);
         }
         if !file.contains("fine") {
