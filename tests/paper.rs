@@ -148,7 +148,7 @@ fn paper_opening_fine_cracks_between_095_and_105_p_crit() {
 
 /// One row per p stage of a direct shear run: (p/(rho g), stage in equilibrium, cd edges open at
 /// both ends, cd edges cracked at one end or more, crack faces off the plane y = 4, splits so far).
-type ShearRow = (f64, bool, usize, usize, usize, usize, f64);
+type ShearRow = (f64, bool, usize, usize, usize, usize, f64, usize);
 
 /// Direct shear: q alone, then p in steps until cd is open along its whole length or a stage
 /// ends out of equilibrium (`to_the_end`: every stage); the state of the plane cd after every
@@ -171,11 +171,11 @@ fn direct_shear(file: &str, to_the_end: bool) -> (usize, usize, Vec<ShearRow>, f
             let q = topo.edges[e].points;
             (pts[q[0].idx()][1] - 4.0).abs() > 1e-6 || (pts[q[1].idx()][1] - 4.0).abs() > 1e-6
         }).count();
-        let row = (sim.levels[kp], sim.stages_done[i].converged, open, cracked, off, log.events.len(), sim.ledger.relative_residual());
         // Points beyond the criterion at the stage's last check that no rule split (an open fan
         // whose joined edges lie more than 45 deg from sigma1 is not cut): they carry stress
         // above their strength, the method has no plasticity.
-        let beyond = sim.cracking.as_ref().map_or(0, |c| c.index.iter().filter(|&&x| x >= 1.0).count());
+        let beyond = sim.cracking.as_ref().map_or(0, |c| c.beyond_criterion());
+        let row = (sim.levels[kp], sim.stages_done[i].converged, open, cracked, off, log.events.len(), sim.ledger.relative_residual(), beyond);
         println!("{file}: p/(rho g) = {:5.0}: in equilibrium {:5}, cd edges open {}/{} (cracked {}), crack faces off the plane {}, splits {}, energy residual {:.1e}, points beyond the criterion {beyond}", row.0, row.1, row.2, cd.len(), row.3, row.4, row.5, row.6);
         rows.push(row);
         if !to_the_end && (open == cd.len() || !row.1) {
@@ -229,6 +229,13 @@ fn paper_direct_shear_with_contact_does_not_open_cd() {
         println!("{file}: energy residual at the end {residual:.2e}");
         for r in &rows {
             assert!(r.6 < 1e-2, "{file}: energy residual {} at p = {}", r.6, r.0);
+            // Statics of the upper block: with |t| <= c + s_n tan(phi) on cd (implied by the
+            // criterion at its points) and friction mu = tan(phi) on bc, its horizontal hold is
+            // at most 8 c + (8 q + 2 p) tan(phi), i.e. p <= p_lim. An equilibrium past p_lim
+            // therefore needs points beyond the criterion (the nodal stress approximates this).
+            if r.1 && r.0 > p_lim {
+                assert!(r.7 > 0, "{file}: in equilibrium at p = {} > p_lim = {p_lim:.1} with every point within the criterion", r.0);
+            }
         }
         if !file.contains("fine") {
             assert!(last_eq >= p_f, "{file}: equilibrium lost at {} below the frictional limit {p_f:.1}", end.0);

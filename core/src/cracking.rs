@@ -55,6 +55,14 @@ impl Cracking {
         Cracking { scale, corner: Vec::new(), counts: Vec::new(), point_mat: Vec::new(), nodal: Vec::new(), principal: Vec::new(), scales: Vec::new(), checks: Vec::new(), index: vec![0.0; model.topo.n_clusters()], n_splits: 0, cuts: Vec::new() }
     }
 
+    /// Points (clusters) beyond the criterion at the last check that no split relieved: the
+    /// separation rule found no edge to cut (e.g. an open fan whose joined edges lie more than
+    /// 45 deg from sigma1). The method has no plasticity: these carry stress above their
+    /// strength, so an equilibrium with some of them is not a limit state of the material.
+    pub fn beyond_criterion(&self) -> usize {
+        self.index.iter().filter(|&&x| x >= 1.0).count()
+    }
+
     /// Direction (radians, [0, 2 pi)) of every joined edge of the fan, in the current configuration.
     pub fn link_geometry(topo: &Topology, fan: &crate::topology::Fan, x0: &[[f64; 2]], u: &[[f64; 2]], out: &mut Vec<LinkGeom>) {
         out.clear();

@@ -308,6 +308,7 @@ impl OutputWriter {
             "stages": sim.stages_done,
             "energy": {"external_work": l.external(), "kinetic": l.kinetic, "strain": l.strain, "damping": l.dissipated(), "residual": l.residual(), "relative_residual": l.relative_residual()},
             "splits": sim.cracking.as_ref().map(|c| c.n_splits).unwrap_or(0),
+            "beyond_criterion": sim.cracking.as_ref().map(|c| c.beyond_criterion()).unwrap_or(0),
             "crack_faces": {"separated_one_end": one, "separated_both_ends": two},
             "warnings": sim.warnings,
         });

@@ -340,6 +340,9 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     for s in &sim.stages_done {
         eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
     }
+    if let Some(n) = sim.cracking.as_ref().map(|c| c.beyond_criterion()).filter(|&n| n > 0) {
+        eprintln!("{n} points beyond the failure criterion at the last check that the separation rule did not cut: they carry stress above their strength (no plasticity in the method)");
+    }
     eprintln!("energy residual {:.2e} of the work done; wall time {:.2} s; results in {}", sim.ledger.relative_residual(), t0.elapsed().as_secs_f64(), out.display());
     if plots {
         plot(&out)?;
