@@ -133,12 +133,13 @@ impl Rectangle {
         if let Some(n) = &self.notch {
             let jf = (n.y - self.origin[1]) / hy;
             let j = jf.round();
-            if (jf - j).abs() > 1e-6 || j < 1.0 || j > (ny - 1) as f64 {
+            // Written so that NaN fails (every comparison with NaN is false).
+            if !((jf - j).abs() <= 1e-6 && j >= 1.0 && j <= (ny - 1) as f64) {
                 return Err(bad("notch.y", format!("= {} is incorrect; it must be an interior grid line y0 + k * {hy} with k in [1, {}]", n.y, ny - 1)));
             }
             let kf = n.depth / hx;
             let k = kf.round();
-            if (kf - k).abs() > 1e-6 || k < 1.0 || k > (nx - 1) as f64 {
+            if !((kf - k).abs() <= 1e-6 && k >= 1.0 && k <= (nx - 1) as f64) {
                 return Err(bad("notch.depth", format!("= {} is incorrect; it must be k * {hx} with k in [1, {}]", n.depth, nx - 1)));
             }
             let (j, k) = (j as usize, k as usize);
@@ -155,7 +156,7 @@ impl Rectangle {
             for (k, &y) in self.cuts.iter().enumerate() {
                 let jf = (y - self.origin[1]) / hy;
                 let j = jf.round();
-                if (jf - j).abs() > 1e-6 || j < 1.0 || j > (ny - 1) as f64 {
+                if !((jf - j).abs() <= 1e-6 && j >= 1.0 && j <= (ny - 1) as f64) {
                     return Err(bad(&format!("cuts[{k}]"), format!("= {y} is incorrect; it must be an interior grid line y0 + k * {hy} with k in [1, {}]", ny - 1)));
                 }
                 edges.extend((0..nx).map(|i| [id(i, j as usize), id(i + 1, j as usize)]));
