@@ -30,7 +30,7 @@ use toml::{Table, Value};
 use crate::common::root;
 
 /// Steps per stage of an accepted mutant (a few steps are enough to reach the state checks).
-const STEP_CAP: u64 = 25;
+const STEP_CAP: u64 = 300;
 /// Mutants kept of a scene or mesh whose model is large (seeded sample): run-time budget.
 const LARGE_SAMPLE: usize = 16;
 /// Meshes above this many bytes count as large.
