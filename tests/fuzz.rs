@@ -33,6 +33,8 @@ use crate::common::root;
 const STEP_CAP: u64 = 300;
 /// Mutants kept of a scene or mesh whose model is large (seeded sample): run-time budget.
 const LARGE_SAMPLE: usize = 16;
+/// Every this many accepted mutants, one is also run through the real output writer.
+const WRITE_EVERY: usize = 30;
 /// Meshes above this many bytes count as large.
 const LARGE_MESH: usize = 50_000;
 
@@ -83,6 +85,8 @@ struct Mutant {
     names: Vec<String>,
     /// Mesh mutants: the mesh file's name (its errors must name it, or the scene).
     mesh_file: Option<String>,
+    /// The model is large (not run through the writer: run time).
+    large: bool,
 }
 
 #[derive(Debug)]
@@ -148,6 +152,55 @@ impl Observer for FiniteGuard {
     }
 }
 
+/// Runs an accepted mutant again through the real output writer into `dir` (as `flem run`:
+/// summary.json also after an error) and checks what was written: no NaN/inf in the CSV logs
+/// and JSON files, no temp file left (a half-written file). `Err` describes the breach.
+fn check_written(m: &Mutant, scratch: &Path) -> Result<(), String> {
+    let dir = scratch.join("out");
+    let _ = std::fs::remove_dir_all(&dir);
+    let r = catch_unwind(AssertUnwindSafe(|| -> Result<(), String> {
+        let mut scene = Scene::from_str(&m.text, &scratch.join(&m.scene_name), &m.base_dir).map_err(|e| format!("reloading: {e}"))?;
+        cap_steps(&mut scene);
+        let mut sim = Simulation::new(scene).map_err(|e| format!("rebuilding: {e}"))?;
+        let mut w = flem_core::output::OutputWriter::new(&dir, &sim).map_err(|e| e.to_string())?;
+        let _ = if sim.scene.file.check.is_some() {
+            let mut c = flem_core::check::Comparer::new(&mut w, &dir).map_err(|e| e.to_string())?;
+            sim.run(&mut c)
+        } else {
+            sim.run(&mut w)
+        };
+        w.write_summary(&sim, 0.0).map_err(|e| e.to_string())
+    }));
+    match r {
+        Err(_) => return Err("PANIC while writing the results".into()),
+        Ok(Err(e)) => return Err(format!("writing the results failed: {e}")),
+        Ok(Ok(())) => {}
+    }
+    for f in std::fs::read_dir(&dir).map_err(|e| e.to_string())?.flatten() {
+        let name = f.file_name().to_string_lossy().to_string();
+        if name.contains(".tmp") {
+            return Err(format!("a temp file was left: {name}"));
+        }
+        if name.ends_with(".csv") || name.ends_with(".json") {
+            let text = std::fs::read_to_string(f.path()).map_err(|e| e.to_string())?;
+            let bad = text.split(|c: char| c == ',' || c == ':' || c.is_whitespace() || c == '[' || c == ']').map(|t| t.trim_matches('"')).find(|t| ["nan", "inf", "-inf", "infinity", "-infinity"].contains(&t.to_ascii_lowercase().as_str()));
+            if let Some(t) = bad {
+                return Err(format!("{name} holds {t}"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `flem run` with fewer steps: every stage capped.
+fn cap_steps(scene: &mut Scene) {
+    let s = &mut scene.file.solver;
+    s.max_steps = s.max_steps.min(STEP_CAP);
+    for st in &mut scene.file.stages {
+        st.max_steps = Some(st.max_steps.unwrap_or(STEP_CAP).min(STEP_CAP));
+    }
+}
+
 fn evaluate(m: &Mutant, scratch: &Path) -> Verdict {
     let r = catch_unwind(AssertUnwindSafe(|| {
         let path = scratch.join(&m.scene_name);
@@ -155,12 +208,7 @@ fn evaluate(m: &Mutant, scratch: &Path) -> Verdict {
             Ok(s) => s,
             Err(e) => return Verdict::Refused(e.to_string()),
         };
-        // `flem run` with fewer steps: every stage capped.
-        let s = &mut scene.file.solver;
-        s.max_steps = s.max_steps.min(STEP_CAP);
-        for st in &mut scene.file.stages {
-            st.max_steps = Some(st.max_steps.unwrap_or(STEP_CAP).min(STEP_CAP));
-        }
+        cap_steps(&mut scene);
         let mut sim = match Simulation::new(scene) {
             Ok(s) => s,
             Err(e) => return Verdict::Refused(e.to_string()),
@@ -321,7 +369,7 @@ fn scene_mutants(file: &Path, rng: &mut Rng) -> Vec<Mutant> {
     let mut n = 0usize;
     let mut push = |class: Class, what: String, text: String, names: Vec<String>| {
         n += 1;
-        out.push(Mutant { class, what, text, scene_name: format!("{stem}~{n}.toml"), base_dir: base_dir.clone(), names, mesh_file: None });
+        out.push(Mutant { class, what, text, scene_name: format!("{stem}~{n}.toml"), base_dir: base_dir.clone(), names, mesh_file: None, large: false });
     };
     let ser = |t: &Table| toml::to_string(t).unwrap();
     for path in paths(&doc) {
@@ -733,6 +781,7 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
         let mut ms = scene_mutants(&f, &mut rng);
         let large = mesh_file_of(&doc).and_then(|m| std::fs::metadata(f.parent().unwrap().join(m)).ok()).is_some_and(|md| md.len() as usize > LARGE_MESH);
         if large {
+            ms.iter_mut().for_each(|m| m.large = true);
             ms = (0..LARGE_SAMPLE).map(|_| rng.below(ms.len())).collect::<std::collections::BTreeSet<_>>().into_iter().rev().map(|i| ms.swap_remove(i)).collect();
         }
         mutants.extend(ms);
@@ -762,12 +811,13 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
             if let Some(Value::Table(m)) = doc.get_mut("mesh") {
                 m.insert("file".into(), Value::String(name.clone()));
             }
-            mutants.push(Mutant { class, what: format!("{name}: {what}"), text: toml::to_string(&doc).unwrap(), scene_name: format!("{host_name}~m{k}.toml"), base_dir: d, names: Vec::new(), mesh_file: Some(name.clone()) });
+            mutants.push(Mutant { class, what: format!("{name}: {what}"), text: toml::to_string(&doc).unwrap(), scene_name: format!("{host_name}~m{k}.toml"), base_dir: d, names: Vec::new(), mesh_file: Some(name.clone()), large: bytes.len() > LARGE_MESH });
         }
     }
     // Run them all.
     let mut counts: BTreeMap<Class, [usize; 4]> = BTreeMap::new();
     let mut breaches = Vec::new();
+    let (mut n_accepted, mut written) = (0usize, 0usize);
     for m in &mutants {
         let v = evaluate(m, &scratch);
         let slot = match v {
@@ -783,6 +833,16 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
         if let Err(b) = judge(m, &v) {
             breaches.push(format!("[{:?}] {} ({}): {b}", m.class, m.what, m.scene_name));
         }
+        // Every WRITE_EVERY-th accepted mutant (and every one whose run failed) again through
+        // the real writer, unless its mesh is large.
+        let accepted = matches!(v, Verdict::Ran | Verdict::RunFailed(_));
+        if accepted && (matches!(v, Verdict::RunFailed(_)) || n_accepted % WRITE_EVERY == 0) && !m.large {
+            written += 1;
+            if let Err(b) = check_written(m, &scratch) {
+                breaches.push(format!("[{:?}] {} ({}): written results: {b}", m.class, m.what, m.scene_name));
+            }
+        }
+        n_accepted += accepted as usize;
     }
     eprintln!("{:<18} {:>7} {:>7} {:>7} {:>7} {:>7}", "class", "mutants", "refused", "ran", "failed", "panic");
     let mut total = [0usize; 4];
@@ -792,7 +852,7 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
             total[i] += n[i];
         }
     }
-    eprintln!("{:<18} {:>7} {:>7} {:>7} {:>7} {:>7}  ({:.1} s)", "all", total.iter().sum::<usize>(), total[0], total[1], total[2], total[3], t0.elapsed().as_secs_f64());
+    eprintln!("{:<18} {:>7} {:>7} {:>7} {:>7} {:>7}  ({written} runs also written and read back; {:.1} s)", "all", total.iter().sum::<usize>(), total[0], total[1], total[2], total[3], t0.elapsed().as_secs_f64());
     let _ = std::fs::remove_dir_all(&scratch);
     assert!(counts.len() == 17, "a mutation class produced no mutant: {:?}", counts.keys().collect::<Vec<_>>());
     assert!(total.iter().sum::<usize>() > 1000, "too few mutants");
