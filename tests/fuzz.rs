@@ -194,6 +194,13 @@ fn check_written(m: &Mutant, scratch: &Path) -> Result<(), String> {
 
 /// `flem run` with fewer steps: every stage capped.
 fn cap_steps(scene: &mut Scene) {
+    if std::env::var("FLEM_FUZZ_CRACK").is_ok() {
+        if let Some(c) = scene.file.cracking.as_mut() {
+            c.at_equilibrium = false;
+            c.check_every = 3;
+            c.max_splits_per_check = 6;
+        }
+    }
     let s = &mut scene.file.solver;
     s.max_steps = s.max_steps.min(STEP_CAP);
     for st in &mut scene.file.stages {

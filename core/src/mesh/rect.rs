@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use super::{CellKind, MeshSource, RawCell, RawMesh};
+use super::{CellKind, MeshSource, RawCell, RawMesh, MAX_COORD};
 use crate::error::{FlemError, Result};
 
 /// A side notch: the horizontal grid line at height `y` is separated from the side `side`
@@ -63,11 +63,16 @@ impl Rectangle {
 
     pub fn build(&self) -> Result<RawMesh> {
         let bad = |key: &str, msg: String| FlemError::config(SRC, format!("mesh.{key}"), msg);
-        if !(self.width > 0.0 && self.width.is_finite()) {
-            return Err(bad("width", format!("= {} is incorrect; it must be > 0", self.width)));
+        if !(self.width > 0.0 && self.width <= MAX_COORD) {
+            return Err(bad("width", format!("= {} is incorrect; it must be in (0, {MAX_COORD:e}]", self.width)));
         }
-        if !(self.height > 0.0 && self.height.is_finite()) {
-            return Err(bad("height", format!("= {} is incorrect; it must be > 0", self.height)));
+        if !(self.height > 0.0 && self.height <= MAX_COORD) {
+            return Err(bad("height", format!("= {} is incorrect; it must be in (0, {MAX_COORD:e}]", self.height)));
+        }
+        for (d, o) in self.origin.iter().enumerate() {
+            if !(o.abs() <= MAX_COORD) {
+                return Err(bad(&format!("origin[{d}]"), format!("= {o} is incorrect; it must be in [-{MAX_COORD:e}, {MAX_COORD:e}]")));
+            }
         }
         if self.nx == 0 || self.nx > 4096 {
             return Err(bad("nx", format!("= {} is incorrect; it must be in [1, 4096]", self.nx)));
