@@ -437,6 +437,8 @@ impl Scene {
             }
         }
         let mut names: Vec<&str> = Vec::new();
+        // The largest magnitude of each load's values (a level scales them).
+        let mut largest: Vec<f64> = Vec::new();
         for (i, l) in f.loads.iter().enumerate() {
             if names.contains(&l.name()) {
                 return Err(FlemError::config(&n, format!("load[{i}].name"), format!("= \"{}\" is used twice; load names must be unique", l.name())));
@@ -452,9 +454,10 @@ impl Scene {
                     x.iter().chain(y.iter()).copied().collect()
                 }
             };
-            for v in vals {
+            for &v in &vals {
                 range(&n, &format!("load[{i}].value"), v, -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
             }
+            largest.push(vals.iter().fold(0.0f64, |m, v| m.max(v.abs())));
         }
         for (i, p) in f.output.probes.iter().enumerate() {
             for d in 0..2 {
@@ -475,6 +478,10 @@ impl Scene {
                     return Err(FlemError::config(&n, format!("stage[{i}].levels.{lname}"), format!("names no load{hint}; loads are: {names:?}")));
                 }
                 range(&n, &format!("stage[{i}].levels.{lname}"), *v, -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
+                let big = largest[names.iter().position(|x| *x == lname.as_str()).unwrap_or(0)];
+                if (v * big).abs() > MAX_MAGNITUDE {
+                    return Err(FlemError::config(&n, format!("stage[{i}].levels.{lname}"), format!("= {v:e} scales load \"{lname}\" (values up to {big:e}) to {:e}; the product must stay within {MAX_MAGNITUDE:e}", v * big)));
+                }
             }
             if let Some(t) = st.tolerance {
                 range(&n, &format!("stage[{i}].tolerance"), t, 0.0, false, 1.0, false)?;
