@@ -18,7 +18,12 @@
 //! - an accepted mutant's state is finite whenever the run hands it to an observer (history,
 //!   snapshot, splits, stage end, checkpoint), i.e. nothing non-finite would be written; a run
 //!   that fails says why (a divergence names the step and dt_crit).
-//! `FLEM_FUZZ_VERBOSE=1` prints every verdict; the per-class counts are always printed.
+//! Every 30th accepted mutant and every run that failed is also run through the real
+//! `OutputWriter`: its CSV logs and JSON files hold no NaN/inf and no temp file is left.
+//! Scenes and meshes with large models are sampled (16 seeded mutants each) for run time.
+//! `FLEM_FUZZ_VERBOSE=1` prints every verdict (the per-class counts are always printed);
+//! `FLEM_FUZZ_CRACK=1` also forces frequent multi-split failure checks (about 2 min: a deeper
+//! run, not part of the suite's budget).
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
