@@ -870,3 +870,37 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
     assert!(total.iter().sum::<usize>() > 1000, "too few mutants");
     assert!(breaches.is_empty(), "{} mutants break the bad-input contract:\n{}", breaches.len(), breaches.join("\n"));
 }
+
+/// Regression (found by the harness above: `cracking.max_splits_per_check` = i64::MAX on
+/// configs/paper/direct_shear.toml): several splits in one failure check, where a later
+/// candidate's fan holds a cluster created by an earlier cut of the same check. Before the
+/// fix `Cracking::link_geometry` indexed the solver's displacement array (not yet grown) with
+/// the new cluster: index out of bounds. Asserted: some check splits more than one node
+/// (the case is reached), the run ends without a panic, and the state stays finite.
+#[test]
+fn several_splits_in_one_check_reach_new_clusters() {
+    flem_plugins::link();
+    let path = root().join("configs/paper/direct_shear.toml");
+    let mut scene = Scene::from_file(&path).unwrap();
+    scene.file.cracking.as_mut().unwrap().max_splits_per_check = 1000;
+    // As the harness ran it (every stage capped at 300 steps), which reaches a check with
+    // several failed nodes.
+    for st in &mut scene.file.stages {
+        st.max_steps = Some(STEP_CAP);
+    }
+    #[derive(Default)]
+    struct Most(usize, FiniteGuard);
+    impl Observer for Most {
+        fn splits(&mut self, sim: &Simulation, _r: &flem_core::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+            self.0 = self.0.max(ev.iter().map(|e| e.cluster).collect::<std::collections::BTreeSet<_>>().len());
+            self.1.look(sim, "splits");
+            Ok(())
+        }
+    }
+    let mut sim = Simulation::new(scene).unwrap();
+    let mut obs = Most::default();
+    let r = catch_unwind(AssertUnwindSafe(|| sim.run(&mut obs)));
+    assert!(r.is_ok(), "the run panicked");
+    assert!(obs.0 >= 2, "no check split more than one node ({}): the case is not reached", obs.0);
+    assert!(obs.1.bad.is_none(), "{:?}", obs.1.bad);
+}
