@@ -86,7 +86,8 @@ struct Mutant {
     text: String,
     scene_name: String,
     base_dir: PathBuf,
-    /// Words of which the error message must contain at least one (the key, table, set...).
+    /// Words of which the error message must contain at least one (the key, table, set,
+    /// load; for mesh mutants the element, group or line).
     names: Vec<String>,
     /// Mesh mutants: the mesh file's name (its errors must name it, or the scene).
     mesh_file: Option<String>,
@@ -268,7 +269,7 @@ fn judge(m: &Mutant, v: &Verdict) -> Result<(), String> {
             if !file_ok {
                 return Err(format!("the message names neither the scene nor the mesh file: {msg}"));
             }
-            if m.mesh_file.is_none() && !m.names.is_empty() && !m.names.iter().any(|n| msg.contains(n.as_str())) {
+            if !m.names.is_empty() && !m.names.iter().any(|n| msg.contains(n.as_str())) {
                 return Err(format!("the message names none of {:?}: {msg}", m.names));
             }
             Ok(())
@@ -823,7 +824,15 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
             if let Some(Value::Table(m)) = doc.get_mut("mesh") {
                 m.insert("file".into(), Value::String(name.clone()));
             }
-            mutants.push(Mutant { class, what: format!("{name}: {what}"), text: toml::to_string(&doc).unwrap(), scene_name: format!("{host_name}~m{k}.toml"), base_dir: d, names: Vec::new(), mesh_file: Some(name.clone()), large: bytes.len() > LARGE_MESH });
+            // What a refusal must name besides the file: the element (or cell/point) for an
+            // element edit, the group for a removed group, the line for a broken section.
+            let names: Vec<String> = match class {
+                Class::MeshMissingNode | Class::MeshDegenerate | Class::MeshInverted => vec!["element".into(), "cell".into(), "point".into()],
+                Class::MeshGroupMissing if what.starts_with("physical group \"") => vec![what.split('"').nth(1).unwrap_or("").to_string()],
+                Class::MeshGroupMissing if what.contains("count unchanged") => vec!["line".into()],
+                _ => Vec::new(),
+            };
+            mutants.push(Mutant { class, what: format!("{name}: {what}"), text: toml::to_string(&doc).unwrap(), scene_name: format!("{host_name}~m{k}.toml"), base_dir: d, names, mesh_file: Some(name.clone()), large: bytes.len() > LARGE_MESH });
         }
     }
     // Run them all.
