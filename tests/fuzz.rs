@@ -913,3 +913,28 @@ fn several_splits_in_one_check_reach_new_clusters() {
     assert!(obs.0 >= 2, "no check split more than one node ({}): the case is not reached", obs.0);
     assert!(obs.1.bad.is_none(), "{:?}", obs.1.bad);
 }
+
+/// A truncated plugin library (`[plugins] load`, `flem plugins --load`) is refused with a
+/// message naming it; before, glibc's dlopen mapped it and the process died of SIGBUS with no
+/// message. The library here is the `flem` executable itself cut at several offsets (an ELF
+/// file like any plugin; the check runs before dlopen). Run as a subprocess: a crash must not
+/// take the test binary down.
+#[test]
+fn truncated_plugin_library_is_refused_by_name() {
+    let exe = env!("CARGO_BIN_EXE_flem");
+    let bytes = std::fs::read(exe).unwrap();
+    let dir = std::env::temp_dir().join(format!("flem-fuzz-lib-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut rng = Rng(0xD1B5_4A32_D192_ED03);
+    let mut cuts = vec![0usize, 10, 63, 64, 200, 3000, bytes.len() / 2, bytes.len() - 1];
+    cuts.extend((0..4).map(|_| rng.below(bytes.len())));
+    for cut in cuts {
+        let lib = dir.join(format!("libcut{cut}.so"));
+        std::fs::write(&lib, &bytes[..cut]).unwrap();
+        let out = std::process::Command::new(exe).args(["plugins", "--load"]).arg(&lib).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "cut at {cut}: the process ended by {:?}: {err}", out.status);
+        assert!(err.contains(&format!("libcut{cut}.so")), "cut at {cut}: the message does not name the library: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
