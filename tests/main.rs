@@ -11,3 +11,4 @@ mod paper;
 mod parallel;
 mod verification;
 mod contact;
+mod fuzz;

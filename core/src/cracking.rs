@@ -126,6 +126,11 @@ impl Cracking {
         let mut rec = SplitRecord::default();
         let mut events = Vec::new();
         let mut links = Vec::new();
+        // After the first cut of this check the fans of later candidates may hold the new
+        // clusters, which `u` and `x0` (the solver's arrays, grown after the check) do not
+        // have yet: they are carried here as the solver will grow them (the parent's u, the
+        // point's x0). Indexing `u` by a new cluster panicked with max_splits_per_check > 1.
+        let (mut u_ext, mut x_ext): (Vec<[f64; 2]>, Vec<[f64; 2]>) = (Vec::new(), Vec::new());
         for (idx, c) in cands {
             if events.len() >= cfg.max_splits_per_check {
                 break;
@@ -135,7 +140,8 @@ impl Cracking {
             if fan.copies.len() < 2 || fan.links.is_empty() {
                 continue;
             }
-            Self::link_geometry(&model.topo, &fan, x0, u, &mut links);
+            let (xg, ug) = if u_ext.is_empty() { (x0, u) } else { (&x_ext[..], &u_ext[..]) };
+            Self::link_geometry(&model.topo, &fan, xg, ug, &mut links);
             let view = FanView { point: fan.point, cluster: cid, closed: fan.is_closed(), links: &links, stress: self.nodal[c as usize], principal: self.principal[c as usize] };
             let chk = self.checks[c as usize];
             let Some(prop) = cfg.separation.try_propose(&view, &chk).map_err(crate::FlemError::Other)? else { continue };
@@ -144,6 +150,14 @@ impl Cracking {
                 continue;
             }
             model.apply_record(&r);
+            if u_ext.is_empty() {
+                (u_ext, x_ext) = (u.to_vec(), x0.to_vec());
+            }
+            for nc in &r.new_clusters {
+                debug_assert_eq!(nc.id.idx(), u_ext.len());
+                u_ext.push(u_ext[nc.parent.idx()]);
+                x_ext.push(model.mesh.points[nc.point.idx()]);
+            }
             self.cuts.push((c, prop.edges.iter().map(|e| e.0).collect()));
             for nc in &r.new_clusters {
                 self.index.push(idx);

@@ -346,6 +346,11 @@ pub struct Scene {
     pub base_dir: PathBuf,
 }
 
+/// Largest magnitude of a material constant, load value, level, gravity or probe coordinate:
+/// products of a few such values must stay finite in f64 (1e300 would overflow in the first
+/// step and only show as a divergence).
+pub const MAX_MAGNITUDE: f64 = 1e100;
+
 fn range(file: &str, key: &str, v: f64, lo: f64, lo_incl: bool, hi: f64, hi_incl: bool) -> Result<()> {
     ParamError::range(key, v, lo, lo_incl, hi, hi_incl).map_err(|e| FlemError::config(file, e.key, e.msg))
 }
@@ -402,10 +407,10 @@ impl Scene {
         }
         for (i, m) in f.materials.iter().enumerate() {
             let k = |s: &str| format!("material[{i}].{s}");
-            range(&n, &k("young_modulus"), m.young_modulus, 0.0, false, f64::INFINITY, false)?;
+            range(&n, &k("young_modulus"), m.young_modulus, 0.0, false, MAX_MAGNITUDE, true)?;
             range(&n, &k("poisson_ratio"), m.poisson_ratio, -1.0, false, 0.5, false)?;
-            range(&n, &k("density"), m.density, 0.0, false, f64::INFINITY, false)?;
-            range(&n, &k("thickness"), m.thickness, 0.0, false, f64::INFINITY, false)?;
+            range(&n, &k("density"), m.density, 0.0, false, MAX_MAGNITUDE, true)?;
+            range(&n, &k("thickness"), m.thickness, 0.0, false, MAX_MAGNITUDE, true)?;
         }
         let s = &f.solver;
         if let Some(dt) = s.dt {
@@ -424,7 +429,7 @@ impl Scene {
         }
         s.damping.as_ref().map_or(Ok(()), |d| d.validate()).map_err(|e| FlemError::config(&n, format!("solver.damping.{}", e.key), e.msg))?;
         for d in 0..2 {
-            range(&n, &format!("model.gravity[{d}]"), f.model.gravity[d], f64::MIN, true, f64::MAX, true)?;
+            range(&n, &format!("model.gravity[{d}]"), f.model.gravity[d], -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
         }
         for (i, sup) in f.supports.iter().enumerate() {
             if !["x", "y", "xy"].contains(&sup.fix.as_str()) {
@@ -432,6 +437,8 @@ impl Scene {
             }
         }
         let mut names: Vec<&str> = Vec::new();
+        // The largest magnitude of each load's values (a level scales them).
+        let mut largest: Vec<f64> = Vec::new();
         for (i, l) in f.loads.iter().enumerate() {
             if names.contains(&l.name()) {
                 return Err(FlemError::config(&n, format!("load[{i}].name"), format!("= \"{}\" is used twice; load names must be unique", l.name())));
@@ -447,8 +454,14 @@ impl Scene {
                     x.iter().chain(y.iter()).copied().collect()
                 }
             };
-            for v in vals {
-                range(&n, &format!("load[{i}].value"), v, f64::MIN, true, f64::MAX, true)?;
+            for &v in &vals {
+                range(&n, &format!("load[{i}].value"), v, -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
+            }
+            largest.push(vals.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+        }
+        for (i, p) in f.output.probes.iter().enumerate() {
+            for d in 0..2 {
+                range(&n, &format!("output.probes[{i}].at[{d}]"), p.at[d], -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
             }
         }
         range(&n, "output.checkpoint_seconds", f.output.checkpoint_seconds, 0.0, true, f64::INFINITY, false)?;
@@ -464,7 +477,11 @@ impl Scene {
                     let hint = nearest(lname, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
                     return Err(FlemError::config(&n, format!("stage[{i}].levels.{lname}"), format!("names no load{hint}; loads are: {names:?}")));
                 }
-                range(&n, &format!("stage[{i}].levels.{lname}"), *v, f64::MIN, true, f64::MAX, true)?;
+                range(&n, &format!("stage[{i}].levels.{lname}"), *v, -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
+                let big = largest[names.iter().position(|x| *x == lname.as_str()).unwrap_or(0)];
+                if (v * big).abs() > MAX_MAGNITUDE {
+                    return Err(FlemError::config(&n, format!("stage[{i}].levels.{lname}"), format!("= {v:e} scales load \"{lname}\" (values up to {big:e}) to {:e}; the product must stay within {MAX_MAGNITUDE:e}", v * big)));
+                }
             }
             if let Some(t) = st.tolerance {
                 range(&n, &format!("stage[{i}].tolerance"), t, 0.0, false, 1.0, false)?;

@@ -211,6 +211,16 @@ pub struct Simulation {
     scratch: Vec<[f64; 2]>,
 }
 
+/// An error of a generated mesh (`[mesh] type = "rectangle"`...), which has no file of its own,
+/// renamed to the scene file that describes it.
+fn generated_in_scene(e: FlemError, scene: &str) -> FlemError {
+    match e {
+        FlemError::Config { file, key, msg } if file.starts_with("mesh (") => FlemError::config(scene, key, msg),
+        FlemError::Mesh { file, msg } if file.starts_with("mesh (") => FlemError::mesh(format!("{scene}: {file}"), msg),
+        e => e,
+    }
+}
+
 /// Sums of the node update: the ledger's eleven, then (full steps) the unbalanced-force ratio's
 /// largest squared residual of a node, the sum of the nodes' applied-force magnitudes and
 /// their count (see [`Simulation::unbalanced_ratio`]).
@@ -398,7 +408,11 @@ impl Simulation {
     /// Builds the model, resolves loads, separates the declared edges and computes the step.
     pub fn new(scene: Scene) -> Result<Simulation> {
         let file = scene.path.display().to_string();
-        let mut mesh = scene.file.mesh.load(&scene.base_dir)?;
+        let mut mesh = scene.file.mesh.load(&scene.base_dir).map_err(|e| generated_in_scene(e, &file))?;
+        if mesh.source.starts_with("mesh (") {
+            // A generated mesh has no file of its own: its messages name the scene.
+            mesh.source = format!("{file}: {}", mesh.source);
+        }
         let mut warnings = mesh.validate(scene.file.model.orientation)?;
         mesh.derive_node_sets();
         let mut model = Model::new(mesh, &scene.file.materials, scene.file.model.plane, &file)?;
@@ -467,6 +481,11 @@ impl Simulation {
     fn choose_dt(&mut self, file: &str) -> Result<f64> {
         let s = &self.scene.file.solver;
         let crit = self.stable.dt_crit;
+        if !(crit.is_finite() && crit > 0.0) {
+            // Extreme (finite) moduli or densities: dt = inf or 0 would write NaN or never move.
+            let ratio: Vec<String> = self.scene.file.materials.iter().map(|m| format!("{:e}", m.young_modulus / m.density)).collect();
+            return Err(FlemError::config(file, "material", format!("gives a critical time step dt_crit = {crit:e}, which cannot be run (young_modulus / density = {}): rescale the units", ratio.join(", "))));
+        }
         match s.dt {
             None => Ok(s.dt_safety * crit),
             Some(dt) if dt <= crit => Ok(dt),

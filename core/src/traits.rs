@@ -127,8 +127,13 @@ impl ParamError {
         } else {
             let l = if lo_incl { "[" } else { "(" };
             let h = if hi_incl { "]" } else { ")" };
-            let fmt = |x: f64| if x.is_infinite() { if x > 0.0 { "inf".to_string() } else { "-inf".to_string() } } else { format!("{x}") };
-            Err(ParamError::new(key, format!("= {v} is incorrect; it must be in {l}{}, {}{h}", fmt(lo), fmt(hi))))
+            // Very large or small magnitudes in exponent form (1e300 would print 301 digits).
+            let fmt = |x: f64| match x {
+                x if x.is_infinite() => if x > 0.0 { "inf".to_string() } else { "-inf".to_string() },
+                x if x != 0.0 && (x.abs() >= 1e9 || x.abs() < 1e-6) => format!("{x:e}"),
+                x => format!("{x}"),
+            };
+            Err(ParamError::new(key, format!("= {} is incorrect; it must be in {l}{}, {}{h}", fmt(v), fmt(lo), fmt(hi))))
         }
     }
 }

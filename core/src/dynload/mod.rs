@@ -102,6 +102,46 @@ fn is_builtin(kind: u32, name: &str) -> bool {
     !msg.is_some_and(|m| m.contains("unknown variant"))
 }
 
+/// Refuses a 64-bit little-endian ELF file whose headers or loadable segments reach past its
+/// end (a truncated or partly copied library): glibc's dlopen maps such a file and the
+/// process dies of SIGBUS on the first touch of the missing pages, with no message (found by
+/// tests/fuzz.rs). Anything else is left to dlopen, which reports it.
+fn elf_extents(path: &Path) -> std::result::Result<(), String> {
+    let Ok(b) = std::fs::read(path) else { return Ok(()) };
+    if b.len() < 4 || &b[..4] != b"\x7fELF" {
+        return Ok(());
+    }
+    let trunc = |what: &str, end: u64| format!("is cut short: its {what} ends at byte {end} but the file has {} bytes (a truncated or partly copied library?)", b.len());
+    if b.len() < 64 {
+        return Err(trunc("ELF header", 64));
+    }
+    if b[4] != 2 || b[5] != 1 {
+        return Ok(()); // not ELF64 little-endian: dlopen decides
+    }
+    let u64_at = |o: usize| b.get(o..o + 8).map(|x| u64::from_le_bytes(x.try_into().unwrap()));
+    let u16_at = |o: usize| u16::from_le_bytes([b[o], b[o + 1]]) as u64;
+    let len = b.len() as u64;
+    let (phoff, shoff) = (u64_at(0x20).unwrap_or(0), u64_at(0x28).unwrap_or(0));
+    let (phent, phnum, shent, shnum) = (u16_at(0x36), u16_at(0x38), u16_at(0x3A), u16_at(0x3C));
+    let ph_end = phoff.saturating_add(phent.saturating_mul(phnum));
+    if ph_end > len {
+        return Err(trunc("program header table", ph_end));
+    }
+    for k in 0..phnum {
+        let h = (phoff + k * phent) as usize;
+        let p_type = b.get(h..h + 4).map_or(0, |x| u32::from_le_bytes(x.try_into().unwrap()));
+        let (off, filesz) = (u64_at(h + 8).unwrap_or(0), u64_at(h + 32).unwrap_or(0));
+        if p_type == 1 && off.saturating_add(filesz) > len {
+            return Err(trunc(&format!("loadable segment {k}"), off.saturating_add(filesz)));
+        }
+    }
+    let sh_end = shoff.saturating_add(shent.saturating_mul(shnum));
+    if shoff != 0 && sh_end > len {
+        return Err(trunc("section header table", sh_end));
+    }
+    Ok(())
+}
+
 /// Loads a plugin library (an explicit path: a bare name would search system folders) and
 /// registers its plugins. Loading the same file again returns its plugins without reloading.
 pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
@@ -112,6 +152,7 @@ pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
             return Ok(loaded().into_iter().filter(|p| p.file == c).collect());
         }
     }
+    elf_extents(path).map_err(perr)?;
     // SAFETY: loading a library runs its initialisers; FLEM plugins are trusted code chosen by
     // the user, like the scene itself.
     let lib = unsafe { libloading::Library::new(path) }.map_err(|e| perr(format!("cannot be loaded: {}", error_chain(&e))))?;

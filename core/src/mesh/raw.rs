@@ -74,6 +74,9 @@ pub fn signed_area(p: &[[f64; 2]]) -> f64 {
     0.5 * a
 }
 
+/// Largest coordinate magnitude (and mesh size) accepted by [`RawMesh::validate`].
+pub const MAX_COORD: f64 = 1e100;
+
 impl RawMesh {
     /// Checks the mesh; returns warnings (reoriented cells) or the first error, naming the file
     /// and the element (0-based index in the file's order of 2D cells).
@@ -101,6 +104,12 @@ impl RawMesh {
             }
         }
         let diam = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt().max(f64::MIN_POSITIVE);
+        // Areas and stiffnesses square and cube lengths: beyond this they overflow f64 (and the
+        // zero-area test below would misfire), so refuse such coordinates here, by name.
+        let far = lo.iter().chain(&hi).fold(0.0f64, |m, x| m.max(x.abs()));
+        if !(far <= MAX_COORD && diam <= MAX_COORD) {
+            return Err(FlemError::mesh(&src, format!("coordinates reach {far:e} (the mesh is {diam:e} across); they must stay below {MAX_COORD:e} in magnitude: rescale the units")));
+        }
         let mut flipped = 0usize;
         for (e, c) in self.cells.iter_mut().enumerate() {
             let k = c.kind.nodes();

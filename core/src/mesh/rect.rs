@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use super::{CellKind, MeshSource, RawCell, RawMesh};
+use super::{CellKind, MeshSource, RawCell, RawMesh, MAX_COORD};
 use crate::error::{FlemError, Result};
 
 /// A side notch: the horizontal grid line at height `y` is separated from the side `side`
@@ -63,11 +63,16 @@ impl Rectangle {
 
     pub fn build(&self) -> Result<RawMesh> {
         let bad = |key: &str, msg: String| FlemError::config(SRC, format!("mesh.{key}"), msg);
-        if !(self.width > 0.0 && self.width.is_finite()) {
-            return Err(bad("width", format!("= {} is incorrect; it must be > 0", self.width)));
+        if !(self.width > 0.0 && self.width <= MAX_COORD) {
+            return Err(bad("width", format!("= {} is incorrect; it must be in (0, {MAX_COORD:e}]", self.width)));
         }
-        if !(self.height > 0.0 && self.height.is_finite()) {
-            return Err(bad("height", format!("= {} is incorrect; it must be > 0", self.height)));
+        if !(self.height > 0.0 && self.height <= MAX_COORD) {
+            return Err(bad("height", format!("= {} is incorrect; it must be in (0, {MAX_COORD:e}]", self.height)));
+        }
+        for (d, o) in self.origin.iter().enumerate() {
+            if !(o.abs() <= MAX_COORD) {
+                return Err(bad(&format!("origin[{d}]"), format!("= {o} is incorrect; it must be in [-{MAX_COORD:e}, {MAX_COORD:e}]")));
+            }
         }
         if self.nx == 0 || self.nx > 4096 {
             return Err(bad("nx", format!("= {} is incorrect; it must be in [1, 4096]", self.nx)));
@@ -133,12 +138,13 @@ impl Rectangle {
         if let Some(n) = &self.notch {
             let jf = (n.y - self.origin[1]) / hy;
             let j = jf.round();
-            if (jf - j).abs() > 1e-6 || j < 1.0 || j > (ny - 1) as f64 {
+            // Written so that NaN fails (every comparison with NaN is false).
+            if !((jf - j).abs() <= 1e-6 && j >= 1.0 && j <= (ny - 1) as f64) {
                 return Err(bad("notch.y", format!("= {} is incorrect; it must be an interior grid line y0 + k * {hy} with k in [1, {}]", n.y, ny - 1)));
             }
             let kf = n.depth / hx;
             let k = kf.round();
-            if (kf - k).abs() > 1e-6 || k < 1.0 || k > (nx - 1) as f64 {
+            if !((kf - k).abs() <= 1e-6 && k >= 1.0 && k <= (nx - 1) as f64) {
                 return Err(bad("notch.depth", format!("= {} is incorrect; it must be k * {hx} with k in [1, {}]", n.depth, nx - 1)));
             }
             let (j, k) = (j as usize, k as usize);
@@ -155,7 +161,7 @@ impl Rectangle {
             for (k, &y) in self.cuts.iter().enumerate() {
                 let jf = (y - self.origin[1]) / hy;
                 let j = jf.round();
-                if (jf - j).abs() > 1e-6 || j < 1.0 || j > (ny - 1) as f64 {
+                if !((jf - j).abs() <= 1e-6 && j >= 1.0 && j <= (ny - 1) as f64) {
                     return Err(bad(&format!("cuts[{k}]"), format!("= {y} is incorrect; it must be an interior grid line y0 + k * {hy} with k in [1, {}]", ny - 1)));
                 }
                 edges.extend((0..nx).map(|i| [id(i, j as usize), id(i + 1, j as usize)]));

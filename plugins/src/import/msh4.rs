@@ -39,7 +39,21 @@ fn physical_names(src: &str, bytes: &[u8]) -> Result<BTreeMap<(i32, i32), String
 pub(crate) fn parse(src: &str, bytes: &[u8]) -> Result<MshContent> {
     let names = physical_names(src, bytes)?;
     let parsed = no_panic("the msh 4.1 parser (mshio)", || {
-        mshio::parse_msh_bytes(bytes).map_err(|e| e.to_string().split_whitespace().collect::<Vec<_>>().join(" "))
+        // mshio's Display appends a hex dump of the rest of the file (kilobytes): keep what
+        // precedes it and name the line where the failing input starts instead.
+        mshio::parse_msh_bytes(bytes).map_err(|e| {
+            let s = e.to_string().split_whitespace().collect::<Vec<_>>().join(" ");
+            let s = match s.find(" Hex dump of the file at the error location:") {
+                Some(i) => s[..i].trim_end().to_string(),
+                None => s,
+            };
+            // The failing input is a sub-slice of `bytes`: its start gives the offset.
+            let at = e.filtered_backtrace().first().map(|(rest, _)| (rest.as_ptr() as usize).wrapping_sub(bytes.as_ptr() as usize));
+            match at.filter(|&o| o <= bytes.len()) {
+                Some(o) => format!("line {}: {s}", 1 + bytes[..o].iter().filter(|&&c| c == b'\n').count()),
+                None => s,
+            }
+        })
     });
     let msh: MshFile<u64, i32, f64> = match parsed {
         Ok(Ok(m)) => m,
