@@ -269,7 +269,13 @@ fn paper_direct_shear_with_a_stop_separates_cd() {
     }
     let at = |p: f64| rows.iter().find(|r| (r.0 - p).abs() < 1e-9).unwrap_or_else(|| panic!("{file}: no stage at p = {p}"));
     let full = rows.iter().find(|r| r.2 == n_cd).unwrap_or_else(|| panic!("{file}: cd never open along its whole length"));
-    println!("{file}: cd open at both ends of all {n_cd} edges from p/(rho g) = {} ({:.2} p_lim); at 894: {}/{n_cd}, at 2235: {}/{n_cd}; crack faces off cd at 2235: {}; energy residual {residual:.2e}", full.0, full.0 / 268.5, at(894.0).2, at(2235.0).2, at(2235.0).4);
+    // The ratio: the push of p on ab (4 p per unit thickness, horizontal) against what cd
+    // can carry, (c + sigma_n tan(phi)) x 8 cm with sigma_n = (8 q + 2 p) / 8; above 1 the stop
+    // carries the rest.
+    let tphi = 30f64.to_radians().tan();
+    let ratio = |p: f64| 4.0 * p * RHO_G / ((COHESION + (8.0 * 100.0 + 2.0 * p) / 8.0 * RHO_G * tphi) * 8.0);
+    println!("{file}: cd open at both ends of all {n_cd} edges from p/(rho g) = {} ({:.2} p_lim; 4 p / ((c + sigma_n tan phi) x 8 cm) = {:.2}); at 894: {}/{n_cd}, at 2235: {}/{n_cd}; crack faces off cd at 2235: {}; energy residual {residual:.2e}", full.0, full.0 / 268.5, ratio(full.0), at(894.0).2, at(2235.0).2, at(2235.0).4);
+    assert!((ratio(268.5) - 1.0).abs() < 1e-3, "the ratio is 1 at p_lim: {}", ratio(268.5));
     assert_eq!(at(2235.0).2, n_cd, "{file}: cd not open along its whole length at the paper's p = 2235");
     let sim = paper_sim(&config(file));
     let cd = sim.model.edge_set("cd", "cd", file).unwrap();
