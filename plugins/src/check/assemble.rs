@@ -4,8 +4,9 @@
 //! Why not `SparseColMat::try_new_from_triplets`: it sorts every triplet (about 36 per Q4
 //! element for the lower triangle), which cost as much as faer's whole numeric factorisation on
 //! 5e5 dofs. Here the pattern comes from the cluster adjacency (a counting pass, then a short
-//! sort per cluster), and values are scattered straight into place by a binary search in the
-//! column (at most 18 rows in a structured Q4 mesh). The pattern is kept by the solver and
+//! sort per cluster), and values are scattered straight into place: each column's rows are found
+//! by one forward walk over the column (at most 18 rows in a structured Q4 mesh), the element's
+//! free dofs sorted by equation number. The pattern is kept by the solver and
 //! reused while the fingerprint (clusters, fixities, connectivity, geometry, materials) is
 //! unchanged, like the symbolic and numeric factorisations.
 //!
