@@ -377,10 +377,10 @@ fn checkpoint_records_csv_lengths_not_contents() {
 }
 
 /// `--resume` checks each CSV log against the checkpoint: shorter than recorded, or a changed
-/// byte in the recorded prefix, is refused with the file and the checkpoint named; rows
-/// written after the checkpoint and a row cut by a kill are truncated away, and the run then
-/// ends byte-identical to an uninterrupted one (reference; tolerance: none), also when resumed
-/// into another folder (the prefix is copied there).
+/// byte in the recorded prefix, or splits.csv with a field cut out of a recorded row, is refused
+/// with the file and the checkpoint named; rows written after the checkpoint and a row cut by a
+/// kill are truncated away, and the run then ends byte-identical to an uninterrupted one
+/// (reference; tolerance: none), also when resumed into another folder (the prefix is copied).
 #[test]
 fn resume_checks_and_truncates_the_csv_logs() {
     let text = tension_text();
@@ -424,6 +424,18 @@ fn resume_checks_and_truncates_the_csv_logs() {
     std::fs::remove_file(&hist).unwrap();
     let e = try_resume().unwrap_err().to_string();
     assert!(named(&e) && e.contains("cannot be read"), "{e}");
+    std::fs::write(&hist, &good).unwrap();
+    // splits.csv (the run has split before the checkpoint): a field of a recorded row cut out.
+    let sp = dir.join("splits.csv");
+    let sgood = std::fs::read(&sp).unwrap();
+    let smark = writer_state(&ck_path, &text).splits.expect("the run splits before the interruption");
+    assert_eq!(smark.len, sgood.len() as u64);
+    let text_sp = String::from_utf8(sgood.clone()).unwrap();
+    let cut = text_sp.lines().nth(1).unwrap().rsplit_once(',').unwrap().0.to_string();
+    std::fs::write(&sp, text_sp.replacen(text_sp.lines().nth(1).unwrap(), &cut, 1)).unwrap();
+    let e = try_resume().unwrap_err().to_string();
+    assert!(e.contains(&sp.display().to_string()) && e.contains(&ck_path.display().to_string()) && (e.contains("changed since the checkpoint") || e.contains("fewer than")), "{e}");
+    std::fs::write(&sp, &sgood).unwrap();
     // Whole rows after the checkpoint and a row cut by a kill: truncated away.
     let mut b = good.clone();
     b.extend_from_slice(b"999999,1e0,1,2e0\n12345,6.7e-");

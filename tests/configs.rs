@@ -86,7 +86,8 @@ fn registry_names_deserialise() {
     }
 }
 
-/// Each bad-mesh case of `RawMesh::validate` gives its message naming the file and element.
+/// Each bad-mesh case of `RawMesh::validate` gives its message naming the file and element; a mesh
+/// without file ids (built here by hand) names them by 0-based index and says so.
 #[test]
 fn bad_meshes_give_their_messages() {
     use flem_core::mesh::{CellKind, RawCell, RawMesh, ValidationOptions};
@@ -97,27 +98,27 @@ fn bad_meshes_give_their_messages() {
     // Clockwise: reoriented with a warning, or refused.
     let mut m = mesh(sq.clone(), vec![q([0, 3, 2, 1])]);
     let w = m.validate(ValidationOptions::Reorient).unwrap();
-    assert!(w[0].contains("bad.msh: element 0 was clockwise"), "{w:?}");
+    assert!(w[0].contains("bad.msh: element 0 (0-based, in file order) was clockwise"), "{w:?}");
     assert_eq!(m.cells[0].nodes, [1, 2, 3, 0]);
     let e = mesh(sq.clone(), vec![q([0, 3, 2, 1])]).validate(ValidationOptions::Refuse).unwrap_err().to_string();
-    assert!(e.contains("bad.msh: element 0 is clockwise"), "{e}");
+    assert!(e.contains("bad.msh: element 0 (0-based, in file order) is clockwise (points [0, 3, 2, 1] (0-based, in file order))"), "{e}");
     // Zero area.
     let e = mesh(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], vec![t([0, 1, 2])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
-    assert!(e.contains("element 0 has zero area"), "{e}");
+    assert!(e.contains("element 0 (0-based, in file order) has zero area"), "{e}");
     // Duplicate points.
     let mut pts = sq.clone();
     pts.push([1.0, 1.0]);
     let e = mesh(pts, vec![t([0, 1, 2]), t([0, 4, 3])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
-    assert!(e.contains("points 2 and 4 are duplicates"), "{e}");
+    assert!(e.contains("duplicate points: point 2 (0-based, in file order) and point 4 (0-based, in file order) are both at (1, 1)"), "{e}");
     // Unreferenced point.
     let mut pts = sq.clone();
     pts.push([5.0, 5.0]);
     let e = mesh(pts, vec![q([0, 1, 2, 3])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
-    assert!(e.contains("point 4 is not used by any element"), "{e}");
+    assert!(e.contains("point 4 (0-based, in file order) is not used by any element"), "{e}");
     // An edge shared by three elements.
     let pts = vec![[0.0, 0.0], [1.0, 0.0], [0.5, 1.0], [0.5, -1.0], [0.5, 2.0]];
     let e = mesh(pts, vec![t([0, 1, 2]), t([1, 0, 3]), t([0, 1, 4])]).validate(ValidationOptions::Reorient).unwrap_err().to_string();
-    assert!(e.contains("shared by more than two elements"), "{e}");
+    assert!(e.contains("shared by more than two elements: element 0 (0-based, in file order), element 1 (0-based, in file order), element 2 (0-based, in file order)"), "{e}");
 }
 
 /// A diverging run (`dt` well above dt_crit, opted in) exits 1 with the step, dt and dt_crit,

@@ -321,6 +321,32 @@ fn paper_plot_writes_frames_sequence_and_curve() {
             assert!(s.contains("<svg") && s.contains("load levels") || s.contains("level of load"), "{}", f.display());
         }
     }
+    assert!(rep.notes.is_empty(), "{:?}", rep.notes);
+    // The same folder damaged (reference: the error contract, FILE:LINE and what): a row with a
+    // missing column, a field that is not a number, a cut summary.json are refused before any
+    // picture is drawn; a last line cut by a kill and a missing summary.json are drawn up to
+    // what is whole and reported in the notes.
+    let (hist, summary) = (dir.join("history.csv"), dir.join("summary.json"));
+    let (good, sum) = (std::fs::read_to_string(&hist).unwrap(), std::fs::read_to_string(&summary).unwrap());
+    let n = good.lines().count();
+    let last = good.lines().last().unwrap();
+    let short = last.rsplit_once(',').unwrap().0;
+    std::fs::remove_dir_all(dir.join("plots")).unwrap();
+    for (text, want) in [(format!("{good}{short}\n"), format!("history.csv:{}: ", n + 1)), (good.replacen(last, &last.replacen(',', ",x", 1), 1), format!("history.csv:{n}: column \"time\" = \"x"))] {
+        std::fs::write(&hist, &text).unwrap();
+        let e = flem_plot::plot_run(&dir).unwrap_err().to_string();
+        assert!(e.contains(&want), "{want}: {e}");
+        assert!(!dir.join("plots").exists(), "a picture was drawn from a damaged log");
+    }
+    std::fs::write(&hist, &good).unwrap();
+    std::fs::write(&summary, &sum[..sum.len() / 2]).unwrap();
+    let e = flem_plot::plot_run(&dir).unwrap_err().to_string();
+    assert!(e.contains("summary.json:") && e.contains("cut short"), "{e}");
+    std::fs::remove_file(&summary).unwrap();
+    std::fs::write(&hist, format!("{good}{short}")).unwrap();
+    let rep = flem_plot::plot_run(&dir).unwrap();
+    assert!(rep.notes.iter().any(|m| m.contains(&format!("history.csv:{}: the last line is cut", n + 1))), "{:?}", rep.notes);
+    assert!(rep.notes.iter().any(|m| m.contains("summary.json is missing")), "{:?}", rep.notes);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

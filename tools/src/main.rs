@@ -352,6 +352,9 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
 
 fn plot(dir: &Path) -> Result<()> {
     let rep = flem_plot::plot_run(dir).with_context(|| format!("drawing the pictures of {}", dir.display()))?;
+    for n in &rep.notes {
+        eprintln!("note: {n}");
+    }
     eprintln!("{} pictures (PNG + SVG) in {} (displacements x {})", rep.files.len(), dir.join("plots").display(), rep.mag);
     Ok(())
 }

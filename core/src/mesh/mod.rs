@@ -6,7 +6,7 @@ mod raw;
 mod rect;
 mod rects;
 
-pub use raw::{CellKind, RawCell, RawMesh, ValidationOptions, MAX_COORD};
+pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
 pub use rect::{Notch, Rectangle};
 pub use rects::{Part, Rectangles};
 

@@ -50,6 +50,58 @@ pub struct RawMesh {
     pub node_sets: BTreeMap<String, Vec<u32>>,
     /// Named sets of edges as point pairs (pressure loads, pre-separated edges, contact surfaces).
     pub edge_sets: BTreeMap<String, Vec<[u32; 2]>>,
+    /// The ids the file gives its points and cells, for error messages (`None`: generated or
+    /// handmade; messages then give 0-based indices).
+    pub ids: Option<FileIds>,
+}
+
+/// How a mesh file names the points and cells of a [`RawMesh`]: one id per point and per cell,
+/// as the user sees them in the file (gmsh node and element tags; VTK point and cell indices,
+/// counting the cells FLEM skips), so that an error names what the user can find.
+#[derive(Clone, Debug, Default)]
+pub struct FileIds {
+    /// What a point id is called ("node tag", "VTK point").
+    pub point_word: &'static str,
+    /// What a cell id is called ("element tag", "VTK cell").
+    pub cell_word: &'static str,
+    /// Whether the ids are 0-based indices (VTK); said in messages, since most tools count from 1.
+    pub zero_based: bool,
+    pub points: Vec<u64>,
+    pub cells: Vec<u64>,
+}
+
+impl FileIds {
+    fn based(&self) -> &'static str {
+        if self.zero_based { " (0-based, as in the file)" } else { "" }
+    }
+
+    /// See [`RawMesh::cell_name`].
+    pub fn cell(ids: Option<&FileIds>, e: usize) -> String {
+        match ids.and_then(|ids| ids.cells.get(e).map(|t| (ids, t))) {
+            Some((ids, t)) => format!("{} {t}{}", ids.cell_word, ids.based()),
+            None => format!("element {e} (0-based, in file order)"),
+        }
+    }
+
+    /// See [`RawMesh::point_name`].
+    pub fn point(ids: Option<&FileIds>, p: usize) -> String {
+        match ids.and_then(|ids| ids.points.get(p).map(|t| (ids, t))) {
+            Some((ids, t)) => format!("{} {t}{}", ids.point_word, ids.based()),
+            None => format!("point {p} (0-based, in file order)"),
+        }
+    }
+
+    /// Corner points by their file ids: "points [node tags 3, 4, 9]" or "points [3, 4, 9]
+    /// (0-based, in file order)".
+    pub fn points(ids: Option<&FileIds>, ps: &[u32]) -> String {
+        match ids.filter(|ids| ps.iter().all(|&p| (p as usize) < ids.points.len())) {
+            Some(ids) => {
+                let v: Vec<String> = ps.iter().map(|&p| ids.points[p as usize].to_string()).collect();
+                format!("points [{}s {}]{}", ids.point_word, v.join(", "), ids.based())
+            }
+            None => format!("points {ps:?} (0-based, in file order)"),
+        }
+    }
 }
 
 /// How [`RawMesh::validate`] treats clockwise cells.
@@ -78,8 +130,21 @@ pub fn signed_area(p: &[[f64; 2]]) -> f64 {
 pub const MAX_COORD: f64 = 1e100;
 
 impl RawMesh {
+    /// Cell `e` as the user's file names it: "element tag 57" (gmsh), "VTK cell 12 (0-based, as
+    /// in the file)", or "element 12 (0-based, in file order)" without [`FileIds`].
+    pub fn cell_name(&self, e: usize) -> String {
+        FileIds::cell(self.ids.as_ref(), e)
+    }
+
+    /// Point `p` as the user's file names it ("node tag 33", "VTK point 33 (0-based, as in the
+    /// file)", "point 33 (0-based, in file order)").
+    pub fn point_name(&self, p: usize) -> String {
+        FileIds::point(self.ids.as_ref(), p)
+    }
+
     /// Checks the mesh; returns warnings (reoriented cells) or the first error, naming the file
-    /// and the element (0-based index in the file's order of 2D cells).
+    /// and the element and points by the ids of the file ([`RawMesh::cell_name`]; 0-based
+    /// indices in the file's order of 2D cells and of used points without [`FileIds`]).
     pub fn validate(&mut self, opt: ValidationOptions) -> Result<Vec<String>> {
         let src = self.source.clone();
         let np = self.points.len();
@@ -92,7 +157,7 @@ impl RawMesh {
         }
         for (i, p) in self.points.iter().enumerate() {
             if !p[0].is_finite() || !p[1].is_finite() {
-                return Err(FlemError::mesh(&src, format!("point {i} has a non-finite coordinate {p:?}")));
+                return Err(FlemError::mesh(&src, format!("{} has a non-finite coordinate {p:?}", self.point_name(i))));
             }
         }
         // Lengths for relative tolerances.
@@ -110,17 +175,21 @@ impl RawMesh {
         if !(far <= MAX_COORD && diam <= MAX_COORD) {
             return Err(FlemError::mesh(&src, format!("coordinates reach {far:e} (the mesh is {diam:e} across); they must stay below {MAX_COORD:e} in magnitude: rescale the units")));
         }
+        let ids = self.ids.as_ref();
+        let name = |e: usize| FileIds::cell(ids, e);
+        let pname = |p: usize| FileIds::point(ids, p);
+        let pnames = |ps: &[u32]| FileIds::points(ids, ps);
         let mut flipped = 0usize;
         for (e, c) in self.cells.iter_mut().enumerate() {
             let k = c.kind.nodes();
             for a in 0..k {
                 let n = c.nodes[a] as usize;
                 if n >= np {
-                    return Err(FlemError::mesh(&src, format!("element {e} refers to point {n}, but there are only {np} points")));
+                    return Err(FlemError::mesh(&src, format!("{} refers to point index {n}, but there are only {np} points", name(e))));
                 }
                 for b in 0..a {
                     if c.nodes[b] == c.nodes[a] {
-                        return Err(FlemError::mesh(&src, format!("element {e} uses point {} twice", c.nodes[a])));
+                        return Err(FlemError::mesh(&src, format!("{} uses {} twice", name(e), pname(c.nodes[a] as usize))));
                     }
                 }
             }
@@ -128,16 +197,16 @@ impl RawMesh {
             let area = signed_area(&corners);
             let h = corners.iter().zip(corners.iter().cycle().skip(1)).map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()).fold(0.0, f64::max);
             if area.abs() <= 1e-12 * h * h.max(diam * 1e-9) || h == 0.0 {
-                return Err(FlemError::mesh(&src, format!("element {e} has zero area (points {:?})", c.corners())));
+                return Err(FlemError::mesh(&src, format!("{} has zero area ({})", name(e), pnames(c.corners()))));
             }
             if area < 0.0 {
                 if opt == ValidationOptions::Refuse {
-                    return Err(FlemError::mesh(&src, format!("element {e} is clockwise (points {:?}); reorient it or set mesh.orientation = \"reorient\"", c.corners())));
+                    return Err(FlemError::mesh(&src, format!("{} is clockwise ({}); reorient it or set mesh.orientation = \"reorient\"", name(e), pnames(c.corners()))));
                 }
                 c.nodes[..k].reverse();
                 flipped += 1;
                 if flipped <= 5 {
-                    warnings.push(format!("{src}: element {e} was clockwise and has been reoriented"));
+                    warnings.push(format!("{src}: {} was clockwise and has been reoriented", name(e)));
                 }
             }
             if c.kind == CellKind::Q4 {
@@ -147,7 +216,7 @@ impl RawMesh {
                     let (p0, p1, p2) = (pts[a], pts[(a + 1) % 4], pts[(a + 2) % 4]);
                     let cross = (p1[0] - p0[0]) * (p2[1] - p1[1]) - (p1[1] - p0[1]) * (p2[0] - p1[0]);
                     if cross <= 0.0 {
-                        return Err(FlemError::mesh(&src, format!("element {e} is not a convex quadrilateral (points {:?})", c.corners())));
+                        return Err(FlemError::mesh(&src, format!("{} is not a convex quadrilateral ({})", name(e), pnames(c.corners()))));
                     }
                 }
             }
@@ -167,7 +236,7 @@ impl RawMesh {
         edges.sort_unstable();
         for w in edges.windows(3) {
             if w[0].0 == w[1].0 && w[1].0 == w[2].0 {
-                return Err(FlemError::mesh(&src, format!("the edge between points {} and {} is shared by more than two elements (elements {}, {}, {})", w[0].0[0], w[0].0[1], w[0].1, w[1].1, w[2].1)));
+                return Err(FlemError::mesh(&src, format!("the edge between {} and {} is shared by more than two elements: {}, {}, {}", self.point_name(w[0].0[0] as usize), self.point_name(w[0].0[1] as usize), self.cell_name(w[0].1 as usize), self.cell_name(w[1].1 as usize), self.cell_name(w[2].1 as usize))));
             }
         }
         // Duplicate points (used ones only; tolerance relative to the mesh size).
@@ -187,13 +256,13 @@ impl RawMesh {
                     break;
                 }
                 if (self.points[b][1] - self.points[a][1]).abs() <= tol {
-                    return Err(FlemError::mesh(&src, format!("points {} and {} are duplicates at ({}, {}): merge them or declare the edges between them separated", a.min(b), a.max(b), self.points[a][0], self.points[a][1])));
+                    return Err(FlemError::mesh(&src, format!("duplicate points: {} and {} are both at ({}, {}): merge them or declare the edges between them separated", self.point_name(a.min(b)), self.point_name(a.max(b)), self.points[a][0], self.points[a][1])));
                 }
             }
         }
         if let Some(i) = (0..np).find(|&i| !used[i]) {
             let n = used.iter().filter(|u| !**u).count();
-            return Err(FlemError::mesh(&src, format!("point {i} is not used by any element ({n} unreferenced points in all); remove them from the mesh")));
+            return Err(FlemError::mesh(&src, format!("{} is not used by any element ({n} unreferenced points in all); remove them from the mesh", self.point_name(i))));
         }
         // Groups must refer to existing points.
         for (name, set) in &self.node_sets {

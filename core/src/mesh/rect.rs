@@ -169,7 +169,7 @@ impl Rectangle {
             edge_sets.insert("cut".into(), edges);
         }
         let n = cells.len();
-        Ok(RawMesh { source: SRC.into(), points, cells, cell_region: vec!["all".into(); n], node_sets, edge_sets })
+        Ok(RawMesh { source: SRC.into(), points, cells, cell_region: vec!["all".into(); n], node_sets, edge_sets, ids: None })
     }
 }
 

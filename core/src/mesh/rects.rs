@@ -57,7 +57,7 @@ impl Rectangles {
         if self.parts.is_empty() {
             return Err(FlemError::config(SRC, "mesh.parts", "is empty; give at least one part"));
         }
-        let mut out = RawMesh { source: SRC.into(), points: Vec::new(), cells: Vec::new(), cell_region: Vec::new(), node_sets: BTreeMap::new(), edge_sets: BTreeMap::new() };
+        let mut out = RawMesh { source: SRC.into(), points: Vec::new(), cells: Vec::new(), cell_region: Vec::new(), node_sets: BTreeMap::new(), edge_sets: BTreeMap::new(), ids: None };
         for (k, p) in self.parts.iter().enumerate() {
             if p.name.is_empty() || p.name == "all" || self.parts[..k].iter().any(|q| q.name == p.name) {
                 return Err(FlemError::config(SRC, format!("mesh.parts[{k}].name"), format!("= \"{}\" is incorrect; part names must be non-empty, unique and not \"all\"", p.name)));

@@ -8,8 +8,9 @@
 //! or SIGTERM never leaves part of a row (the kernel finishes the write before a handler runs).
 //! Only SIGKILL (or a power cut) can cut a row: Linux checks for a fatal signal between page
 //! cache pages, so a row that straddles a 4 KiB boundary may be written in part. Readers
-//! therefore ignore a last line without its newline (`flem_plot::run::History::read`), and
-//! `--resume` truncates the file to the length the checkpoint recorded, which removes it.
+//! therefore leave out a last line without its newline (`flem_plot::run::History::read`, which
+//! reports it and refuses any other damaged line by number), and `--resume` truncates the file
+//! to the length the checkpoint recorded, which removes it.
 //!
 //! # Durability (fsync policy)
 //! fsync costs about 9 ms per file on this machine's disk, a row a few microseconds, so the
@@ -118,7 +119,7 @@ impl CsvLog {
     }
 
     /// Continues the log as it stood at checkpoint `ck` (`mark`, `None`: the log did not exist
-    /// then and is created at its next row). The first `mark.len` bytes are read from `src` (the
+    /// then and is created at its next row; a file at this log's path is removed). The first `mark.len` bytes are read from `src` (the
     /// same-named file beside the checkpoint) and checked against the CRC; a shorter file or a
     /// changed prefix is refused with both files named. When `src` is this log's own file it is
     /// truncated to `mark.len` (dropping rows written after the checkpoint, or a row cut by a
@@ -127,7 +128,17 @@ impl CsvLog {
         self.file = None;
         self.len = 0;
         self.crc = crc32fast::Hasher::new();
-        let Some(m) = mark else { return Ok(()) };
+        let Some(m) = mark else {
+            // Not created at the checkpoint: a file here now holds rows written after it (the
+            // resumed run writes them again) or belongs to another run (resuming into another
+            // folder); either way it is not this run's log at this point, so it goes, as a
+            // truncation to nothing would (a run that never writes a row again would otherwise
+            // leave it looking like its own).
+            return match std::fs::remove_file(&self.path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(self.err(format!("cannot be removed: the checkpoint {} recorded no such log yet ({e})", ck.display()))),
+                _ => Ok(()),
+            };
+        };
         let refuse = |msg: String| FlemError::Checkpoint { path: ck.display().to_string(), msg: format!("{msg}; the results cannot continue bit for bit: start the run again without --resume") };
         let mut f = File::open(src).map_err(|e| refuse(format!("{} cannot be read ({e}); the checkpoint recorded its first {} bytes", src.display(), m.len)))?;
         let have = f.metadata().map(|md| md.len()).unwrap_or(0);
@@ -155,5 +166,31 @@ impl CsvLog {
         self.len = m.len;
         self.crc = hasher;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// A resume from a checkpoint taken before a log existed removes a file at the log's path
+    /// (rows written after the checkpoint, or another run's log when resuming into another
+    /// folder), so that a run that never writes that log again does not leave a foreign one;
+    /// with a mark, the file is cut back to the recorded bytes. Reference: the bytes written here.
+    #[test]
+    fn resume_without_a_mark_removes_a_foreign_log() {
+        let dir = std::env::temp_dir().join(format!("flem-csvlog-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (path, ck) = (dir.join("splits.csv"), dir.join("checkpoint_000001.bin"));
+        std::fs::write(&path, "time,step\n1e0,5\n").unwrap();
+        let mut log = super::CsvLog::new(path.clone(), "time,step\n".into());
+        log.resume(&path, None, &ck).unwrap();
+        assert!(!path.exists() && log.mark().is_none());
+        log.append(b"2e0,7\n").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "time,step\n2e0,7\n");
+        let m = log.mark().unwrap();
+        std::fs::write(&path, "time,step\n2e0,7\n3e0,9\n4e").unwrap();
+        let mut log = super::CsvLog::new(path.clone(), "time,step\n".into());
+        log.resume(&path, Some(m), &ck).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "time,step\n2e0,7\n");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

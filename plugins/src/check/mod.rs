@@ -570,7 +570,7 @@ mod tests {
         let mut edge_sets = std::collections::BTreeMap::new();
         edge_sets.insert("top".to_string(), top);
         let n = cells.len();
-        RawMesh { source: "plate_with_hole (test)".into(), points, cells, cell_region: vec!["all".into(); n], node_sets, edge_sets }
+        RawMesh { source: "plate_with_hole (test)".into(), points, cells, cell_region: vec!["all".into(); n], node_sets, edge_sets, ids: None }
     }
 
     /// Kirsch: a plate with a circular hole of radius a under uniaxial tension sigma has
@@ -690,7 +690,7 @@ mod tests {
     fn hinge_mechanism_is_named_and_symbolic_reused() {
         let points = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [2.0, 1.0], [2.0, 2.0], [1.0, 2.0]];
         let cells = vec![RawCell { kind: CellKind::Q4, nodes: [0, 1, 2, 3] }, RawCell { kind: CellKind::Q4, nodes: [2, 4, 5, 6] }];
-        let mesh = RawMesh { source: "hinge (test)".into(), points, cells, cell_region: vec!["all".into(); 2], node_sets: Default::default(), edge_sets: Default::default() };
+        let mesh = RawMesh { source: "hinge (test)".into(), points, cells, cell_region: vec!["all".into(); 2], node_sets: Default::default(), edge_sets: Default::default(), ids: None };
         let m = model(mesh, Plane::Strain);
         let nc = m.topo.n_clusters();
         let mut fix = vec![0u8; nc];

@@ -206,7 +206,7 @@ pub(crate) fn to_raw_mesh(src: &str, content: MshContent) -> Result<RawMesh> {
     }
     // Points in increasing tag order.
     let order: Vec<usize> = index.values().copied().collect();
-    let mut g = Gathered { points: order.iter().map(|&k| nodes[k].1).collect(), labels: index.keys().copied().collect(), ..Default::default() };
+    let mut g = Gathered { points: order.iter().map(|&k| nodes[k].1).collect(), labels: index.keys().copied().collect(), words: ("node tag", "element tag"), ..Default::default() };
     let rank: BTreeMap<u64, u32> = index.keys().enumerate().map(|(r, &t)| (t, r as u32)).collect();
     let mut used_groups: BTreeSet<(i32, i32)> = BTreeSet::new();
     for e in merge_elements(src, elements)? {
@@ -233,6 +233,7 @@ pub(crate) fn to_raw_mesh(src: &str, content: MshContent) -> Result<RawMesh> {
             2 => {
                 let kind = if k == 3 { CellKind::T3 } else { CellKind::Q4 };
                 g.cells.push(RawCell { kind, nodes: p });
+                g.cell_labels.push(e.id);
                 g.cell_region.push(phys.first().map(|&t| group_name(&names, 2, t)).unwrap_or_else(|| "all".into()));
             }
             1 => {

@@ -23,7 +23,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use flem_core::mesh::{RawCell, RawMesh};
+use flem_core::mesh::{FileIds, RawCell, RawMesh};
 use flem_core::{FlemError, Result};
 
 mod cursor;
@@ -31,6 +31,7 @@ mod gmsh;
 mod msh2;
 mod msh4;
 mod vtk;
+mod vtk_locate;
 
 #[cfg(test)]
 mod tests;
@@ -63,12 +64,17 @@ pub(crate) fn no_panic<T>(what: &str, f: impl FnOnce() -> T) -> std::result::Res
 /// What a reader collects before the points are compacted.
 ///
 /// Point indices in `cells` and the sets refer to `points`; `labels` gives each point's name
-/// in the file (gmsh node tag, VTK point index) for error messages.
+/// in the file (gmsh node tag, VTK point index) and `cell_labels` each cell's (gmsh element
+/// tag, VTK cell index), kept in the mesh ([`FileIds`]) for error messages; `words` says what
+/// they are called (point, cell) and `zero_based` whether they count from 0.
 #[derive(Default, Debug)]
 pub(crate) struct Gathered {
     pub points: Vec<[f64; 3]>,
     pub labels: Vec<u64>,
+    pub words: (&'static str, &'static str),
+    pub zero_based: bool,
     pub cells: Vec<RawCell>,
+    pub cell_labels: Vec<u64>,
     pub cell_region: Vec<String>,
     pub node_sets: BTreeMap<String, Vec<u32>>,
     pub edge_sets: BTreeMap<String, Vec<[u32; 2]>>,
@@ -81,26 +87,29 @@ impl Gathered {
             return Err(FlemError::mesh(src, "the file has no triangles or quadrilaterals (first-order 2D cells)"));
         }
         let n = self.points.len();
+        let based = if self.zero_based { " (0-based, as in the file)" } else { "" };
         let mut new_id = vec![u32::MAX; n];
         for c in &self.cells {
             for &p in c.corners() {
                 let p = p as usize;
                 if p >= n {
-                    return Err(FlemError::mesh(src, format!("a cell refers to point {p}, but there are only {n} points")));
+                    return Err(FlemError::mesh(src, format!("a cell refers to point index {p}, but there are only {n} points")));
                 }
                 new_id[p] = 0;
             }
         }
         let mut points = Vec::new();
+        let mut point_ids = Vec::new();
         let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
         for (i, id) in new_id.iter_mut().enumerate() {
             if *id == 0 {
                 let p = self.points[i];
                 if !p.iter().all(|v| v.is_finite()) {
-                    return Err(FlemError::mesh(src, format!("node {} has a non-finite coordinate {p:?}", self.labels[i])));
+                    return Err(FlemError::mesh(src, format!("{} {}{based} has a non-finite coordinate {p:?}", self.words.0, self.labels[i])));
                 }
                 *id = points.len() as u32;
                 points.push([p[0], p[1]]);
+                point_ids.push(self.labels[i]);
                 for d in 0..2 {
                     lo[d] = lo[d].min(p[d]);
                     hi[d] = hi[d].max(p[d]);
@@ -111,7 +120,7 @@ impl Gathered {
         for (i, &id) in new_id.iter().enumerate() {
             let z = self.points[i][2];
             if id != u32::MAX && z.abs() > 1e-9 * size {
-                return Err(FlemError::mesh(src, format!("not a 2D mesh: node {} has z = {z} (the mesh is {size:.6e} across); FLEM reads planar meshes in the plane z = 0", self.labels[i])));
+                return Err(FlemError::mesh(src, format!("not a 2D mesh: {} {}{based} has z = {z} (the mesh is {size:.6e} across); FLEM reads planar meshes in the plane z = 0", self.words.0, self.labels[i])));
             }
         }
         let map = |p: u32| new_id.get(p as usize).copied().filter(|&q| q != u32::MAX);
@@ -144,6 +153,7 @@ impl Gathered {
                 (name, v)
             })
             .collect();
-        Ok(RawMesh { source: src.to_string(), points, cells, cell_region: self.cell_region, node_sets, edge_sets })
+        let ids = (self.cell_labels.len() == self.cells.len()).then(|| FileIds { point_word: self.words.0, cell_word: self.words.1, zero_based: self.zero_based, points: point_ids, cells: self.cell_labels });
+        Ok(RawMesh { source: src.to_string(), points, cells, cell_region: self.cell_region, node_sets, edge_sets, ids })
     }
 }

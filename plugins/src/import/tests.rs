@@ -216,7 +216,7 @@ fn element_referring_to_a_missing_node() {
 fn non_planar_mesh_is_refused() {
     let text = small_v22("", &[]).replace("3 1 1 0\n", "3 1 1 0.25\n");
     let e = msh_err(&text);
-    assert!(e.contains("not a 2D mesh: node 3 has z = 0.25"), "{e}");
+    assert!(e.contains("not a 2D mesh: node tag 3 has z = 0.25"), "{e}");
 }
 
 #[test]
@@ -394,4 +394,75 @@ fn doc_toml_snippets_load() {
         let m = src.load(&configs).unwrap_or_else(|e| panic!("{file}: {e}"));
         assert!(!m.cells.is_empty(), "{file}");
     }
+}
+
+/// Validation names elements and points by the ids of the user's file, not by FLEM's 0-based
+/// internal indices: gmsh element and node tags (sparse here: elements 11 and 20, nodes 100, 20,
+/// 3, 4000 become internal 0..3 in another order), VTK cell and point indices counted in the
+/// file (the skipped line cells count). Reference: the files' own tags, written by hand here.
+#[test]
+fn validation_names_the_ids_of_the_file() {
+    use flem_core::mesh::ValidationOptions;
+    let text = small_v22("", &[]).replace("\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n", "\n100 0 0 0\n20 1 0 0\n3 1 1 0\n4000 0 1 0\n");
+    // Element 20 is clockwise (100, 4000, 3); element 11 is fine.
+    let text = text.replace("1 2 2 5 1 1 2 3\n2 2 2 5 1 1 3 4\n3 1 2 7 1 1 2", "11 2 2 5 1 100 20 3\n20 2 2 5 1 100 4000 3\n3 1 2 7 1 100 20");
+    let mut m = read_msh_bytes("s.msh", text.as_bytes()).unwrap();
+    let e = m.clone().validate(ValidationOptions::Refuse).unwrap_err().to_string();
+    assert!(e.contains("s.msh: element tag 20 is clockwise (points [node tags 100, 4000, 3])"), "{e}");
+    let w = m.validate(ValidationOptions::Reorient).unwrap();
+    assert!(w[0].contains("s.msh: element tag 20 was clockwise"), "{w:?}");
+    // A zero-area element: its tag and its nodes' tags.
+    let flat = text.replace("\n3 1 1 0\n", "\n3 2 0 0\n");
+    let e = read_msh_bytes("s.msh", flat.as_bytes()).unwrap().validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("element tag 11 has zero area (points [node tags 100, 20, 3])"), "{e}");
+    // Duplicate points: node tags.
+    let dup = small_v22("", &["4 2 2 5 1 1 2 5"]).replace("\n5 0.5 0 0\n", "\n5 1 1 0\n");
+    let e = read_msh_bytes("s.msh", dup.as_bytes()).unwrap().validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("duplicate points: node tag 3 and node tag 5 are both at (1, 1)"), "{e}");
+    // VTK: a legacy file whose first cell is a line (skipped) and whose cell 2 is degenerate.
+    let vtk = "# vtk DataFile Version 4.2\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n9 9 0 0 0 0 1 0 0 1 1 0 2 0 0\nCELLS 3 11\n2 1 2\n3 1 2 3\n3 1 2 4\nCELL_TYPES 3\n3\n5\n5\n";
+    let e = read_vtk_bytes("t.vtk", "vtk", vtk.as_bytes(), None).unwrap().validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("t.vtk: VTK cell 2 (0-based, as in the file) has zero area (points [VTK points 1, 2, 4] (0-based, as in the file))"), "{e}");
+    // Without file ids (a mesh built by hand): 0-based, said so.
+    let mut m = read_vtk_bytes("t.vtk", "vtk", vtk.as_bytes(), None).unwrap();
+    m.ids = None;
+    let e = m.validate(ValidationOptions::Reorient).unwrap_err().to_string();
+    assert!(e.contains("element 1 (0-based, in file order) has zero area (points [0, 1, 3] (0-based, in file order))"), "{e}");
+}
+
+/// vtkio's parse errors carry no position: the importer adds the line, the data array and the
+/// piece (vtu) or the section (legacy). Reference: the damage written here by hand.
+#[test]
+fn vtk_parse_errors_name_the_line_and_array() {
+    let ascii = std::fs::read_to_string(meshes().join("rect_quad_ascii.vtu")).unwrap();
+    let err = |name: &str, ext: &str, b: &[u8]| read_vtk_bytes(name, ext, b, None).map(|_| ()).unwrap_err().to_string();
+    // A value that is not a number in the connectivity.
+    let at = ascii.find("Name=\"connectivity\"").unwrap();
+    let nl = at + ascii[at..].find('\n').unwrap() + 1;
+    let line = ascii[..nl].lines().count() + 1;
+    let bad = format!("{}x{}", &ascii[..nl], &ascii[nl + 1..]);
+    let e = err("q.vtu", "vtu", bad.as_bytes());
+    assert!(e.starts_with("q.vtu: cannot parse the VTK file") && e.contains(&format!("line {line}: ")) && e.contains("<DataArray Name=\"connectivity\">") && e.contains("of <Cells> of piece 0") && e.contains("not a whole number"), "{e}");
+    // Cut in the middle of the points.
+    let cut = ascii.find("Name=\"Points\"").unwrap() + 200;
+    let e = err("q.vtu", "vtu", &ascii.as_bytes()[..cut]);
+    assert!(e.contains("the file ends in <DataArray Name=\"Points\">") && e.contains("of <Points> of piece 0") && e.contains("cut short"), "{e}");
+    // A binary (base64) array with a stray character.
+    let bin = std::fs::read_to_string(meshes().join("rect_quad.vtu")).unwrap();
+    let at = bin.find("Name=\"offsets\"").unwrap();
+    let nl = at + bin[at..].find('\n').unwrap() + 1;
+    let e = err("b.vtu", "vtu", format!("{}*{}", &bin[..nl], &bin[nl + 1..]).as_bytes());
+    assert!(e.contains("not base64 in <DataArray Name=\"offsets\">"), "{e}");
+    // Legacy: cut in CELLS, and a word among the points.
+    let legacy = std::fs::read_to_string(meshes().join("rect_tri.vtk")).unwrap();
+    let cells = legacy.find("CELLS").unwrap();
+    let e = err("t.vtk", "vtk", &legacy.as_bytes()[..cells + 40]);
+    assert!(e.contains("the file ends in CELLS (line 7) after") && e.contains("cut short"), "{e}");
+    let e = err("t.vtk", "vtk", legacy.replacen("2.0 0.0 0.0", "2.0 zero 0.0", 1).as_bytes());
+    assert!(e.contains("line 6: \"zero\" in POINTS (line 5), value 5 of 135, is not a number"), "{e}");
+    // A CELLS size that does not match its cells (vtkio says only "Parse error: Tag").
+    let cells_line = legacy.lines().find(|l| l.starts_with("CELLS")).unwrap();
+    let (n, size) = cells_line[6..].split_once(' ').unwrap();
+    let e = err("t.vtk", "vtk", legacy.replacen(cells_line, &format!("CELLS {n} {}", size.parse::<u64>().unwrap() - 1), 1).as_bytes());
+    assert!(e.contains(&format!("line 7: CELLS {n} {}: its {n} cells take {size} values", size.parse::<u64>().unwrap() - 1)), "{e}");
 }

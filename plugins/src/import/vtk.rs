@@ -51,16 +51,22 @@ pub fn read_vtk_bytes(src: &str, ext: &str, bytes: &[u8], region_array: Option<&
         "vtk" => Some(vtkio::Vtk::parse_legacy_be(bytes)),
         _ => None,
     });
+    // vtkio's errors give no position: on failure (only) our scanner looks for the line, the
+    // section, the piece and the data array.
+    let hint = || {
+        let h = if ext == "vtu" { super::vtk_locate::locate_xml(bytes) } else { super::vtk_locate::locate_legacy(bytes) };
+        h.map_or_else(String::new, |h| format!("; {h}"))
+    };
     let vtk = match parsed {
         Ok(Some(Ok(v))) => v,
-        Ok(Some(Err(e))) => return Err(FlemError::mesh(&src, format!("cannot parse the VTK file: {e}"))),
+        Ok(Some(Err(e))) => return Err(FlemError::mesh(&src, format!("cannot parse the VTK file: {e}{}", hint()))),
         Ok(None) => return Err(FlemError::mesh(&src, format!("unknown VTK file extension \"{ext}\"; use .vtu (XML unstructured grid) or .vtk (legacy)"))),
-        Err(e) => return Err(FlemError::mesh(&src, e)),
+        Err(e) => return Err(FlemError::mesh(&src, format!("{e}{}", hint()))),
     };
     let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
         return Err(FlemError::mesh(&src, "the VTK file holds no unstructured grid"));
     };
-    let mut g = Gathered::default();
+    let mut g = Gathered { words: ("VTK point", "VTK cell"), zero_based: true, ..Default::default() };
     for piece in pieces {
         match piece {
             Piece::Inline(p) => add_piece(&src, *p, region_array, &mut g)?,
@@ -178,6 +184,7 @@ fn add_piece(src: &str, p: UnstructuredGridPiece, wanted: Option<&str>, g: &mut 
         match (kind, name) {
             (Some(kind), name) => {
                 g.cells.push(RawCell { kind, nodes });
+                g.cell_labels.push(c as u64);
                 g.cell_region.push(name.unwrap_or_else(|| "all".into()));
             }
             (None, Some(name)) => {

@@ -5,7 +5,10 @@
 //! frames of the crack running (figure 11 (a)-(d)).
 //!
 //! Input is only what a run writes (`results.pvd` and its VTU files read back with vtkio,
-//! `history.csv`, `summary.json`), so `flem plot RUN_DIR` works on any finished run. Output goes
+//! `history.csv`, `summary.json`), so `flem plot RUN_DIR` works on any finished run. Damaged
+//! input is refused before any picture is drawn, as `FILE:LINE: what` ([`run::History::read`],
+//! [`run::stages`], [`run::snapshot_list`]); what a kill leaves (a last history line cut, no
+//! summary.json) is drawn up to what is whole and said in [`PlotReport::notes`]. Output goes
 //! into `RUN_DIR/plots/` as PNG (plotters' bitmap backend, encoded in memory with `png`) and SVG,
 //! every file through `flem_core::output::atomic_write`.
 //!
@@ -79,6 +82,9 @@ pub struct PlotReport {
     pub mag: f64,
     /// Snapshot names of the crack sequence panels.
     pub sequence: Vec<String>,
+    /// What the pictures leave out or assume, for the user (`flem plot` prints them): a last
+    /// line of history.csv cut by a kill, a missing summary.json.
+    pub notes: Vec<String>,
 }
 
 /// The stage index of a snapshot file name (`snapshot_NNNN_stageK.vtu` or `..._stageK_...`).
@@ -95,7 +101,17 @@ pub fn plot_run(dir: &Path) -> Result<PlotReport> {
     }
     let snaps: Vec<(f64, Snapshot)> = list.iter().map(|(t, p)| Snapshot::read(p).map(|s| (*t, s))).collect::<Result<_>>()?;
     let hist = History::read(dir)?;
-    let stages = run::stages(dir);
+    let mut notes = Vec::new();
+    if let Some(n) = hist.cut_line {
+        notes.push(format!("{}:{n}: the last line is cut (the run was killed while writing it) and left out: the curves end at line {}", dir.join("history.csv").display(), n - 1));
+    }
+    let stages = match run::stages(dir)? {
+        Some(s) => s,
+        None => {
+            notes.push(format!("{} is missing (the run did not end: killed?): every stage is taken as in equilibrium", dir.join("summary.json").display()));
+            Vec::new()
+        }
+    };
     let out = dir.join("plots");
     std::fs::create_dir_all(&out).map_err(|e| FlemError::Output { path: out.display().to_string(), msg: e.to_string() })?;
     // Magnification and stress scale from the states in equilibrium (a part flying off after a
@@ -138,7 +154,7 @@ pub fn plot_run(dir: &Path) -> Result<PlotReport> {
         bbox,
         compact,
     };
-    let mut rep = PlotReport { mag, ..Default::default() };
+    let mut rep = PlotReport { mag, notes, ..Default::default() };
     for (k, (t, s)) in snaps.iter().enumerate() {
         let label = s.name.trim_start_matches("snapshot_").trim_end_matches(".vtu").to_string();
         let info = info_for(*t, &s.name, format!("{label}: {} crack faces ({} open at both ends), t = {t:.4e}", s.crack_faces(), s.open_faces()), false);

@@ -99,15 +99,26 @@ impl Snapshot {
     }
 }
 
-/// The snapshot files listed in `results.pvd`, in order, with their times.
+/// `path:line: msg` (1-based line), the form of every refusal of a file read here.
+fn at(path: &Path, line: usize, msg: impl std::fmt::Display) -> FlemError {
+    FlemError::Other(format!("{}:{line}: {msg}", path.display()))
+}
+
+/// The snapshot files listed in `results.pvd`, in order, with their times. A `<DataSet>` line
+/// without `timestep` and `file`, or with a time that is not a finite number, is refused as
+/// `results.pvd:LINE: ...` (the file is written whole by the run, so this is damage).
 pub fn snapshot_list(dir: &Path) -> Result<Vec<(f64, PathBuf)>> {
     let pvd = dir.join("results.pvd");
     let text = std::fs::read_to_string(&pvd).map_err(|e| FlemError::Other(format!("{}: cannot be read ({e}); is {} a run folder?", pvd.display(), dir.display())))?;
     let mut out = Vec::new();
-    for line in text.lines().filter(|l| l.contains("<DataSet")) {
+    for (i, line) in text.lines().enumerate().filter(|(_, l)| l.contains("<DataSet")) {
         let attr = |key: &str| line.split(&format!("{key}=\"")).nth(1).and_then(|r| r.split('"').next());
-        let (Some(t), Some(f)) = (attr("timestep"), attr("file")) else { continue };
-        out.push((t.parse().unwrap_or(f64::NAN), dir.join(f)));
+        let (Some(t), Some(f)) = (attr("timestep"), attr("file")) else { return Err(at(&pvd, i + 1, "a <DataSet> without its timestep=\"...\" and file=\"...\" attributes")) };
+        let t: f64 = t.parse().ok().filter(|t: &f64| t.is_finite()).ok_or_else(|| at(&pvd, i + 1, format!("timestep=\"{t}\" is not a finite number")))?;
+        out.push((t, dir.join(f)));
+    }
+    if !text.contains("</Collection>") {
+        return Err(FlemError::Other(format!("{}: cut short (no </Collection>)", pvd.display())));
     }
     Ok(out)
 }
@@ -116,20 +127,67 @@ pub fn snapshot_list(dir: &Path) -> Result<Vec<(f64, PathBuf)>> {
 #[derive(Clone, Debug, Default)]
 pub struct History {
     pub header: Vec<String>,
+    /// One row per whole line; an empty field (a value not yet computed, e.g. the unbalanced
+    /// ratio before its first check: the writer never writes NaN) is NaN here.
     pub rows: Vec<Vec<f64>>,
+    /// The 1-based line number of a last line that was cut (no newline: the run was killed
+    /// while writing it) and left out.
+    pub cut_line: Option<usize>,
 }
 
 impl History {
+    /// Reads `dir/history.csv`. Every whole line must have as many fields as the header, each a
+    /// finite number or empty, `step` and `stage` (when present) whole numbers, `step` never
+    /// going back: anything else is refused as `history.csv:LINE: what` (a curve drawn from a
+    /// damaged log would be silently wrong). The one exception is a last line without its
+    /// newline, which only a kill during the write leaves (`flem_core::output::csvlog`): it is
+    /// left out and reported in [`History::cut_line`] (and by `plot_run` in its notes).
     pub fn read(dir: &Path) -> Result<History> {
         let path = dir.join("history.csv");
         let text = std::fs::read_to_string(&path).map_err(|e| FlemError::Other(format!("{}: cannot be read ({e})", path.display())))?;
-        // The log is appended row by row: a run killed by SIGKILL may leave its last row cut
-        // (no newline; flem_core::output::csvlog). Only whole lines are read.
-        let text = &text[..text.rfind('\n').map_or(0, |i| i + 1)];
-        let mut lines = text.lines();
-        let header: Vec<String> = lines.next().unwrap_or_default().split(',').map(str::to_string).collect();
-        let rows = lines.filter(|l| !l.is_empty()).map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
-        Ok(History { header, rows })
+        let whole = text.rfind('\n').map_or(0, |i| i + 1);
+        let mut lines = text[..whole].split_terminator('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
+        let Some(head) = lines.next().filter(|h| !h.trim().is_empty()) else { return Err(at(&path, 1, "no header line (the file is empty or its first line is cut)")) };
+        let header: Vec<String> = head.split(',').map(str::to_string).collect();
+        let cut_line = (whole < text.len()).then(|| text[..whole].matches('\n').count() + 1);
+        if cut_line == Some(1) {
+            return Err(at(&path, 1, "no header line (the file is empty or its first line is cut)"));
+        }
+        let whole_cols: Vec<usize> = ["step", "stage"].iter().filter_map(|n| header.iter().position(|h| h == n)).collect();
+        let step_col = header.iter().position(|h| h == "step");
+        let mut rows: Vec<Vec<f64>> = Vec::new();
+        for (i, l) in lines.enumerate() {
+            let ln = i + 2;
+            let fields: Vec<&str> = l.split(',').collect();
+            if fields.len() != header.len() {
+                return Err(at(&path, ln, format!("{} fields, but the header has {} columns", fields.len(), header.len())));
+            }
+            let mut row = Vec::with_capacity(fields.len());
+            for (c, f) in fields.iter().enumerate() {
+                let v = if f.is_empty() {
+                    if whole_cols.contains(&c) {
+                        return Err(at(&path, ln, format!("column \"{}\" is empty", header[c])));
+                    }
+                    f64::NAN
+                } else {
+                    match f.parse::<f64>() {
+                        Ok(v) if v.is_finite() => v,
+                        _ => return Err(at(&path, ln, format!("column \"{}\" = \"{}\" is not a finite number", header[c], f.escape_debug()))),
+                    }
+                };
+                if whole_cols.contains(&c) && (v < 0.0 || v.fract() != 0.0) {
+                    return Err(at(&path, ln, format!("column \"{}\" = {f} is not a whole number", header[c])));
+                }
+                row.push(v);
+            }
+            if let (Some(sc), Some(prev)) = (step_col, rows.last()) {
+                if row[sc] < prev[sc] {
+                    return Err(at(&path, ln, format!("step {} comes after step {} (rows out of order: the file was edited or two logs were joined)", row[sc], prev[sc])));
+                }
+            }
+            rows.push(row);
+        }
+        Ok(History { header, rows, cut_line })
     }
 
     pub fn col(&self, name: &str) -> Option<usize> {
@@ -148,14 +206,31 @@ impl History {
     }
 }
 
-/// Per-stage results from `summary.json`: (name, converged, splits).
-pub fn stages(dir: &Path) -> Vec<(String, bool, u64)> {
-    let Ok(text) = std::fs::read_to_string(dir.join("summary.json")) else { return Vec::new() };
-    let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) else { return Vec::new() };
-    v["stages"]
-        .as_array()
-        .map(|a| a.iter().map(|s| (s["name"].as_str().unwrap_or("").to_string(), s["converged"].as_bool().unwrap_or(false), s["splits"].as_u64().unwrap_or(0))).collect())
-        .unwrap_or_default()
+/// Per-stage results from `summary.json`: (name, converged, splits); `None` when the folder has
+/// no summary.json (a run killed before its end writes none). A summary.json that is not JSON
+/// (e.g. cut) is refused as `summary.json:LINE:COLUMN: ...`, one without a well-formed `stages`
+/// list as `summary.json: stages[K].KEY ...` (it is written whole by the run, so this is damage;
+/// guessing would mark stages wrongly as in equilibrium or not).
+pub fn stages(dir: &Path) -> Result<Option<Vec<(String, bool, u64)>>> {
+    let path = dir.join("summary.json");
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(FlemError::Other(format!("{}: cannot be read ({e})", path.display()))),
+    };
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| FlemError::Other(format!("{}:{}:{}: not valid JSON ({e}){}", path.display(), e.line(), e.column(), if e.is_eof() { "; the file is cut short" } else { "" })))?;
+    let bad = |key: String, what: &str| FlemError::Other(format!("{}: {key} {what}", path.display()));
+    let list = v.get("stages").and_then(|s| s.as_array()).ok_or_else(|| bad("stages".into(), "is missing or not a list"))?;
+    list.iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let name = s.get("name").and_then(|x| x.as_str()).ok_or_else(|| bad(format!("stages[{k}].name"), "is missing or not a string"))?;
+            let conv = s.get("converged").and_then(|x| x.as_bool()).ok_or_else(|| bad(format!("stages[{k}].converged"), "is missing or not true/false"))?;
+            let splits = s.get("splits").and_then(|x| x.as_u64()).ok_or_else(|| bad(format!("stages[{k}].splits"), "is missing or not a whole number"))?;
+            Ok((name.to_string(), conv, splits))
+        })
+        .collect::<Result<Vec<_>>>()
+        .map(Some)
 }
 
 #[cfg(test)]
@@ -169,6 +244,96 @@ mod tests {
         let h = super::History::read(&dir).unwrap();
         assert_eq!(h.header, ["step", "time"]);
         assert_eq!(h.rows, vec![vec![1.0, 0.1], vec![2.0, 0.2]]);
+        assert_eq!(h.cut_line, Some(4));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    fn folder(tag: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("flem-plot-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// Damaged history.csv lines are refused as `history.csv:LINE: what` with the column named,
+    /// never read as NaN or a short row (reference: the writer's format, `OutputWriter::history`:
+    /// every row has the header's columns, numbers or empty for "not computed yet").
+    #[test]
+    fn history_refuses_damaged_lines_by_line_and_column() {
+        let dir = folder("bad-hist");
+        let head = "step,time,stage,level_p,external_work,unbalanced_ratio\n";
+        let ok = "0,0e0,0,0e0,0e0,\n10,1e-3,0,5e-1,2e-3,4.5e-2\n";
+        std::fs::write(dir.join("history.csv"), format!("{head}{ok}")).unwrap();
+        let h = super::History::read(&dir).unwrap();
+        assert_eq!(h.rows.len(), 2);
+        assert!(h.rows[0][5].is_nan() && h.rows[1][5] == 4.5e-2 && h.cut_line.is_none(), "an empty field is a value not computed yet");
+        let cases = [
+            ("20,2e-3,0,1e0,3e-3\n", ":4: 5 fields, but the header has 6 columns"),
+            ("20,2e-3,0,1e0,3e-3,1e-2,7\n", ":4: 7 fields"),
+            ("20,2e-3,0,1e0,3x-3,1e-2\n", ":4: column \"external_work\" = \"3x-3\" is not a finite number"),
+            ("20,2e-3,0,NaN,3e-3,1e-2\n", ":4: column \"level_p\" = \"NaN\" is not a finite number"),
+            ("20,2e-3,0,inf,3e-3,1e-2\n", "column \"level_p\" = \"inf\""),
+            (",2e-3,0,1e0,3e-3,1e-2\n", ":4: column \"step\" is empty"),
+            ("20,2e-3,1.5,1e0,3e-3,1e-2\n", ":4: column \"stage\" = 1.5 is not a whole number"),
+            ("5,2e-3,0,1e0,3e-3,1e-2\n", ":4: step 5 comes after step 10"),
+            ("\n20,2e-3,0,1e0,3e-3,1e-2\n", ":4: 1 fields"),
+        ];
+        for (extra, want) in cases {
+            std::fs::write(dir.join("history.csv"), format!("{head}{ok}{extra}")).unwrap();
+            let e = super::History::read(&dir).unwrap_err().to_string();
+            assert!(e.contains(&format!("{}", dir.join("history.csv").display())) && e.contains(want), "{extra:?}: {e}");
+        }
+        // Empty, or only a cut header: no header.
+        for text in ["", "step,ti"] {
+            std::fs::write(dir.join("history.csv"), text).unwrap();
+            let e = super::History::read(&dir).unwrap_err().to_string();
+            assert!(e.contains("history.csv:1: no header line"), "{text:?}: {e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// summary.json: absent (a killed run) is `None`; cut, not JSON, or with a damaged `stages`
+    /// list it is refused with the line and column or the key (reference: the writer's format,
+    /// `OutputWriter::write_summary`).
+    #[test]
+    fn summary_refuses_damage_by_line_or_key() {
+        let dir = folder("bad-summary");
+        assert!(super::stages(&dir).unwrap().is_none());
+        let good = "{\n  \"title\": \"t\",\n  \"stages\": [\n    {\"name\": \"load\", \"converged\": true, \"splits\": 3}\n  ]\n}\n";
+        std::fs::write(dir.join("summary.json"), good).unwrap();
+        assert_eq!(super::stages(&dir).unwrap().unwrap(), vec![("load".to_string(), true, 3)]);
+        let path = dir.join("summary.json").display().to_string();
+        let cases = [
+            (good[..good.len() - 9].to_string(), format!("{path}:4:")),
+            (good.replace("true", "yes"), format!("{path}:4:")),
+            (good.replace("\"converged\": true, ", ""), format!("{path}: stages[0].converged is missing")),
+            (good.replace("3}", "\"3\"}"), format!("{path}: stages[0].splits is missing or not a whole number")),
+            (good.replace("\"stages\"", "\"stage\""), format!("{path}: stages is missing")),
+        ];
+        for (text, want) in cases {
+            std::fs::write(dir.join("summary.json"), &text).unwrap();
+            let e = super::stages(&dir).unwrap_err().to_string();
+            assert!(e.contains(&want), "{text:?}: {e}");
+        }
+        std::fs::write(dir.join("summary.json"), &good[..40]).unwrap();
+        assert!(super::stages(&dir).unwrap_err().to_string().contains("cut short"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// results.pvd: a `<DataSet>` without its attributes or with a time that is not a number,
+    /// or a file cut before `</Collection>`, is refused with the line (reference: the writer's
+    /// format, `OutputWriter::write_pvd`).
+    #[test]
+    fn snapshot_list_refuses_a_damaged_pvd() {
+        let dir = folder("bad-pvd");
+        let pvd = |sets: &str, end: bool| format!("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\">\n  <Collection>\n{sets}{}", if end { "  </Collection>\n</VTKFile>\n" } else { "" });
+        let one = "    <DataSet timestep=\"1e0\" group=\"\" part=\"0\" file=\"a.vtu\"/>\n";
+        std::fs::write(dir.join("results.pvd"), pvd(one, true)).unwrap();
+        assert_eq!(super::snapshot_list(&dir).unwrap(), vec![(1.0, dir.join("a.vtu"))]);
+        for (text, want) in [(pvd(&one.replace("1e0", "1x0"), true), "results.pvd:4: timestep=\"1x0\""), (pvd(&one.replace(" file=", " fle="), true), "results.pvd:4: a <DataSet> without"), (pvd(one, false), "results.pvd: cut short")] {
+            std::fs::write(dir.join("results.pvd"), &text).unwrap();
+            let e = super::snapshot_list(&dir).unwrap_err().to_string();
+            assert!(e.contains(want), "{text:?}: {e}");
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
