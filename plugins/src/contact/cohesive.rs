@@ -309,7 +309,7 @@ mod tests {
         // (gap, steps to get there): 1e-3 = delta_0, 2e-2 = delta_f.
         let legs = [(-4e-4, 37), (3e-3, 53), (-2e-4, 41), (8e-3, 67), (2.5e-2, 71), (1e-3, 29), (-3e-4, 31), (2e-3, 23)];
         let slip = |i: usize| 5e-3 * (i as f64 * 0.131).sin();
-        let (mut area, area_cut, cut_at) = (2.0, 1.5, 150);
+        let (mut area, area_cut, cut_at): (f64, f64, usize) = (2.0, 1.5, 150);
         let mut pair = Some(PairState { fresh: true, ..Default::default() });
         let (mut g0, mut s0, mut f0, mut new) = (0.0, 0.0, [0.0; 2], false);
         let (mut w, mut w_abs, mut d, mut e) = (0.0, 0.0, 0.0, 0.0);
