@@ -611,12 +611,17 @@ levels = {{ pull = 1.0 }}
 /// created by node splitting. Reference: central differences with a conservative contact law
 /// keep the energy balance W_ext = KE + U + E_contact + D_contact (METHOD section 6; the run
 /// without contact closes it to 1e-14): after 4000 steps no energy created (signed residual
-/// above -1e-3 of the work) and relative residual below 6e-2. The residual left is energy lost,
-/// O(dt): a pair born from an open gap is credited the work of the whole step's approach, a
-/// split halves the area, hence the energy, of an open cohesive pair. It depends on the crack
-/// path: session 3 measured 3.5e-3 at dt_safety 0.5, but the same code gives 3.6e-2 to 5.0e-2
-/// at dt_safety 0.45, 0.49, 0.51; since session 4 (no spring born at a full earlier overlap)
-/// 3.6e-2 to 4.8e-2 at 0.45-0.51, all lost. The cohesive faces release about G_c per unit of crack (reference: G_c x the
+/// above -1e-3 of the work) and relative residual below 5e-4. History of the residual, all energy
+/// lost: session 3 measured 3.5e-3 at dt_safety 0.5, but the same code gave 3.6e-2 to 5.0e-2 at
+/// dt_safety 0.45, 0.49, 0.51; session 4 (no spring born at a full earlier overlap) 3.6e-2 to
+/// 4.8e-2 at 0.45-0.51. Session 5 measured where it came from, per pair and step (the pair's
+/// trapezoidal work + change of stored + dissipated, at 0.5, of the 7.9e-4 lost): contacts born
+/// from an open gap -7.3e-4 (the step's whole approach is credited 1/2 N |dgap|, the spring
+/// stores 1/2 N |gap|), releases +3.5e-4, Coulomb slip counted as a rectangle -3.1e-4, splits
+/// shrinking the area of cohesive pairs -1.5e-4, the cohesive peak +4.8e-5 (trapezoid across a
+/// concave kink); the `cohesive` law now counts each of these (its doc), and the residual is
+/// 8.4e-5, 5.1e-5, 7.9e-5, 1.1e-5 at dt_safety 0.45, 0.49, 0.5, 0.51 (still lost: frames turning
+/// over a step, pairs changing master). The cohesive faces release about G_c per unit of crack (reference: G_c x the
 /// 9 cm ligament). The crack stays a crack: every new node lies in the band y = 5.75 +- 1.5 of the
 /// notch, and there are at most 4 x the splits of the same run without contact (41; the
 /// cohesive zone makes the tip branch, 119 splits). Before the fix the run diverged at step
@@ -644,12 +649,14 @@ fn dynamic_crack_with_cohesive_contact_keeps_the_energy_balance() {
     println!("splits: {n} with contact, {n_bare} without; energy residual {res:.3e} (without contact {:.3e}); new nodes off the crack band: {far}; energy dissipated by the contact law {released:.4e} (G_c x ligament {:.4e})", bare.ledger.relative_residual(), 0.001 * 9.0);
     assert!(n_bare > 10, "the scene no longer cracks without contact ({n_bare} splits)");
     assert!(s.ledger.residual() > -1e-3 * s.ledger.external().abs(), "energy created: residual {:.3e} of work {:.3e}", s.ledger.residual(), s.ledger.external());
-    assert!(res < 6e-2, "energy residual {res:.3e} with contact");
+    assert!(res < 5e-4, "energy residual {res:.3e} with contact");
     assert!(n <= 4 * n_bare, "{n} splits with contact, {n_bare} without");
     assert!(far <= 1, "{far} new nodes away from the notch's crack band");
     // The contact law really worked the crack faces: separating the plate through its 9 cm
     // ligament releases at least G_c x ligament = 0.009 (Griffith; Akantu's cohesive run of the
-    // same plate: 0.0096); branching and friction add to it: tolerance 0.9 to 1.3 x.
+    // same plate: 0.0096); branching and friction add to it, and since session 5 the impact
+    // losses of contacts born from an open gap (9.42e-3 before, 1.02e-2 at dt_safety 0.5,
+    // 1.15e-2 at 0.49): tolerance 0.9 to 1.3 x.
     assert!((0.9 * 0.009..=1.3 * 0.009).contains(&released), "energy dissipated by the contact law {released:.4e} against G_c x ligament 9e-3");
 }
 

@@ -28,7 +28,9 @@
 //!   the scene's (parts placed pressed into each other). A slave that passes to another master (not a neighbouring face)
 //!   keeps its history, and the new master's gap is shifted to continue the old one's. When a
 //!   pair's area changes (a split gives part of the slave's faces to another node) its springs
-//!   are scaled by `sqrt(A_new / A_old)`, which keeps their energy. A pair lost by geometry
+//!   are scaled by `sqrt(A_new / A_old)`, which keeps their energy; a law whose energy is the
+//!   area times a value per unit area (total-gap, cohesive) gets the old area
+//!   ([`PairKinematics::area_old`]) and accounts for the change itself. A pair lost by geometry
 //!   (its slave slid off the end of its face, no neighbour took it) releases its springs'
 //!   energy, counted as dissipated.
 //! - The law ([`ContactLaw`], a plugin chosen by `law = { type = "..." }`) is called once per
@@ -117,6 +119,14 @@ pub struct PairKinematics {
     pub vs: f64,
     /// Tributary area of the slave (length x thickness): springs are per unit area.
     pub area: f64,
+    /// The pair's area in its previous step ([`PairState::area`] before this step; 0 when
+    /// unknown: the pair's first step). It differs from `area` after a split gave part of the
+    /// slave's faces to another node, or a change of master; the core has then scaled `e_n`,
+    /// `e_s` by `sqrt(area / area_old)` (which keeps an incremental spring's energy), but a law
+    /// whose energy depends on the area directly (a total-gap or cohesive law stores
+    /// `A x` energy per unit area) sees its stored energy change by `area / area_old - 1`
+    /// times its previous value with no work done, and accounts for it (see `cohesive`).
+    pub area_old: f64,
     pub dt: f64,
     /// First step of this pair (no history yet).
     pub new: bool,

@@ -706,8 +706,9 @@ impl Contact {
                 state.en *= r;
                 state.es *= r;
             }
+            let area_old = state.area;
             state.area = area;
-            self.kin.push(PairKinematics { gap: gap - state.offset, dgap: vn * dt, dslip: vs * dt, vn, vs, area, dt, new });
+            self.kin.push(PairKinematics { gap: gap - state.offset, dgap: vn * dt, dslip: vs * dt, vn, vs, area, area_old, dt, new });
             self.st.push(state);
             self.geo.push(g);
         }
