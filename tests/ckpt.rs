@@ -658,3 +658,40 @@ fn sigkill_during_output_leaves_every_file_whole() {
     let _ = std::fs::remove_dir_all(&ref_dir);
     let _ = std::fs::remove_file(&sp);
 }
+
+/// A run that makes no split, written into the folder of an earlier run that did, ends with a
+/// `splits.csv` of its own (the header, no row): the folder never pairs this run's summary with
+/// another run's split log. Reference: the writer's contract (OutputWriter::write_summary);
+/// the earlier run's log is checked to have had rows, the new one to be exactly the header.
+#[test]
+fn a_run_without_splits_replaces_an_older_split_log() {
+    let dir = tmp("stale-splits");
+    let text = tension_text();
+    let mut s = Simulation::new(scene(&text)).unwrap();
+    let mut w = OutputWriter::new(&dir, &s).unwrap();
+    s.run(&mut w).unwrap();
+    w.write_summary(&s, 0.0).unwrap();
+    let old = std::fs::read_to_string(dir.join("splits.csv")).unwrap();
+    assert!(old.lines().count() > 1, "the cracking run wrote no split row");
+    // The same specimen without [cracking]: elastic, no split.
+    let mut skip = false;
+    let elastic: String = text
+        .lines()
+        .filter(|l| {
+            if l.starts_with('[') {
+                skip = l.starts_with("[cracking");
+            }
+            !skip
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let mut s = Simulation::new(scene(&elastic)).unwrap();
+    assert!(s.scene.file.cracking.is_none());
+    let mut w = OutputWriter::new(&dir, &s).unwrap();
+    s.run(&mut w).unwrap();
+    w.write_summary(&s, 0.0).unwrap();
+    let new = std::fs::read_to_string(dir.join("splits.csv")).unwrap();
+    assert_eq!(new.lines().count(), 1, "splits.csv of the run without splits: {new}");
+    assert!(new.starts_with("time,step,point"), "{new}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -287,8 +287,12 @@ impl OutputWriter {
     }
 
     /// Writes `summary.json` (the end of a run, also after a divergence or an interruption),
-    /// after an fsync of the CSV logs.
-    pub fn write_summary(&self, sim: &Simulation, wall: f64) -> Result<()> {
+    /// after an fsync of the CSV logs. A log that got no row is written with its header only,
+    /// so that the folder never ends with an older run's `splits.csv` beside this run's
+    /// summary (a run without splits into a folder that held one with splits).
+    pub fn write_summary(&mut self, sim: &Simulation, wall: f64) -> Result<()> {
+        self.history.append(&[])?;
+        self.splits.append(&[])?;
         self.history.sync()?;
         self.splits.sync()?;
         let l = &sim.ledger;
