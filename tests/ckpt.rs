@@ -35,7 +35,8 @@ fn notch_path() -> PathBuf {
 /// The tension specimen of configs/verification/tension_crack.toml with frequent history rows
 /// and step-count checkpoints.
 fn tension_text() -> String {
-    std::fs::read_to_string(root().join("configs/verification/tension_crack.toml")).unwrap() + "\n[output]\nhistory_every = 37\ncheckpoint_every = 300\nprobes = [{ name = \"top\", at = [2.0, 4.0] }]\n"
+    std::fs::read_to_string(root().join("configs/verification/tension_crack.toml")).unwrap()
+        + "\n[output]\nhistory_every = 37\ncheckpoint_every = 300\nprobes = [{ name = \"top\", at = [2.0, 4.0] }]\n"
 }
 
 /// The output writer, told to stop once the step counter reaches `at` (what SIGINT does
@@ -620,27 +621,27 @@ fn sigkill_during_output_leaves_every_file_whole() {
             let _ = std::fs::remove_dir_all(&dir);
             std::fs::create_dir_all(&dir).unwrap();
         }
-    for round in 0..12 {
-        let resume = !checkpoint::list(&dir).unwrap().is_empty();
-        let mut args = vec!["run", sps, "--quiet", "--out", dir.to_str().unwrap()];
-        if resume {
-            args.extend(["--resume", dir.to_str().unwrap()]);
+        for round in 0..12 {
+            let resume = !checkpoint::list(&dir).unwrap().is_empty();
+            let mut args = vec!["run", sps, "--quiet", "--out", dir.to_str().unwrap()];
+            if resume {
+                args.extend(["--resume", dir.to_str().unwrap()]);
+            }
+            let mut child = Command::new(FLEM).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+            rng = flem_core::weibull::splitmix64(rng);
+            std::thread::sleep(Duration::from_millis(20 + rng % span_ms));
+            let done = child.try_wait().unwrap().is_some();
+            if !done {
+                child.kill().unwrap();
+                kills += 1;
+            }
+            child.wait().unwrap();
+            // A kill before the first write leaves nothing: legitimate, counted below.
+            checked += check_all_whole(&dir, &ref_dir, hash, round, false, &mut cut);
+            if done {
+                break;
+            }
         }
-        let mut child = Command::new(FLEM).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
-        rng = flem_core::weibull::splitmix64(rng);
-        std::thread::sleep(Duration::from_millis(20 + rng % span_ms));
-        let done = child.try_wait().unwrap().is_some();
-        if !done {
-            child.kill().unwrap();
-            kills += 1;
-        }
-        child.wait().unwrap();
-        // A kill before the first write leaves nothing: legitimate, counted below.
-        checked += check_all_whole(&dir, &ref_dir, hash, round, false, &mut cut);
-        if done {
-            break;
-        }
-    }
     }
     eprintln!("sigkill test: {kills} kills, {checked} files checked whole, {cut} CSV logs with a cut last row");
     assert!(checked >= 10, "too few files written to check ({checked})");

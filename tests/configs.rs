@@ -129,7 +129,13 @@ fn diverging_run_stops_and_writes_nothing_non_finite() {
     std::fs::create_dir_all(&dir).unwrap();
     let text = std::fs::read_to_string(root().join("tests/bad_scenes/dt_too_large.toml")).unwrap();
     let scene = dir.join("diverge.toml");
-    std::fs::write(&scene, text.replace("dt = 1.0", "dt = 1.0\nallow_unstable_dt = true\ndamping = { type = \"none\" }").replace("[[stage]]", "[[load]]\nname = \"p\"\ntype = \"point\"\nnodes = \"top_right\"\nvalue = [0.1, 0.0]\n\n[[stage]]") + "levels = { p = 1.0 }\ndynamic = true\nmax_steps = 100000\n").unwrap();
+    std::fs::write(
+        &scene,
+        text.replace("dt = 1.0", "dt = 1.0\nallow_unstable_dt = true\ndamping = { type = \"none\" }")
+            .replace("[[stage]]", "[[load]]\nname = \"p\"\ntype = \"point\"\nnodes = \"top_right\"\nvalue = [0.1, 0.0]\n\n[[stage]]")
+            + "levels = { p = 1.0 }\ndynamic = true\nmax_steps = 100000\n",
+    )
+    .unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", "--quiet", "--out"]).arg(dir.join("out")).arg(&scene).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");

@@ -691,7 +691,14 @@ fn contact_between_faces_split_in_compression_creates_no_energy() {
         // Signed: W_ext - (...) < 0 is energy created.
         let signed = if rel > 0.0 { l.residual().signum() * rel } else { 0.0 };
         let st = s.stages_done.last().unwrap();
-        println!("direct shear {}: splits so far {}, in equilibrium {}, energy residual {signed:.2e} (contact stored {:.3e}, dissipated {:.3e})", st.name, s.model.topo.n_clusters() - n_points, st.converged, l.contact_energy, l.contact_dissipated);
+        println!(
+            "direct shear {}: splits so far {}, in equilibrium {}, energy residual {signed:.2e} (contact stored {:.3e}, dissipated {:.3e})",
+            st.name,
+            s.model.topo.n_clusters() - n_points,
+            st.converged,
+            l.contact_energy,
+            l.contact_dissipated
+        );
         worst = worst.max(rel);
         created = created.max(-signed);
     }

@@ -131,7 +131,13 @@ fn uniaxial_compression_fails_in_shear_at_ucs() {
                 let q = sim.model.topo.edges[ed.idx()].points;
                 let (a, b) = (sim.model.mesh.points[q[0].idx()], sim.model.mesh.points[q[1].idx()]);
                 let (dx, dy) = ((a[0] - b[0]).abs(), (a[1] - b[1]).abs());
-                let kind = if dx < 1e-12 { "vertical" } else if (dx - dy).abs() < 1e-12 { "diagonal" } else { "other" };
+                let kind = if dx < 1e-12 {
+                    "vertical"
+                } else if (dx - dy).abs() < 1e-12 {
+                    "diagonal"
+                } else {
+                    "other"
+                };
                 assert_eq!(kind, want, "{rule}: cut edge {a:?}-{b:?}");
             }
         }
@@ -139,7 +145,11 @@ fn uniaxial_compression_fails_in_shear_at_ucs() {
 }
 
 fn notched_plate(stages: &str, cracking: bool) -> String {
-    let crack = if cracking { "[cracking]\nmax_splits_per_check = 1\nstall_steps = 10000\n[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 1.0\n[cracking.separation]\ntype = \"sigma1_nearest\"\n" } else { "" };
+    let crack = if cracking {
+        "[cracking]\nmax_splits_per_check = 1\nstall_steps = 10000\n[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 1.0\n[cracking.separation]\ntype = \"sigma1_nearest\"\n"
+    } else {
+        ""
+    };
     format!(
         "[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 2.0\nnx = 16\nny = 8\nnotch = {{ side = \"left\", y = 1.0, depth = 1.0 }}\n[model]\nplane = \"strain\"\nseparated = [\"notch\"]\n\
          [[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ntolerance = 1e-8\n\

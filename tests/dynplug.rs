@@ -102,7 +102,13 @@ fn fingerprint(text: &str, base: &Path) -> (Vec<String>, Vec<u64>) {
     let mut sim = Simulation::new(scene_in(text, base).unwrap_or_else(|e| panic!("{e}"))).unwrap();
     let mut log = Log::default();
     sim.run(&mut log).unwrap();
-    let splits = log.0.iter().map(|e| format!("{} {:?} {:?} {:?} {:?} {:x} {:x} {:?} {:x?}", e.step, e.point, e.cluster, e.new_cluster, e.mode, e.index.to_bits(), e.sigma1_deg.to_bits(), e.edges, e.stress.map(f64::to_bits))).collect();
+    let splits = log
+        .0
+        .iter()
+        .map(|e| {
+            format!("{} {:?} {:?} {:?} {:?} {:x} {:x} {:?} {:x?}", e.step, e.point, e.cluster, e.new_cluster, e.mode, e.index.to_bits(), e.sigma1_deg.to_bits(), e.edges, e.stress.map(f64::to_bits))
+        })
+        .collect();
     let state = sim.state.u.iter().chain(&sim.state.v).flat_map(|x| x.map(f64::to_bits)).collect();
     (splits, state)
 }

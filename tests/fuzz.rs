@@ -189,7 +189,10 @@ fn check_written(m: &Mutant, scratch: &Path) -> Result<(), String> {
         }
         if name.ends_with(".csv") || name.ends_with(".json") {
             let text = std::fs::read_to_string(f.path()).map_err(|e| e.to_string())?;
-            let bad = text.split(|c: char| c == ',' || c == ':' || c.is_whitespace() || c == '[' || c == ']').map(|t| t.trim_matches('"')).find(|t| ["nan", "inf", "-inf", "infinity", "-infinity"].contains(&t.to_ascii_lowercase().as_str()));
+            let bad = text
+                .split(|c: char| c == ',' || c == ':' || c.is_whitespace() || c == '[' || c == ']')
+                .map(|t| t.trim_matches('"'))
+                .find(|t| ["nan", "inf", "-inf", "infinity", "-infinity"].contains(&t.to_ascii_lowercase().as_str()));
             if let Some(t) = bad {
                 return Err(format!("{name} holds {t}"));
             }
@@ -832,7 +835,16 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
                 Class::MeshGroupMissing if what.contains("count unchanged") => vec!["line".into()],
                 _ => Vec::new(),
             };
-            mutants.push(Mutant { class, what: format!("{name}: {what}"), text: toml::to_string(&doc).unwrap(), scene_name: format!("{host_name}~m{k}.toml"), base_dir: d, names, mesh_file: Some(name.clone()), large: bytes.len() > LARGE_MESH });
+            mutants.push(Mutant {
+                class,
+                what: format!("{name}: {what}"),
+                text: toml::to_string(&doc).unwrap(),
+                scene_name: format!("{host_name}~m{k}.toml"),
+                base_dir: d,
+                names,
+                mesh_file: Some(name.clone()),
+                large: bytes.len() > LARGE_MESH,
+            });
         }
     }
     // Run them all.
@@ -873,7 +885,16 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
             total[i] += n[i];
         }
     }
-    eprintln!("{:<18} {:>7} {:>7} {:>7} {:>7} {:>7}  ({written} runs also written and read back; {:.1} s)", "all", total.iter().sum::<usize>(), total[0], total[1], total[2], total[3], t0.elapsed().as_secs_f64());
+    eprintln!(
+        "{:<18} {:>7} {:>7} {:>7} {:>7} {:>7}  ({written} runs also written and read back; {:.1} s)",
+        "all",
+        total.iter().sum::<usize>(),
+        total[0],
+        total[1],
+        total[2],
+        total[3],
+        t0.elapsed().as_secs_f64()
+    );
     let _ = std::fs::remove_dir_all(&scratch);
     assert!(counts.len() == 17, "a mutation class produced no mutant: {:?}", counts.keys().collect::<Vec<_>>());
     assert!(total.iter().sum::<usize>() > 1000, "too few mutants");

@@ -11,7 +11,11 @@ use crate::common::{root, sim};
 fn python() -> String {
     std::env::var("FLEM_PYTHON").unwrap_or_else(|_| {
         let venv = root().join(".venv/bin/python");
-        if venv.exists() { venv.display().to_string() } else { "python3".into() }
+        if venv.exists() {
+            venv.display().to_string()
+        } else {
+            "python3".into()
+        }
     })
 }
 

@@ -1,14 +1,14 @@
 //! The one integration-test binary (cargo/ripgrep style: `autotests = false`, links once).
 //! Every verification test names its reference and tolerance.
+mod ckpt;
 mod common;
 mod compare;
 mod configs;
-mod ckpt;
+mod contact;
 mod cracking;
 mod dynplug;
+mod fuzz;
 mod interop;
 mod paper;
 mod parallel;
 mod verification;
-mod contact;
-mod fuzz;

@@ -108,20 +108,25 @@ fn check_opening(file: &str) -> f64 {
     // plate falls in two lies on the notch line y = 3 (the crack runs straight across).
     let topo = &sim.model.topo;
     let pts = &sim.model.mesh.points;
-    let lig: Vec<usize> = (0..topo.edges.len()).filter(|&e| {
-        let q = topo.edges[e].points;
-        let (a, b) = (pts[q[0].idx()], pts[q[1].idx()]);
-        (a[1] - 3.0).abs() < 1e-9 && (b[1] - 3.0).abs() < 1e-9 && a[0].min(b[0]) > 2.0 - 1e-9
-    }).collect();
+    let lig: Vec<usize> = (0..topo.edges.len())
+        .filter(|&e| {
+            let q = topo.edges[e].points;
+            let (a, b) = (pts[q[0].idx()], pts[q[1].idx()]);
+            (a[1] - 3.0).abs() < 1e-9 && (b[1] - 3.0).abs() < 1e-9 && a[0].min(b[0]) > 2.0 - 1e-9
+        })
+        .collect();
     let states: Vec<u8> = lig.iter().map(|&e| topo.crack_state(EdgeId::new(e))).collect();
     let open = states.iter().filter(|&&s| s == 2).count();
     println!("{file}: ligament edges {}: open at both ends {open}, all cracked: {}; fragments {nfrag}", lig.len(), states.iter().all(|&s| s >= 1));
     assert!(states.iter().all(|&s| s >= 1) && open + 1 >= lig.len(), "{file}: the crack did not run through the ligament: {states:?}");
-    let ymax_dev = edges.iter().map(|e| {
-        let p = topo.edges[e.idx()].points;
-        let (a, b) = (pts[p[0].idx()], pts[p[1].idx()]);
-        (a[1] - 3.0).abs().max((b[1] - 3.0).abs())
-    }).fold(0.0, f64::max);
+    let ymax_dev = edges
+        .iter()
+        .map(|e| {
+            let p = topo.edges[e.idx()].points;
+            let (a, b) = (pts[p[0].idx()], pts[p[1].idx()]);
+            (a[1] - 3.0).abs().max((b[1] - 3.0).abs())
+        })
+        .fold(0.0, f64::max);
     assert!(ymax_dev < 1e-9, "{file}: the crack left the notch line by {ymax_dev}");
     p_crit
 }
@@ -167,16 +172,29 @@ fn direct_shear(file: &str, to_the_end: bool) -> (usize, usize, Vec<ShearRow>, f
         let pts = &sim.model.mesh.points;
         let open = cd.iter().filter(|e| topo.crack_state(**e) == 2).count();
         let cracked = cd.iter().filter(|e| topo.crack_state(**e) >= 1).count();
-        let off = (0..topo.edges.len()).filter(|&e| topo.crack_state(EdgeId::new(e)) > 0).filter(|&e| {
-            let q = topo.edges[e].points;
-            (pts[q[0].idx()][1] - 4.0).abs() > 1e-6 || (pts[q[1].idx()][1] - 4.0).abs() > 1e-6
-        }).count();
+        let off = (0..topo.edges.len())
+            .filter(|&e| topo.crack_state(EdgeId::new(e)) > 0)
+            .filter(|&e| {
+                let q = topo.edges[e].points;
+                (pts[q[0].idx()][1] - 4.0).abs() > 1e-6 || (pts[q[1].idx()][1] - 4.0).abs() > 1e-6
+            })
+            .count();
         // Points beyond the criterion at the stage's last check that no rule split (an open fan
         // whose joined edges lie more than 45 deg from sigma1 is not cut): they carry stress
         // above their strength, the method has no plasticity.
         let beyond = sim.cracking.as_ref().map_or(0, |c| c.beyond_criterion());
         let row = (sim.levels[kp], sim.stages_done[i].converged, open, cracked, off, log.events.len(), sim.ledger.relative_residual(), beyond);
-        println!("{file}: p/(rho g) = {:5.0}: in equilibrium {:5}, cd edges open {}/{} (cracked {}), crack faces off the plane {}, splits {}, energy residual {:.1e}, points beyond the criterion {beyond}", row.0, row.1, row.2, cd.len(), row.3, row.4, row.5, row.6);
+        println!(
+            "{file}: p/(rho g) = {:5.0}: in equilibrium {:5}, cd edges open {}/{} (cracked {}), crack faces off the plane {}, splits {}, energy residual {:.1e}, points beyond the criterion {beyond}",
+            row.0,
+            row.1,
+            row.2,
+            cd.len(),
+            row.3,
+            row.4,
+            row.5,
+            row.6
+        );
         rows.push(row);
         if !to_the_end && (open == cd.len() || !row.1) {
             break;

@@ -160,7 +160,11 @@ fn small_dynamic(dt_factor: f64, steps: u64) -> Result<flem_core::solver::Simula
     let base = "[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 1.0\nnx = 8\nny = 2\ndistort = 0.1\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[solver.damping]\ntype = \"none\"\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"p\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [0.3, -0.2]\n";
     let probe = sim(&format!("{base}[[stage]]\n"));
     let dt = dt_factor * probe.stable.dt_crit;
-    let text = format!("{base}[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n[solver.damping]\ntype = \"none\"\n[[stage]]\nlevels = {{ p = 1.0 }}\ndynamic = true\nmax_steps = {steps}\n").replacen("[solver.damping]\ntype = \"none\"\n[[support]]", "[[support]]", 1);
+    let text = format!("{base}[solver]\ndt = {dt:e}\nallow_unstable_dt = true\n[solver.damping]\ntype = \"none\"\n[[stage]]\nlevels = {{ p = 1.0 }}\ndynamic = true\nmax_steps = {steps}\n").replacen(
+        "[solver.damping]\ntype = \"none\"\n[[support]]",
+        "[[support]]",
+        1,
+    );
     let mut s = sim(&text);
     s.run(&mut NoOutput).map(|_| s)
 }
@@ -243,10 +247,9 @@ fn prescribed_displacement_velocity_and_pressure() {
     let exact = 1000.0 / (1.0 - 0.0625) * 1.0 * delta / 10.0;
     assert!(rel(reaction, exact) < 1e-6, "reaction {reaction} vs {exact}");
 
-    let text = bar_scene("type = \"none\"", "").replace(
-        "[[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [2.0, 0.0]",
-        "[[load]]\nname = \"pull\"\ntype = \"velocity\"\nnodes = \"right\"\nx = 0.5",
-    ).replace("levels = { pull = 1.0 }", "levels = { pull = 1.0 }\ndynamic = true\nmax_steps = 1000");
+    let text = bar_scene("type = \"none\"", "")
+        .replace("[[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [2.0, 0.0]", "[[load]]\nname = \"pull\"\ntype = \"velocity\"\nnodes = \"right\"\nx = 0.5")
+        .replace("levels = { pull = 1.0 }", "levels = { pull = 1.0 }\ndynamic = true\nmax_steps = 1000");
     let mut s = sim(&text);
     s.run(&mut NoOutput).unwrap();
     let c = right_cluster(&s);

@@ -85,7 +85,20 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
 impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     pub fn new(region: String, mat: Material) -> Self {
         let d = mat.dmat();
-        ElementBlock { region, d, dk: S::scaled_d(&d, mat.thickness), mat, elems: Vec::new(), x: Vec::new(), conn: Vec::new(), packs: Vec::new(), sched: Schedule::default(), corner_g: std::sync::OnceLock::new(), omega_bound: std::sync::OnceLock::new(), _s: PhantomData }
+        ElementBlock {
+            region,
+            d,
+            dk: S::scaled_d(&d, mat.thickness),
+            mat,
+            elems: Vec::new(),
+            x: Vec::new(),
+            conn: Vec::new(),
+            packs: Vec::new(),
+            sched: Schedule::default(),
+            corner_g: std::sync::OnceLock::new(),
+            omega_bound: std::sync::OnceLock::new(),
+            _s: PhantomData,
+        }
     }
 
     /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.

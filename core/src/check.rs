@@ -93,7 +93,9 @@ impl CheckCfg {
     /// Fills in the default solver.
     pub fn fill_default(&mut self, file: &str) -> Result<()> {
         if self.solver.is_none() {
-            let s = toml::from_str("type = \"faer_cholesky\"").map_err(|e| FlemError::config(file, "check.solver", format!("is not given and the default \"faer_cholesky\" is not registered in this program ({e}); link flem-plugins or name a check solver")))?;
+            let s = toml::from_str("type = \"faer_cholesky\"").map_err(|e| {
+                FlemError::config(file, "check.solver", format!("is not given and the default \"faer_cholesky\" is not registered in this program ({e}); link flem-plugins or name a check solver"))
+            })?;
             self.solver = Some(s);
         }
         Ok(())

@@ -16,9 +16,9 @@
 //! Why a separate block type: the linear `ElementBlock` kernel stays untouched (and fast);
 //! the choice is made once per block when the model is built, never inside the element loop.
 use crate::block::{Block, ElementBlock};
-use crate::kernel::Blocked;
 use crate::element::{self, Material};
 use crate::ids::ElemId;
+use crate::kernel::Blocked;
 use crate::mesh::CellKind;
 
 /// An [`ElementBlock`] with co-rotational kinematics.
@@ -196,10 +196,13 @@ mod tests {
         }
         let th = 30f64.to_radians();
         let (c, s) = (th.cos(), th.sin());
-        let ur: Vec<[f64; 2]> = x.iter().map(|p| {
-            let q = [(1.0 + eps) * p[0], p[1]];
-            [c * q[0] - s * q[1] - p[0], s * q[0] + c * q[1] - p[1]]
-        }).collect();
+        let ur: Vec<[f64; 2]> = x
+            .iter()
+            .map(|p| {
+                let q = [(1.0 + eps) * p[0], p[1]];
+                [c * q[0] - s * q[1] - p[0], s * q[0] + c * q[1] - p[1]]
+            })
+            .collect();
         let sr = b.mean_stress(0, &ur);
         let want = CorotBlock::<Q4, 4>::rotate_stress([c, s], lin);
         for k in 0..3 {

@@ -4,8 +4,8 @@ use crate::ids::{ClusterId, EdgeId, PointId};
 use crate::model::Model;
 use crate::scene::CrackingCfg;
 use crate::topology::{SplitRecord, Topology};
-use crate::weibull::weibull_scale;
 use crate::traits::{principal, principal_values, FailureCheck, FailureMode, FanView, LinkGeom, Principal};
+use crate::weibull::weibull_scale;
 
 /// One applied split, for the split log.
 #[derive(Clone, Debug)]
@@ -52,7 +52,19 @@ impl Cracking {
             Some(w) => (0..np as u64).map(|p| weibull_scale(w.modulus, w.seed, p)).collect(),
             None => vec![1.0; np],
         };
-        Cracking { scale, corner: Vec::new(), counts: Vec::new(), point_mat: Vec::new(), nodal: Vec::new(), principal: Vec::new(), scales: Vec::new(), checks: Vec::new(), index: vec![0.0; model.topo.n_clusters()], n_splits: 0, cuts: Vec::new() }
+        Cracking {
+            scale,
+            corner: Vec::new(),
+            counts: Vec::new(),
+            point_mat: Vec::new(),
+            nodal: Vec::new(),
+            principal: Vec::new(),
+            scales: Vec::new(),
+            checks: Vec::new(),
+            index: vec![0.0; model.topo.n_clusters()],
+            n_splits: 0,
+            cuts: Vec::new(),
+        }
     }
 
     /// Points (clusters) beyond the criterion at the last check that no split relieved: the
@@ -110,7 +122,9 @@ impl Cracking {
             for c in 0..nc {
                 if self.checks[c].failed() {
                     self.principal[c] = principal(self.nodal[c], szz(c));
-                    cfg.criterion.try_check_batch(std::slice::from_ref(&self.principal[c]), std::slice::from_ref(&self.scales[c]), std::slice::from_mut(&mut self.checks[c])).map_err(crate::FlemError::Other)?;
+                    cfg.criterion
+                        .try_check_batch(std::slice::from_ref(&self.principal[c]), std::slice::from_ref(&self.scales[c]), std::slice::from_mut(&mut self.checks[c]))
+                        .map_err(crate::FlemError::Other)?;
                 }
             }
         }

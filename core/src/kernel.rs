@@ -350,10 +350,14 @@ mod tests {
     fn colouring_separates_chunks() {
         // A structured 100 x 60 grid of quads, row by row.
         let nx = 100;
-        let conn: Vec<[u32; 4]> = (0..60).flat_map(|j| (0..nx).map(move |i| {
-            let id = |i: u32, j: u32| j * (nx + 1) + i;
-            [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]
-        })).collect();
+        let conn: Vec<[u32; 4]> = (0..60)
+            .flat_map(|j| {
+                (0..nx).map(move |i| {
+                    let id = |i: u32, j: u32| j * (nx + 1) + i;
+                    [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]
+                })
+            })
+            .collect();
         let s = Schedule::build(&conn, 101 * 61);
         let ce = s.chunk_packs * LANES;
         assert_eq!(s.n_chunks(), conn.len().div_ceil(ce));

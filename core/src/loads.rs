@@ -11,10 +11,22 @@ use crate::scene::{LoadCfg, SceneFile};
 #[derive(Clone, Debug)]
 enum Kind {
     /// Pressure (`vector = None`) or traction on (element, local edge) faces.
-    Edge { faces: Vec<(ElemId, u8)>, pressure: f64, traction: [f64; 2], follow: bool },
-    Point { points: Vec<PointId>, value: [f64; 2] },
+    Edge {
+        faces: Vec<(ElemId, u8)>,
+        pressure: f64,
+        traction: [f64; 2],
+        follow: bool,
+    },
+    Point {
+        points: Vec<PointId>,
+        value: [f64; 2],
+    },
     /// Prescribed velocity (`displacement = false`) or displacement of the given components.
-    Prescribed { points: Vec<PointId>, value: [Option<f64>; 2], displacement: bool },
+    Prescribed {
+        points: Vec<PointId>,
+        value: [Option<f64>; 2],
+        displacement: bool,
+    },
 }
 
 #[derive(Clone, Debug)]
@@ -58,7 +70,11 @@ impl Loads {
                         let ed = &model.topo.edges[e.idx()];
                         match ed.sides {
                             [Some(s), None] => Ok(s),
-                            _ => Err(FlemError::config(file, key("edges"), format!("= \"{edges}\": the edge between points {} and {} lies inside the body; loads go on boundary edges", ed.points[0], ed.points[1]))),
+                            _ => Err(FlemError::config(
+                                file,
+                                key("edges"),
+                                format!("= \"{edges}\": the edge between points {} and {} lies inside the body; loads go on boundary edges", ed.points[0], ed.points[1]),
+                            )),
                         }
                     })
                     .collect()

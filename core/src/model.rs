@@ -41,7 +41,8 @@ impl Model {
         let mut blocks: Vec<Box<dyn Block>> = Vec::new();
         let mut elem_slot = vec![(0u32, 0u32); mesh.cells.len()];
         for region in &regions {
-            let mat = mat_of(region).ok_or_else(|| FlemError::config(scene_file, "material", format!("gives no material for element region \"{region}\" (add [[material]] region = \"{region}\" or region = \"all\")")))?;
+            let mat = mat_of(region)
+                .ok_or_else(|| FlemError::config(scene_file, "material", format!("gives no material for element region \"{region}\" (add [[material]] region = \"{region}\" or region = \"all\")")))?;
             let mut q4 = ElementBlock::<Q4, 4>::new(region.to_string(), mat);
             let mut t3 = ElementBlock::<T3, 3>::new(region.to_string(), mat);
             for (e, c) in mesh.cells.iter().enumerate() {
@@ -98,9 +99,7 @@ impl Model {
             FlemError::config(file, key, format!("= \"{name}\" names no edge set of the mesh{hint}; edge sets are {names:?}"))
         })?;
         set.iter()
-            .map(|&[p, q]| {
-                self.topo.edge_between(PointId(p), PointId(q)).ok_or_else(|| FlemError::config(file, key, format!("= \"{name}\": points {p} and {q} are not joined by an element edge")))
-            })
+            .map(|&[p, q]| self.topo.edge_between(PointId(p), PointId(q)).ok_or_else(|| FlemError::config(file, key, format!("= \"{name}\": points {p} and {q} are not joined by an element edge"))))
             .collect()
     }
 
@@ -143,7 +142,6 @@ impl Model {
     /// Threads in use (1 without a pool).
     pub fn threads(&self) -> usize {
         self.pool.as_ref().map_or(1, |p| p.current_num_threads())
-
     }
 
     /// Strain energy at `u`: each co-rotational block's own, plus `1/2 u . F_int` of the

@@ -9,11 +9,11 @@ use std::path::{Path, PathBuf};
 
 use vtkio::model::{Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers, Vtk};
 
+use crate::checkpoint::Checkpoint;
 use crate::cracking::SplitEvent;
 use crate::error::{FlemError, Result};
 use crate::ids::EdgeId;
 use crate::mesh::CellKind;
-use crate::checkpoint::Checkpoint;
 use crate::solver::{Observer, Progress, Simulation, StagePos};
 use crate::topology::SplitRecord;
 
@@ -185,11 +185,7 @@ pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
         idx.resize(nc, 0.0);
         point.push(Attribute::generic("failure_index", 1).with_data(idx));
     }
-    let cell = vec![
-        Attribute::generic("region", 1).with_data(region),
-        Attribute::generic("crack", 1).with_data(crack),
-        Attribute::generic("stress", 3).with_data(stress),
-    ];
+    let cell = vec![Attribute::generic("region", 1).with_data(region), Attribute::generic("crack", 1).with_data(crack), Attribute::generic("stress", 3).with_data(stress)];
     Vtk {
         version: Version::new_xml(1, 0),
         title: String::from("FLEM snapshot"),
@@ -256,7 +252,24 @@ impl OutputWriter {
         let ck_seq = crate::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
         let history = csvlog::CsvLog::new(dir.join("history.csv"), history);
         let splits = csvlog::CsvLog::new(dir.join("splits.csv"), String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"));
-        let w = OutputWriter { dir: dir.to_path_buf(), snapshots: Vec::new(), history, splits, row: String::new(), compress: sim.scene.file.output.compress, probes, quiet: false, on_progress: None, stop: None, last_checkpoint: None, ck_seq, ck_keep: sim.scene.file.output.checkpoint_keep, ck_seconds: sim.scene.file.output.checkpoint_seconds, ck_time: std::time::Instant::now(), scene_hash: crate::checkpoint::scene_hash(sim) };
+        let w = OutputWriter {
+            dir: dir.to_path_buf(),
+            snapshots: Vec::new(),
+            history,
+            splits,
+            row: String::new(),
+            compress: sim.scene.file.output.compress,
+            probes,
+            quiet: false,
+            on_progress: None,
+            stop: None,
+            last_checkpoint: None,
+            ck_seq,
+            ck_keep: sim.scene.file.output.checkpoint_keep,
+            ck_seconds: sim.scene.file.output.checkpoint_seconds,
+            ck_time: std::time::Instant::now(),
+            scene_hash: crate::checkpoint::scene_hash(sim),
+        };
         atomic_write(&dir.join("scene.resolved.toml"), sim.scene.resolved_toml().as_bytes())?;
         Ok(w)
     }
@@ -352,11 +365,32 @@ impl Observer for OutputWriter {
         self.row.clear();
         for e in events {
             let x = sim.model.mesh.points[e.point.idx()];
-            let edges: Vec<String> = e.edges.iter().map(|ed| {
-                let p = sim.model.topo.edges[ed.idx()].points;
-                format!("{}-{}", p[0], p[1])
-            }).collect();
-            let _ = writeln!(self.row, "{:e},{},{},{:e},{:e},{},{},{:?},{:e},{:.3},{:e},{:e},{:e},{}", e.time, e.step, e.point, x[0], x[1], e.cluster, e.new_cluster, e.mode, e.index, e.sigma1_deg, e.stress[0], e.stress[1], e.stress[2], edges.join(" "));
+            let edges: Vec<String> = e
+                .edges
+                .iter()
+                .map(|ed| {
+                    let p = sim.model.topo.edges[ed.idx()].points;
+                    format!("{}-{}", p[0], p[1])
+                })
+                .collect();
+            let _ = writeln!(
+                self.row,
+                "{:e},{},{},{:e},{:e},{},{},{:?},{:e},{:.3},{:e},{:e},{:e},{}",
+                e.time,
+                e.step,
+                e.point,
+                x[0],
+                x[1],
+                e.cluster,
+                e.new_cluster,
+                e.mode,
+                e.index,
+                e.sigma1_deg,
+                e.stress[0],
+                e.stress[1],
+                e.stress[2],
+                edges.join(" ")
+            );
         }
         self.splits.append(self.row.as_bytes())?;
         if sim.scene.file.output.snapshot_on_split && !events.is_empty() {

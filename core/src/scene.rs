@@ -183,15 +183,35 @@ pub struct SupportCfg {
 pub enum LoadCfg {
     /// Pressure on an edge set, positive pushing into the body. `follow = false` (the paper's):
     /// direction fixed at the initial edge normal; `true`: follows the deformed edge.
-    Pressure { name: String, edges: String, value: f64, #[serde(default)] follow: bool },
+    Pressure {
+        name: String,
+        edges: String,
+        value: f64,
+        #[serde(default)]
+        follow: bool,
+    },
     /// Traction vector (force per length per thickness) on an edge set, fixed direction.
     Traction { name: String, edges: String, value: [f64; 2] },
     /// Force on every point of a node set.
     Point { name: String, nodes: String, value: [f64; 2] },
     /// Prescribed velocity of a node set (components not given are free).
-    Velocity { name: String, nodes: String, #[serde(default)] x: Option<f64>, #[serde(default)] y: Option<f64> },
+    Velocity {
+        name: String,
+        nodes: String,
+        #[serde(default)]
+        x: Option<f64>,
+        #[serde(default)]
+        y: Option<f64>,
+    },
     /// Prescribed displacement of a node set, applied at the start of each stage.
-    Displacement { name: String, nodes: String, #[serde(default)] x: Option<f64>, #[serde(default)] y: Option<f64> },
+    Displacement {
+        name: String,
+        nodes: String,
+        #[serde(default)]
+        x: Option<f64>,
+        #[serde(default)]
+        y: Option<f64>,
+    },
 }
 
 impl LoadCfg {
@@ -283,7 +303,17 @@ fn default_hist() -> u64 {
 
 impl Default for OutputCfg {
     fn default() -> Self {
-        OutputCfg { history_every: default_hist(), snapshot_every: 0, probes: Vec::new(), compress: false, checkpoint_every: 0, checkpoint_seconds: default_ck_seconds(), checkpoint_keep: default_ck_keep(), snapshot_on_split: false, plots: false }
+        OutputCfg {
+            history_every: default_hist(),
+            snapshot_every: 0,
+            probes: Vec::new(),
+            compress: false,
+            checkpoint_every: 0,
+            checkpoint_seconds: default_ck_seconds(),
+            checkpoint_keep: default_ck_keep(),
+            snapshot_on_split: false,
+            plots: false,
+        }
     }
 }
 
@@ -388,7 +418,9 @@ impl Scene {
         if file.solver.damping.is_none() {
             // The default: adaptive dynamic relaxation (a plugin; an error, not a panic, when the
             // binary does not link the plugin crate).
-            let d = toml::from_str("type = \"adaptive\"").map_err(|e| FlemError::config(&name, "solver.damping", format!("is not given and the default \"adaptive\" is not registered in this program ({e}); link flem-plugins or name a damping")))?;
+            let d = toml::from_str("type = \"adaptive\"").map_err(|e| {
+                FlemError::config(&name, "solver.damping", format!("is not given and the default \"adaptive\" is not registered in this program ({e}); link flem-plugins or name a damping"))
+            })?;
             file.solver.damping = Some(d);
         }
         if let Some(c) = file.check.as_mut() {
@@ -480,7 +512,11 @@ impl Scene {
                 range(&n, &format!("stage[{i}].levels.{lname}"), *v, -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
                 let big = largest[names.iter().position(|x| *x == lname.as_str()).unwrap_or(0)];
                 if (v * big).abs() > MAX_MAGNITUDE {
-                    return Err(FlemError::config(&n, format!("stage[{i}].levels.{lname}"), format!("= {v:e} scales load \"{lname}\" (values up to {big:e}) to {:e}; the product must stay within {MAX_MAGNITUDE:e}", v * big)));
+                    return Err(FlemError::config(
+                        &n,
+                        format!("stage[{i}].levels.{lname}"),
+                        format!("= {v:e} scales load \"{lname}\" (values up to {big:e}) to {:e}; the product must stay within {MAX_MAGNITUDE:e}", v * big),
+                    ));
                 }
             }
             if let Some(t) = st.tolerance {

@@ -331,7 +331,17 @@ impl NodeCtx<'_> {
     /// unbalanced force and squared applied force.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn dof<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c: usize, d: usize, free: bool, m: f64, dt_m: f64, uc: &mut [f64; 2], vc: &mut [f64; 2], s: &mut [f64; NSUM]) -> (f64, f64) {
+    fn dof<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(
+        &self,
+        c: usize,
+        d: usize,
+        free: bool,
+        m: f64,
+        dt_m: f64,
+        uc: &mut [f64; 2],
+        vc: &mut [f64; 2],
+        s: &mut [f64; NSUM],
+    ) -> (f64, f64) {
         let (dt, c1, c2) = (self.dt, self.c1, self.c2);
         let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
         let fc = if CONTACT { self.f_con[c][d] } else { 0.0 };
@@ -429,7 +439,8 @@ impl Simulation {
         };
         if scene.file.cracking.as_ref().is_some_and(|c| c.at_equilibrium) {
             // A dynamic stage never comes to rest, so checks at equilibrium never run in it.
-            let dynamic: Vec<String> = scene.file.stages.iter().enumerate().filter(|(_, s)| s.dynamic).map(|(i, s)| if s.name.is_empty() { format!("stage[{i}]") } else { format!("\"{}\"", s.name) }).collect();
+            let dynamic: Vec<String> =
+                scene.file.stages.iter().enumerate().filter(|(_, s)| s.dynamic).map(|(i, s)| if s.name.is_empty() { format!("stage[{i}]") } else { format!("\"{}\"", s.name) }).collect();
             if !dynamic.is_empty() {
                 warnings.push(format!("{file}: cracking.at_equilibrium = true: failure is never checked in the dynamic stage(s) {} (they do not come to rest); set cracking.at_equilibrium = false and cracking.check_every to crack during them", dynamic.join(", ")));
             }
@@ -444,7 +455,18 @@ impl Simulation {
         let mut sim = Simulation {
             levels: vec![0.0; loads.loads.len()],
             loads,
-            state: State { u: vec![[0.0; 2]; nc], v: vec![[0.0; 2]; nc], f_int: vec![[0.0; 2]; nc], f_ext: vec![[0.0; 2]; nc], f_con: vec![[0.0; 2]; nc], mass, fix: vec![0; nc], v_pres: vec![[0.0; 2]; nc], time: 0.0, step: 0 },
+            state: State {
+                u: vec![[0.0; 2]; nc],
+                v: vec![[0.0; 2]; nc],
+                f_int: vec![[0.0; 2]; nc],
+                f_ext: vec![[0.0; 2]; nc],
+                f_con: vec![[0.0; 2]; nc],
+                mass,
+                fix: vec![0; nc],
+                v_pres: vec![[0.0; 2]; nc],
+                time: 0.0,
+                step: 0,
+            },
             ledger: Ledger::default(),
             dt: 0.0,
             stable: StableStep::default(),
@@ -465,7 +487,9 @@ impl Simulation {
             model,
         };
         sim.warnings.append(&mut warnings);
-        sim.model.set_threads(sim.scene.file.solver.threads).map_err(|e| FlemError::config(&file, "solver.threads", format!("= {}: the thread pool could not be started: {e}", sim.scene.file.solver.threads)))?;
+        sim.model
+            .set_threads(sim.scene.file.solver.threads)
+            .map_err(|e| FlemError::config(&file, "solver.threads", format!("= {}: the thread pool could not be started: {e}", sim.scene.file.solver.threads)))?;
         sim.apply_constraints_bits();
         (sim.stable, sim.stable_vec) = sim.power_iteration(None);
         sim.dt = sim.choose_dt(&file)?;
@@ -484,7 +508,11 @@ impl Simulation {
         if !(crit.is_finite() && crit > 0.0) {
             // Extreme (finite) moduli or densities: dt = inf or 0 would write NaN or never move.
             let ratio: Vec<String> = self.scene.file.materials.iter().map(|m| format!("{:e}", m.young_modulus / m.density)).collect();
-            return Err(FlemError::config(file, "material", format!("gives a critical time step dt_crit = {crit:e}, which cannot be run (young_modulus / density = {}): rescale the units", ratio.join(", "))));
+            return Err(FlemError::config(
+                file,
+                "material",
+                format!("gives a critical time step dt_crit = {crit:e}, which cannot be run (young_modulus / density = {}): rescale the units", ratio.join(", ")),
+            ));
         }
         match s.dt {
             None => Ok(s.dt_safety * crit),
@@ -493,7 +521,15 @@ impl Simulation {
                 self.warnings.push(format!("{file}: solver.dt = {dt:e} is above the critical step {crit:e} (dt/dt_crit = {:.3}); running anyway because solver.allow_unstable_dt = true", dt / crit));
                 Ok(dt)
             }
-            Some(dt) => Err(FlemError::config(file, "solver.dt", format!("= {dt:e} is incorrect; it must be <= the critical step {crit:e} of this mesh (dt/dt_crit = {:.3}); remove it to use {} x dt_crit, or set solver.allow_unstable_dt = true", dt / crit, s.dt_safety))),
+            Some(dt) => Err(FlemError::config(
+                file,
+                "solver.dt",
+                format!(
+                    "= {dt:e} is incorrect; it must be <= the critical step {crit:e} of this mesh (dt/dt_crit = {:.3}); remove it to use {} x dt_crit, or set solver.allow_unstable_dt = true",
+                    dt / crit,
+                    s.dt_safety
+                ),
+            )),
         }
     }
 
@@ -628,7 +664,11 @@ impl Simulation {
             _ => 0.0,
         };
         let w = (w_el * w_el + oc2).sqrt();
-        if w > 0.0 { k * 2.0 / w } else { f64::INFINITY }
+        if w > 0.0 {
+            k * 2.0 / w
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// Estimates the stable step again if the last splits deferred it (`iterations == 0`).
@@ -761,7 +801,13 @@ impl Simulation {
         // has and for what is read after it.
         let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
         // Damping: 0 none, 1 viscous only, 2 with the local term.
-        let damp = if beta != 0.0 { 2 } else if a != 0.0 { 1 } else { 0 };
+        let damp = if beta != 0.0 {
+            2
+        } else if a != 0.0 {
+            1
+        } else {
+            0
+        };
         let update = match (self.contact.is_some(), damp) {
             (false, 0) => pick_update::<false, 0>(full, stats),
             (false, 1) => pick_update::<false, 1>(full, stats),
@@ -911,7 +957,16 @@ impl Simulation {
         let mut converged = false;
         let mut splits = pos.splits;
         let mut ratio = pos.ratio;
-        let here = |k: u64, splits: usize, ratio: f64, best_ratio: f64, best_step: u64| StagePos { stage: i, stage_step: k, begun: true, splits, ratio, wall_seconds: pos.wall_seconds + t0.elapsed().as_secs_f64(), best_ratio, best_step };
+        let here = |k: u64, splits: usize, ratio: f64, best_ratio: f64, best_step: u64| StagePos {
+            stage: i,
+            stage_step: k,
+            begun: true,
+            splits,
+            ratio,
+            wall_seconds: pos.wall_seconds + t0.elapsed().as_secs_f64(),
+            best_ratio,
+            best_step,
+        };
         while k < max_steps {
             if k > k0 {
                 // Once per step, between two steps (the state is whole here).
@@ -930,7 +985,11 @@ impl Simulation {
             let kn = k + 1;
             // A dynamic stage does not stop at equilibrium: its ratio is taken only on steps
             // that are full for another reason (and at its end).
-            let full = (!st.dynamic && kn % every == 0) || kn == max_steps || (hist_every > 0 && kn % hist_every == 0) || (snap_every > 0 && kn % snap_every == 0) || (split_snap && check_every > 0 && kn % check_every == 0);
+            let full = (!st.dynamic && kn % every == 0)
+                || kn == max_steps
+                || (hist_every > 0 && kn % hist_every == 0)
+                || (snap_every > 0 && kn % snap_every == 0)
+                || (split_snap && check_every > 0 && kn % check_every == 0);
             self.step_as(full)?;
             k += 1;
             if check_every > 0 && k % check_every == 0 {
@@ -1047,4 +1106,3 @@ impl Simulation {
         }
     }
 }
-

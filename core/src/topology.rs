@@ -402,8 +402,8 @@ impl Topology {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Rectangle;
     use crate::mesh::CellKind;
+    use crate::mesh::Rectangle;
 
     /// The point at (1, 1) of a 2 x 2 rectangle of unit cells, its cluster and its edge to `q`.
     fn centre(kind: CellKind) -> (Topology, RawMesh, PointId) {

@@ -129,7 +129,13 @@ impl ParamError {
             let h = if hi_incl { "]" } else { ")" };
             // Very large or small magnitudes in exponent form (1e300 would print 301 digits).
             let fmt = |x: f64| match x {
-                x if x.is_infinite() => if x > 0.0 { "inf".to_string() } else { "-inf".to_string() },
+                x if x.is_infinite() => {
+                    if x > 0.0 {
+                        "inf".to_string()
+                    } else {
+                        "-inf".to_string()
+                    }
+                }
                 x if x != 0.0 && (x.abs() >= 1e9 || x.abs() < 1e-6) => format!("{x:e}"),
                 x => format!("{x}"),
             };

@@ -37,10 +37,7 @@ pub struct StepOpts {
 /// processes hold the cores; the CPU time does not.
 fn cpu_seconds() -> f64 {
     let Ok(dir) = std::fs::read_dir("/proc/self/task") else { return 0.0 };
-    dir.filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("schedstat")).ok())
-        .filter_map(|s| s.split_whitespace().next()?.parse::<f64>().ok())
-        .sum::<f64>()
-        * 1e-9
+    dir.filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("schedstat")).ok()).filter_map(|s| s.split_whitespace().next()?.parse::<f64>().ok()).sum::<f64>() * 1e-9
 }
 
 /// Median (wall, CPU) seconds per call of `f`: 5 batches of at least `min_time / 5` each.

@@ -188,7 +188,11 @@ impl Reference {
                 None => return None,
             }
         }
-        if mine.is_empty() { None } else { rel_l2(&mine, &refs) }
+        if mine.is_empty() {
+            None
+        } else {
+            rel_l2(&mine, &refs)
+        }
     }
 }
 
@@ -246,7 +250,21 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
             Some(a) => Some((sim.state.u[probe_index(&sim, &a.probe)?][a.comp] - a.value).abs() / a.value.abs()),
             None => None,
         };
-        pts.push(Point { method: "implicit".into(), damping: "-".into(), dt_safety: 0.0, tolerance: 0.0, refine: r, elements: sim.model.n_elems(), steps: 0, converged: true, wall_seconds: wall, err_implicit: Some(0.0), err_reference: err_ref, err_analytic: err_an, pareto: false });
+        pts.push(Point {
+            method: "implicit".into(),
+            damping: "-".into(),
+            dt_safety: 0.0,
+            tolerance: 0.0,
+            refine: r,
+            elements: sim.model.n_elems(),
+            steps: 0,
+            converged: true,
+            wall_seconds: wall,
+            err_implicit: Some(0.0),
+            err_reference: err_ref,
+            err_analytic: err_an,
+            pareto: false,
+        });
         for &d in &sweep.dampings {
             for &sf in &sweep.safeties {
                 for &tol in &sweep.tolerances {
@@ -264,7 +282,21 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
                         Some(a) => Some((sim.state.u[probe_index(&sim, &a.probe)?][a.comp] - a.value).abs() / a.value.abs()),
                         None => None,
                     };
-                    let p = Point { method: "explicit".into(), damping: d.into(), dt_safety: sf, tolerance: tol, refine: r, elements: sim.model.n_elems(), steps, converged, wall_seconds: wall, err_implicit: err_imp, err_reference: err_ref, err_analytic: err_an, pareto: false };
+                    let p = Point {
+                        method: "explicit".into(),
+                        damping: d.into(),
+                        dt_safety: sf,
+                        tolerance: tol,
+                        refine: r,
+                        elements: sim.model.n_elems(),
+                        steps,
+                        converged,
+                        wall_seconds: wall,
+                        err_implicit: err_imp,
+                        err_reference: err_ref,
+                        err_analytic: err_an,
+                        pareto: false,
+                    };
                     eprintln!("x{r} {d:<8} safety {sf:<4} tol {tol:.0e}: {steps:>8} steps {wall:>8.3} s  error {:.3e} ({})", p.error().unwrap_or(f64::NAN), p.error_kind());
                     pts.push(p);
                 }
@@ -288,7 +320,22 @@ pub fn csv(pts: &[Point]) -> String {
     let f = |x: Option<f64>| x.map(|v| format!("{v:e}")).unwrap_or_default();
     let mut s = String::from("method,damping,dt_safety,tolerance,refine,elements,steps,converged,wall_seconds,err_implicit,err_reference,err_analytic,pareto\n");
     for p in pts {
-        s += &format!("{},{},{},{:e},{},{},{},{},{:e},{},{},{},{}\n", p.method, p.damping, p.dt_safety, p.tolerance, p.refine, p.elements, p.steps, p.converged, p.wall_seconds, f(p.err_implicit), f(p.err_reference), f(p.err_analytic), p.pareto);
+        s += &format!(
+            "{},{},{},{:e},{},{},{},{},{:e},{},{},{},{}\n",
+            p.method,
+            p.damping,
+            p.dt_safety,
+            p.tolerance,
+            p.refine,
+            p.elements,
+            p.steps,
+            p.converged,
+            p.wall_seconds,
+            f(p.err_implicit),
+            f(p.err_reference),
+            f(p.err_analytic),
+            p.pareto
+        );
     }
     s
 }
@@ -324,12 +371,20 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
         .collect();
     flem_plot::charts::speed_accuracy(&out.join("chart"), &format!("speed vs accuracy: {}", scene.file.title), label, &cp)?;
     // The explicit solver's own error: against the implicit solve of the same mesh.
-    let mut solver: Vec<Point> = pts.iter().filter(|p| p.method == "explicit" && p.err_implicit.is_some()).cloned().map(|mut p| {
-        (p.err_analytic, p.err_reference) = (None, None);
-        p
-    }).collect();
+    let mut solver: Vec<Point> = pts
+        .iter()
+        .filter(|p| p.method == "explicit" && p.err_implicit.is_some())
+        .cloned()
+        .map(|mut p| {
+            (p.err_analytic, p.err_reference) = (None, None);
+            p
+        })
+        .collect();
     mark_pareto(&mut solver);
-    let cp2: Vec<flem_plot::charts::ChartPoint> = solver.iter().map(|p| flem_plot::charts::ChartPoint { series: format!("{} x{}", p.damping, p.refine), wall_seconds: p.wall_seconds, error: p.err_implicit.unwrap_or(f64::NAN), pareto: p.pareto }).collect();
+    let cp2: Vec<flem_plot::charts::ChartPoint> = solver
+        .iter()
+        .map(|p| flem_plot::charts::ChartPoint { series: format!("{} x{}", p.damping, p.refine), wall_seconds: p.wall_seconds, error: p.err_implicit.unwrap_or(f64::NAN), pareto: p.pareto })
+        .collect();
     flem_plot::charts::speed_accuracy(&out.join("chart_solver"), &format!("explicit solver error: {}", scene.file.title), "rel. L2 error vs implicit (same mesh)", &cp2)?;
     eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json, chart.png/svg, chart_solver.png/svg in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());
     Ok(())

@@ -6,19 +6,19 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use flem_core::check::{CheckCfg, Comparer};
 use flem_core::output::OutputWriter;
-use flem_core::solver::NoOutput;
 use flem_core::scene::Scene;
+use flem_core::solver::NoOutput;
 use flem_core::solver::{Simulation, StagePos};
 use flem_core::FlemError;
+use indicatif::{ProgressBar, ProgressStyle};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
-use indicatif::{ProgressBar, ProgressStyle};
 
+mod bench;
+mod bench_contact;
 mod bench_dyncall;
 mod chart;
 mod stability;
-mod bench;
-mod bench_contact;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 /// The paper's opening model (issue 8): a notched plate cracking in tension, pictures in plots/.
@@ -254,7 +254,15 @@ fn check(scenes: &[PathBuf]) -> Result<()> {
         for w in &sim.warnings {
             eprintln!("warning: {w}");
         }
-        println!("{}: ok ({} elements, {} points, {} stages, dt = {:.3e}, dt_crit = {:.3e})", p.display(), sim.model.n_elems(), sim.model.topo.n_points, sim.scene.file.stages.len(), sim.dt, sim.stable.dt_crit);
+        println!(
+            "{}: ok ({} elements, {} points, {} stages, dt = {:.3e}, dt_crit = {:.3e})",
+            p.display(),
+            sim.model.n_elems(),
+            sim.model.topo.n_points,
+            sim.scene.file.stages.len(),
+            sim.dt,
+            sim.stable.dt_crit
+        );
     }
     Ok(())
 }
@@ -291,14 +299,7 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     for w in &sim.warnings {
         eprintln!("warning: {w}");
     }
-    eprintln!(
-        "{} elements, {} points; dt = {:.4e} (dt/dt_crit = {:.3}, dt_crit = {:.4e})",
-        sim.model.n_elems(),
-        sim.model.topo.n_points,
-        sim.dt,
-        sim.dt / sim.stable.dt_crit,
-        sim.stable.dt_crit
-    );
+    eprintln!("{} elements, {} points; dt = {:.4e} (dt/dt_crit = {:.3}, dt_crit = {:.4e})", sim.model.n_elems(), sim.model.topo.n_points, sim.dt, sim.dt / sim.stable.dt_crit, sim.stable.dt_crit);
     let mut w = OutputWriter::new(&out, &sim)?;
     w.stop = Some(Arc::clone(&stop));
     if let Some((ck, path)) = &resumed {
@@ -374,7 +375,8 @@ fn compare(mut scene: Scene, out: Option<PathBuf>) -> Result<()> {
     }
     let mut quiet = NoOutput;
     let mut c = Comparer::new(&mut quiet, &out)?;
-    c.on_row = Some(Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit)));
+    c.on_row =
+        Some(Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit)));
     let r = sim.run(&mut c);
     print!("{}", flem_core::check::table(&c.rows));
     r?;

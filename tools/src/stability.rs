@@ -205,16 +205,37 @@ fn damping(quick: bool, rows: &mut Vec<Row>) -> Result<()> {
     for &r in ratios {
         let (n, ok) = steps_to_rest(&format!("type = \"local\"\nratio = {r}"), cap)?;
         eprintln!("damping local ratio {r}: {n} steps{}", if ok { "" } else { " (not at rest)" });
-        rows.push(Row { study: "damping".into(), case: "local".into(), parameter: "ratio".into(), value: r, measured: n as f64, outcome: if ok { "at rest".into() } else { format!("not at rest after {cap} steps") } });
+        rows.push(Row {
+            study: "damping".into(),
+            case: "local".into(),
+            parameter: "ratio".into(),
+            value: r,
+            measured: n as f64,
+            outcome: if ok { "at rest".into() } else { format!("not at rest after {cap} steps") },
+        });
     }
     let mults: &[f64] = if quick { &[0.1, 1.0, 10.0] } else { &[0.03, 0.1, 0.3, 0.5, 1.0, 2.0, 4.0, 10.0, 30.0] };
     for &m in mults {
         let (n, ok) = steps_to_rest(&format!("type = \"viscous\"\nalpha = {}", m * crit), cap)?;
         eprintln!("damping viscous {m} x critical: {n} steps{}", if ok { "" } else { " (not at rest)" });
-        rows.push(Row { study: "damping".into(), case: "viscous".into(), parameter: "alpha/(2 omega_1)".into(), value: m, measured: n as f64, outcome: if ok { "at rest".into() } else { format!("not at rest after {cap} steps") } });
+        rows.push(Row {
+            study: "damping".into(),
+            case: "viscous".into(),
+            parameter: "alpha/(2 omega_1)".into(),
+            value: m,
+            measured: n as f64,
+            outcome: if ok { "at rest".into() } else { format!("not at rest after {cap} steps") },
+        });
     }
     let (n, ok) = steps_to_rest("type = \"adaptive\"", cap)?;
-    rows.push(Row { study: "damping".into(), case: "adaptive".into(), parameter: "-".into(), value: 0.0, measured: n as f64, outcome: if ok { "at rest".into() } else { format!("not at rest after {cap} steps") } });
+    rows.push(Row {
+        study: "damping".into(),
+        case: "adaptive".into(),
+        parameter: "-".into(),
+        value: 0.0,
+        measured: n as f64,
+        outcome: if ok { "at rest".into() } else { format!("not at rest after {cap} steps") },
+    });
     Ok(())
 }
 
@@ -232,7 +253,14 @@ fn implicit_after_separation(rows: &mut Vec<Row>) -> Result<()> {
         Err(e) => e.to_string(),
     };
     eprintln!("implicit after separation: {frags} fragments; explicit finite = {explicit_ok}; implicit: {msg}");
-    rows.push(Row { study: "implicit_after_separation".into(), case: format!("cracked plate: {frags} fragment(s), top part hinged or free"), parameter: "-".into(), value: 0.0, measured: explicit_ok as u8 as f64, outcome: format!("explicit runs on (finite: {explicit_ok}); implicit: {msg}") });
+    rows.push(Row {
+        study: "implicit_after_separation".into(),
+        case: format!("cracked plate: {frags} fragment(s), top part hinged or free"),
+        parameter: "-".into(),
+        value: 0.0,
+        measured: explicit_ok as u8 as f64,
+        outcome: format!("explicit runs on (finite: {explicit_ok}); implicit: {msg}"),
+    });
     Ok(())
 }
 

@@ -162,7 +162,10 @@ pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
     type Entry = unsafe extern "C" fn() -> *const Descriptor;
     // SAFETY: the symbol's type is fixed by the ABI (checked by the header right after).
     let entry = unsafe { lib.get::<Entry>(ENTRY_SYMBOL) }.map_err(|e| {
-        perr(format!("is not a FLEM plugin for plugin ABI {ABI_VERSION}: it has no entry point `{ENTRY_SYMBOL}` (build it with flem-plugin-sdk {CORE_VERSION} and its export_plugins! macro): {}", error_chain(&e)))
+        perr(format!(
+            "is not a FLEM plugin for plugin ABI {ABI_VERSION}: it has no entry point `{ENTRY_SYMBOL}` (build it with flem-plugin-sdk {CORE_VERSION} and its export_plugins! macro): {}",
+            error_chain(&e)
+        ))
     })?;
     // SAFETY: the entry point of the SDK returns a pointer to a static descriptor.
     let d = unsafe { entry() };

@@ -72,7 +72,11 @@ pub struct FileIds {
 
 impl FileIds {
     fn based(&self) -> &'static str {
-        if self.zero_based { " (0-based, as in the file)" } else { "" }
+        if self.zero_based {
+            " (0-based, as in the file)"
+        } else {
+            ""
+        }
     }
 
     /// See [`RawMesh::cell_name`].
@@ -236,7 +240,17 @@ impl RawMesh {
         edges.sort_unstable();
         for w in edges.windows(3) {
             if w[0].0 == w[1].0 && w[1].0 == w[2].0 {
-                return Err(FlemError::mesh(&src, format!("the edge between {} and {} is shared by more than two elements: {}, {}, {}", self.point_name(w[0].0[0] as usize), self.point_name(w[0].0[1] as usize), self.cell_name(w[0].1 as usize), self.cell_name(w[1].1 as usize), self.cell_name(w[2].1 as usize))));
+                return Err(FlemError::mesh(
+                    &src,
+                    format!(
+                        "the edge between {} and {} is shared by more than two elements: {}, {}, {}",
+                        self.point_name(w[0].0[0] as usize),
+                        self.point_name(w[0].0[1] as usize),
+                        self.cell_name(w[0].1 as usize),
+                        self.cell_name(w[1].1 as usize),
+                        self.cell_name(w[2].1 as usize)
+                    ),
+                ));
             }
         }
         // Duplicate points (used ones only; tolerance relative to the mesh size).
@@ -256,7 +270,16 @@ impl RawMesh {
                     break;
                 }
                 if (self.points[b][1] - self.points[a][1]).abs() <= tol {
-                    return Err(FlemError::mesh(&src, format!("duplicate points: {} and {} are both at ({}, {}): merge them or declare the edges between them separated", self.point_name(a.min(b)), self.point_name(a.max(b)), self.points[a][0], self.points[a][1])));
+                    return Err(FlemError::mesh(
+                        &src,
+                        format!(
+                            "duplicate points: {} and {} are both at ({}, {}): merge them or declare the edges between them separated",
+                            self.point_name(a.min(b)),
+                            self.point_name(a.max(b)),
+                            self.points[a][0],
+                            self.points[a][1]
+                        ),
+                    ));
                 }
             }
         }

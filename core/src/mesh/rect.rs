@@ -118,15 +118,8 @@ impl Rectangle {
         }
         let mut node_sets = BTreeMap::new();
         let mut edge_sets = BTreeMap::new();
-        let side = |f: &dyn Fn(usize) -> u32, n: usize| -> (Vec<u32>, Vec<[u32; 2]>) {
-            ((0..=n).map(f).collect(), (0..n).map(|k| [f(k), f(k + 1)]).collect())
-        };
-        for (name, (ns, es)) in [
-            ("left", side(&|j| id(0, j), ny)),
-            ("right", side(&|j| id(nx, j), ny)),
-            ("bottom", side(&|i| id(i, 0), nx)),
-            ("top", side(&|i| id(i, ny), nx)),
-        ] {
+        let side = |f: &dyn Fn(usize) -> u32, n: usize| -> (Vec<u32>, Vec<[u32; 2]>) { ((0..=n).map(f).collect(), (0..n).map(|k| [f(k), f(k + 1)]).collect()) };
+        for (name, (ns, es)) in [("left", side(&|j| id(0, j), ny)), ("right", side(&|j| id(nx, j), ny)), ("bottom", side(&|i| id(i, 0), nx)), ("top", side(&|i| id(i, ny), nx))] {
             node_sets.insert(name.to_string(), ns);
             edge_sets.insert(name.to_string(), es);
         }

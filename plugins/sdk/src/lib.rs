@@ -30,7 +30,10 @@ pub use flem_core::ids::{ClusterId, EdgeId, PointId};
 pub use flem_core::traits::{line_angle, principal, ray_angle, FailureCheck, FailureMode, FanView, LinkGeom, ParamError, Principal, Proposal};
 pub use serde;
 
-use abi::{CFailureCheck, CFan, CPrincipal, Descriptor, ErrorOut, PluginEntry, RStr, ABI_VERSION, CORE_VERSION, KIND_CRITERION, KIND_SEPARATION, RUSTC_VERSION, STATUS_ERROR, STATUS_NONE, STATUS_OK, STATUS_PANIC};
+use abi::{
+    CFailureCheck, CFan, CPrincipal, Descriptor, ErrorOut, PluginEntry, RStr, ABI_VERSION, CORE_VERSION, KIND_CRITERION, KIND_SEPARATION, RUSTC_VERSION, STATUS_ERROR, STATUS_NONE, STATUS_OK,
+    STATUS_PANIC,
+};
 use serde::de::DeserializeOwned;
 
 /// A failure criterion (the dynamic twin of [`flem_core::traits::FailureCriterion`]).
@@ -182,7 +185,15 @@ pub mod shim {
         })
     }
 
-    pub unsafe extern "C" fn separation_propose<T: Separation>(instance: *const c_void, fan: *const CFan, failure: *const CFailureCheck, out_edges: *mut u32, cap: usize, out_len: *mut usize, err: *mut ErrorOut) -> i32 {
+    pub unsafe extern "C" fn separation_propose<T: Separation>(
+        instance: *const c_void,
+        fan: *const CFan,
+        failure: *const CFailureCheck,
+        out_edges: *mut u32,
+        cap: usize,
+        out_len: *mut usize,
+        err: *mut ErrorOut,
+    ) -> i32 {
         guard(err, || {
             // SAFETY: the host passes valid pointers for the duration of the call.
             let (t, cf, chk) = unsafe { (&*(instance as *const T), &*fan, *failure) };

@@ -248,12 +248,7 @@ impl ImplicitSolver {
         let mut tm = Timings::default();
         let nc = model.topo.n_clusters();
         if fix.len() != nc || f_ext.len() != nc || u_prescribed.len() != nc {
-            return Err(FlemError::Solve(format!(
-                "{PREFIX}: the model has {nc} clusters but fix, f_ext and u_prescribed have {}, {} and {} entries",
-                fix.len(),
-                f_ext.len(),
-                u_prescribed.len()
-            )));
+            return Err(FlemError::Solve(format!("{PREFIX}: the model has {nc} clusters but fix, f_ext and u_prescribed have {}, {} and {} entries", fix.len(), f_ext.len(), u_prescribed.len())));
         }
         let fr = Fragments::new(model);
         check_supports(model, fix, &fr)?;
@@ -461,7 +456,6 @@ pub fn static_solve(sim: &Simulation) -> Result<Vec<[f64; 2]>, FlemError> {
     ImplicitSolver::new().solve(&sim.model, &sim.state.fix, &sim.external_force(), &sim.state.u)
 }
 
-
 #[cfg(test)]
 mod tests {
     use std::path::Path;
@@ -578,7 +572,7 @@ mod tests {
     /// hole diameter / width = 0.05; Heywood's finite-width formula gives the gross
     /// Kt = (2 + (1 - d/W)^3) / (1 - d/W) = 3.0075 (reference used). Tolerance: the error of the
     /// nodal (corner-averaged) stress decreases over three meshes (nt = 16, 32, 64: 2.0, 1.5, 1.0 %)
-/// and the finest is within 5 %. (nt = 8 overshoots by luck to 1.5 %, so it is not used.)
+    /// and the finest is within 5 %. (nt = 8 overshoots by luck to 1.5 %, so it is not used.)
     #[test]
     fn kirsch_plate_with_hole_converges() {
         let (w, sigma) = (20.0, 1.0);

@@ -172,7 +172,11 @@ impl ContactLaw for Cohesive {
         if self.df() <= self.d0() {
             return Err(ParamError::new(
                 "fracture_energy",
-                format!("= {} is incorrect; it must be > tensile_strength^2 / (2 normal_stiffness) = {} (otherwise the softening branch would snap back)", self.fracture_energy, self.tensile_strength.powi(2) / (2.0 * self.normal_stiffness)),
+                format!(
+                    "= {} is incorrect; it must be > tensile_strength^2 / (2 normal_stiffness) = {} (otherwise the softening branch would snap back)",
+                    self.fracture_energy,
+                    self.tensile_strength.powi(2) / (2.0 * self.normal_stiffness)
+                ),
             ));
         }
         Ok(())
@@ -350,7 +354,10 @@ mod tests {
                 }
             }
         }
-        println!("work {w:.6e}, stored {e:.6e}, dissipated {d:.6e}, sum {:.3e} (of {w_abs:.3e}); steps in tension {tension}, slipping in compression {slipped}, failed {failed}, born {born}", w + e + d);
+        println!(
+            "work {w:.6e}, stored {e:.6e}, dissipated {d:.6e}, sum {:.3e} (of {w_abs:.3e}); steps in tension {tension}, slipping in compression {slipped}, failed {failed}, born {born}",
+            w + e + d
+        );
         assert!(tension > 50 && slipped > 20 && failed == 1 && born == 1, "the path does not visit every branch");
         assert!(d > 0.0 && (w + e + d).abs() < 1e-9 * w_abs, "W + E + D = {:.3e} of {w_abs:.3e}", w + e + d);
     }

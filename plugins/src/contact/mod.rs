@@ -37,11 +37,8 @@ pub(crate) fn coulomb_cap(es: f64, limit: f64) -> (f64, bool) {
 mod tests {
     use flem_core::contact::ContactLaw;
 
-    const SOURCES: &[(&str, &str)] = &[
-        ("contact/spring_dashpot.rs", include_str!("spring_dashpot.rs")),
-        ("contact/penalty.rs", include_str!("penalty.rs")),
-        ("contact/cohesive.rs", include_str!("cohesive.rs")),
-    ];
+    const SOURCES: &[(&str, &str)] =
+        &[("contact/spring_dashpot.rs", include_str!("spring_dashpot.rs")), ("contact/penalty.rs", include_str!("penalty.rs")), ("contact/cohesive.rs", include_str!("cohesive.rs"))];
 
     /// Every ```toml snippet in the docs parses as a `[contact] law` and validates; every name
     /// has one. Reference: the docs; exact.

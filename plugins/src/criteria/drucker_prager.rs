@@ -242,7 +242,11 @@ mod tests {
             let (mut lo, mut hi) = (s3 - 10.0 * s1, s1 + 10.0 * s1 + 10.0);
             for _ in 0..300 {
                 let (a, b) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
-                if f(a) < f(b) { hi = b } else { lo = a }
+                if f(a) < f(b) {
+                    hi = b
+                } else {
+                    lo = a
+                }
             }
             assert!(f(0.5 * (lo + hi)).abs() < 1e-10, "s3 = {s3}: min F = {}", f(0.5 * (lo + hi)));
         }

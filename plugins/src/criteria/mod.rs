@@ -24,7 +24,6 @@ pub mod hoek_brown;
 pub mod mohr_coulomb;
 pub mod rankine;
 
-
 use std::f64::consts::PI;
 
 use flem_core::traits::{FailureCheck, FailureMode};

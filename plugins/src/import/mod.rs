@@ -52,11 +52,7 @@ pub(crate) fn read_input(base_dir: &Path, file: &str) -> Result<(String, PathBuf
 /// Runs a third-party parser, turning a panic inside it into an error message.
 pub(crate) fn no_panic<T>(what: &str, f: impl FnOnce() -> T) -> std::result::Result<T, String> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|p| {
-        let msg = p
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| p.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "unknown panic".into());
+        let msg = p.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| p.downcast_ref::<String>().cloned()).unwrap_or_else(|| "unknown panic".into());
         format!("{what} failed on this (corrupt?) file: {msg}")
     })
 }
@@ -120,7 +116,10 @@ impl Gathered {
         for (i, &id) in new_id.iter().enumerate() {
             let z = self.points[i][2];
             if id != u32::MAX && z.abs() > 1e-9 * size {
-                return Err(FlemError::mesh(src, format!("not a 2D mesh: {} {}{based} has z = {z} (the mesh is {size:.6e} across); FLEM reads planar meshes in the plane z = 0", self.words.0, self.labels[i])));
+                return Err(FlemError::mesh(
+                    src,
+                    format!("not a 2D mesh: {} {}{based} has z = {z} (the mesh is {size:.6e} across); FLEM reads planar meshes in the plane z = 0", self.words.0, self.labels[i]),
+                ));
             }
         }
         let map = |p: u32| new_id.get(p as usize).copied().filter(|&q| q != u32::MAX);
@@ -153,7 +152,13 @@ impl Gathered {
                 (name, v)
             })
             .collect();
-        let ids = (self.cell_labels.len() == self.cells.len()).then(|| FileIds { point_word: self.words.0, cell_word: self.words.1, zero_based: self.zero_based, points: point_ids, cells: self.cell_labels });
+        let ids = (self.cell_labels.len() == self.cells.len()).then(|| FileIds {
+            point_word: self.words.0,
+            cell_word: self.words.1,
+            zero_based: self.zero_based,
+            points: point_ids,
+            cells: self.cell_labels,
+        });
         Ok(RawMesh { source: src.to_string(), points, cells, cell_region: self.cell_region, node_sets, edge_sets, ids })
     }
 }

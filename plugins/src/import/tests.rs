@@ -116,11 +116,7 @@ fn vtu_binary_and_ascii_match_the_msh() {
         assert!(m.cell_region.iter().all(|r| r == "1"), "{f}");
         // Same cells on the same coordinates (point order may differ).
         let cell_xy = |m: &RawMesh| -> Vec<Vec<[u64; 2]>> {
-            let mut v: Vec<Vec<[u64; 2]>> = m
-                .cells
-                .iter()
-                .map(|c| c.corners().iter().map(|&n| m.points[n as usize].map(|x| (x * 1e6).round() as u64)).collect())
-                .collect();
+            let mut v: Vec<Vec<[u64; 2]>> = m.cells.iter().map(|c| c.corners().iter().map(|&n| m.points[n as usize].map(|x| (x * 1e6).round() as u64)).collect()).collect();
             v.sort();
             v
         };
@@ -442,7 +438,14 @@ fn vtk_parse_errors_name_the_line_and_array() {
     let line = ascii[..nl].lines().count() + 1;
     let bad = format!("{}x{}", &ascii[..nl], &ascii[nl + 1..]);
     let e = err("q.vtu", "vtu", bad.as_bytes());
-    assert!(e.starts_with("q.vtu: cannot parse the VTK file") && e.contains(&format!("line {line}: ")) && e.contains("<DataArray Name=\"connectivity\">") && e.contains("of <Cells> of piece 0") && e.contains("not a whole number"), "{e}");
+    assert!(
+        e.starts_with("q.vtu: cannot parse the VTK file")
+            && e.contains(&format!("line {line}: "))
+            && e.contains("<DataArray Name=\"connectivity\">")
+            && e.contains("of <Cells> of piece 0")
+            && e.contains("not a whole number"),
+        "{e}"
+    );
     // Cut in the middle of the points.
     let cut = ascii.find("Name=\"Points\"").unwrap() + 200;
     let e = err("q.vtu", "vtu", &ascii.as_bytes()[..cut]);

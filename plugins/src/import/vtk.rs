@@ -135,13 +135,15 @@ fn regions(src: &str, p: &UnstructuredGridPiece, wanted: Option<&str>, n: usize)
     }
     v.iter()
         .enumerate()
-        .map(|(c, &x)| {
-            if x.fract() == 0.0 && x.abs() < 9e15 {
-                Ok(format!("{}", x as i64))
-            } else {
-                Err(FlemError::mesh(src, format!("cell array \"{name}\": cell {c} has the non-integer region {x}")))
-            }
-        })
+        .map(
+            |(c, &x)| {
+                if x.fract() == 0.0 && x.abs() < 9e15 {
+                    Ok(format!("{}", x as i64))
+                } else {
+                    Err(FlemError::mesh(src, format!("cell array \"{name}\": cell {c} has the non-integer region {x}")))
+                }
+            },
+        )
         .collect::<Result<Vec<_>>>()
         .map(Some)
 }
@@ -168,7 +170,15 @@ fn add_piece(src: &str, p: UnstructuredGridPiece, wanted: Option<&str>, g: &mut 
             CellType::Quad => (Some(CellKind::Q4), 4),
             CellType::Line => (None, 2),
             CellType::Vertex => (None, 1),
-            other => return Err(FlemError::mesh(src, format!("cell {c}: VTK cell type {} ({other:?}) is not supported: FLEM uses first-order triangles (5) and quadrilaterals (9); lines (3) and vertices (1) may carry groups", *other as u8))),
+            other => {
+                return Err(FlemError::mesh(
+                    src,
+                    format!(
+                        "cell {c}: VTK cell type {} ({other:?}) is not supported: FLEM uses first-order triangles (5) and quadrilaterals (9); lines (3) and vertices (1) may carry groups",
+                        *other as u8
+                    ),
+                ))
+            }
         };
         if v.len() != k {
             return Err(FlemError::mesh(src, format!("cell {c} ({t:?}) has {} points; it must have {k}", v.len())));

@@ -240,7 +240,12 @@ pub(crate) fn locate_legacy(bytes: &[u8]) -> Option<String> {
                 }
                 Ok(j)
             }),
-            _ if kw.parse::<f64>().is_ok() => return Some(format!("line {line}: the number \"{kw}\" where a section keyword (CELL_TYPES, CELL_DATA, SCALARS...) is expected: the section before{} has more values than its counts say", last.map_or(String::new(), |(w, l): (&str, usize)| format!(" ({w}, line {l})")))),
+            _ if kw.parse::<f64>().is_ok() => {
+                return Some(format!(
+                    "line {line}: the number \"{kw}\" where a section keyword (CELL_TYPES, CELL_DATA, SCALARS...) is expected: the section before{} has more values than its counts say",
+                    last.map_or(String::new(), |(w, l): (&str, usize)| format!(" ({w}, line {l})"))
+                ))
+            }
             _ => return None,
         };
         last = Some((kw, line));

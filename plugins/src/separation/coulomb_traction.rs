@@ -65,10 +65,7 @@ impl CoulombTraction {
 
     /// The link of largest excess among `which`, with its excess.
     fn best(&self, fan: &FanView, which: impl Fn(usize) -> bool) -> Option<(usize, f64)> {
-        let c: Vec<Cand> = (0..fan.links.len())
-            .filter(|&i| which(i))
-            .map(|i| Cand { dist: -self.excess(fan.stress, &fan.links[i]), ccw: true, edge: fan.links[i].edge, link: i, slot: 0 })
-            .collect();
+        let c: Vec<Cand> = (0..fan.links.len()).filter(|&i| which(i)).map(|i| Cand { dist: -self.excess(fan.stress, &fan.links[i]), ccw: true, edge: fan.links[i].edge, link: i, slot: 0 }).collect();
         let scale = c.iter().map(|c| c.dist.abs()).filter(|d| d.is_finite()).fold(0.0, f64::max);
         pick(&c, TIE * scale).map(|c| (c.link, -c.dist))
     }
@@ -165,7 +162,11 @@ mod tests {
                     let f = fan(&l, true, [sxx, syy, sxy]);
                     let a = ids(rule().propose(&f, &failed(Shear, &[]))).unwrap();
                     let b = ids(Sigma1Nearest {}.propose(&f, &failed(Shear, &[]))).unwrap();
-                    let set = |v: &[u32]| { let mut v = v.to_vec(); v.sort(); v };
+                    let set = |v: &[u32]| {
+                        let mut v = v.to_vec();
+                        v.sort();
+                        v
+                    };
                     assert_eq!(set(&a), set(&b), "stress ({sxx}, {syy}, {sxy})");
                     n += 1;
                 }

@@ -51,10 +51,7 @@ pub fn score(s: [f64; 3], l: &LinkGeom, mode: FailureMode) -> f64 {
 
 /// The best link among `which` (candidate distance = -score).
 fn best(fan: &FanView, mode: FailureMode, which: impl Fn(usize) -> bool) -> Option<(usize, f64)> {
-    let c: Vec<Cand> = (0..fan.links.len())
-        .filter(|&i| which(i))
-        .map(|i| Cand { dist: -score(fan.stress, &fan.links[i], mode), ccw: true, edge: fan.links[i].edge, link: i, slot: 0 })
-        .collect();
+    let c: Vec<Cand> = (0..fan.links.len()).filter(|&i| which(i)).map(|i| Cand { dist: -score(fan.stress, &fan.links[i], mode), ccw: true, edge: fan.links[i].edge, link: i, slot: 0 }).collect();
     let scale = c.iter().map(|c| c.dist.abs()).filter(|d| d.is_finite()).fold(0.0, f64::max);
     pick(&c, TIE * scale).map(|c| (c.link, -c.dist))
 }

@@ -19,7 +19,8 @@ pub struct ChartPoint {
     pub pareto: bool,
 }
 
-const PALETTE: [RGBColor; 8] = [RGBColor(31, 119, 180), RGBColor(255, 127, 14), RGBColor(44, 160, 44), RGBColor(214, 39, 40), RGBColor(148, 103, 189), RGBColor(140, 86, 75), RGBColor(227, 119, 194), RGBColor(127, 127, 127)];
+const PALETTE: [RGBColor; 8] =
+    [RGBColor(31, 119, 180), RGBColor(255, 127, 14), RGBColor(44, 160, 44), RGBColor(214, 39, 40), RGBColor(148, 103, 189), RGBColor(140, 86, 75), RGBColor(227, 119, 194), RGBColor(127, 127, 127)];
 
 fn log_range(v: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
@@ -108,7 +109,11 @@ fn stability_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, d: &Stability
         .y_labels(n)
         .y_label_formatter(&|v| {
             let i = v.round();
-            if (v - i).abs() < 1e-6 && i >= 0.0 { names.get(i as usize).cloned().unwrap_or_default() } else { String::new() }
+            if (v - i).abs() < 1e-6 && i >= 0.0 {
+                names.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
         })
         .x_desc("measured threshold / prediction (1: exact; < 1: unsafe)")
         .label_style(("sans-serif", 13))
@@ -139,7 +144,10 @@ fn stability_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, d: &Stability
     for (i, s) in series.iter().enumerate() {
         let col = PALETTE[i % PALETTE.len()];
         let pts: Vec<(f64, f64, bool)> = d.damping.iter().filter(|x| x.0 == *s).map(|x| (x.1, x.2, x.3)).collect();
-        c.draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), col.stroke_width(2))).map_err(err)?.label(*s).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
+        c.draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), col.stroke_width(2)))
+            .map_err(err)?
+            .label(*s)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
         c.draw_series(pts.iter().map(|p| if p.2 { Circle::new((p.0, p.1), 4, col.filled()) } else { Circle::new((p.0, p.1), 6, col.stroke_width(2)) })).map_err(err)?;
     }
     c.configure_series_labels().position(SeriesLabelPosition::UpperLeft).background_style(WHITE.mix(0.85)).border_style(BLACK).label_font(("sans-serif", 13)).draw().map_err(err)?;

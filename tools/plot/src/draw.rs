@@ -148,7 +148,8 @@ pub fn frame<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, s: &Snapshot, in
     if !info.compact {
         let y = 4 + 2 * (fs + 8) + 6;
         let mut x = 12;
-        let items: [(&str, RGBColor, u32, bool); 5] = [("initial", GREY, 1, true), ("deformed", BLACK, 2, false), ("joined edge", JOINED, 1, true), ("separated (both ends)", OPEN, 4, false), ("separated (one end)", HALF, 4, false)];
+        let items: [(&str, RGBColor, u32, bool); 5] =
+            [("initial", GREY, 1, true), ("deformed", BLACK, 2, false), ("joined edge", JOINED, 1, true), ("separated (both ends)", OPEN, 4, false), ("separated (one end)", HALF, 4, false)];
         for (label, col, wid, dashed) in items {
             if dashed {
                 let mut k = 0;
@@ -193,21 +194,28 @@ pub fn curve<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, xla
         }
     }
     let (dx, dy) = ((x1 - x0).max(1e-30) * 0.05, (y1 - y0).max(1e-30) * 0.05);
-    let mut chart = ChartBuilder::on(root)
-        .caption(title, ("sans-serif", 22))
-        .margin(16)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d((x0 - dx)..(x1 + dx), (y0 - dy)..(y1 + dy))
-        .map_err(err)?;
+    let mut chart =
+        ChartBuilder::on(root).caption(title, ("sans-serif", 22)).margin(16).x_label_area_size(50).y_label_area_size(80).build_cartesian_2d((x0 - dx)..(x1 + dx), (y0 - dy)..(y1 + dy)).map_err(err)?;
     chart.configure_mesh().disable_x_mesh().disable_y_mesh().x_desc(xlabel).y_desc(ylabel).label_style(("sans-serif", 15)).axis_desc_style(("sans-serif", 17)).draw().map_err(err)?;
     let faint = RGBColor(120, 150, 230);
-    chart.draw_series(LineSeries::new(line.iter().copied(), faint.stroke_width(1))).map_err(err)?.label("history (relaxation path)").legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], faint.stroke_width(1)));
+    chart
+        .draw_series(LineSeries::new(line.iter().copied(), faint.stroke_width(1)))
+        .map_err(err)?
+        .label("history (relaxation path)")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], faint.stroke_width(1)));
     // The static curve: the unloaded state, then the stage ends in equilibrium.
     let path: Vec<(f64, f64)> = std::iter::once((0.0, 0.0)).chain(ends.iter().filter(|e| e.2).map(|e| (e.0, e.1))).collect();
     chart.draw_series(LineSeries::new(path, BLACK.stroke_width(2))).map_err(err)?.label("equilibrium states").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-    chart.draw_series(ends.iter().filter(|e| e.2).map(|e| Circle::new((e.0, e.1), 5, BLACK.filled()))).map_err(err)?.label("stage end, in equilibrium").legend(|(x, y)| Circle::new((x + 10, y), 5, BLACK.filled()));
-    chart.draw_series(ends.iter().filter(|e| !e.2).map(|e| Circle::new((e.0, e.1), 5, OPEN.stroke_width(2)))).map_err(err)?.label("stage end, step limit (no equilibrium)").legend(|(x, y)| Circle::new((x + 10, y), 5, OPEN.stroke_width(2)));
+    chart
+        .draw_series(ends.iter().filter(|e| e.2).map(|e| Circle::new((e.0, e.1), 5, BLACK.filled())))
+        .map_err(err)?
+        .label("stage end, in equilibrium")
+        .legend(|(x, y)| Circle::new((x + 10, y), 5, BLACK.filled()));
+    chart
+        .draw_series(ends.iter().filter(|e| !e.2).map(|e| Circle::new((e.0, e.1), 5, OPEN.stroke_width(2))))
+        .map_err(err)?
+        .label("stage end, step limit (no equilibrium)")
+        .legend(|(x, y)| Circle::new((x + 10, y), 5, OPEN.stroke_width(2)));
     chart.configure_series_labels().position(SeriesLabelPosition::LowerRight).background_style(WHITE.mix(0.85)).border_style(BLACK).label_font(("sans-serif", 15)).draw().map_err(err)?;
     Ok(())
 }

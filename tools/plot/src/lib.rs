@@ -26,7 +26,7 @@ use flem_core::{FlemError, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use draw::{FrameInfo, err};
+use draw::{err, FrameInfo};
 use run::{History, Snapshot};
 
 static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
@@ -43,7 +43,12 @@ pub fn register_font() -> Result<()> {
 }
 
 /// Renders with `f` into a PNG and an SVG file (`stem`.png, `stem`.svg), atomically.
-pub fn render(stem: &Path, (w, h): (u32, u32), f: impl Fn(&DrawingArea<BitMapBackend, Shift>) -> std::result::Result<(), String>, g: impl Fn(&DrawingArea<SVGBackend, Shift>) -> std::result::Result<(), String>) -> Result<Vec<PathBuf>> {
+pub fn render(
+    stem: &Path,
+    (w, h): (u32, u32),
+    f: impl Fn(&DrawingArea<BitMapBackend, Shift>) -> std::result::Result<(), String>,
+    g: impl Fn(&DrawingArea<SVGBackend, Shift>) -> std::result::Result<(), String>,
+) -> Result<Vec<PathBuf>> {
     register_font()?;
     let fail = |what: &str, e: String| FlemError::Output { path: format!("{}.{what}", stem.display()), msg: e };
     let mut buf = vec![255u8; (w * h * 3) as usize];
@@ -125,10 +130,14 @@ pub fn plot_run(dir: &Path) -> Result<PlotReport> {
     };
     let dmax = settled.iter().map(|s| s.max_disp()).fold(0.0, f64::max);
     let mag = if dmax > 0.0 { draw::nice_floor(0.08 * size / dmax).max(1.0) } else { 1.0 };
-    let smax = settled.iter().flat_map(|s| s.stress.iter()).map(|st| {
-        let (a, b, _) = draw::principal(*st);
-        a.abs().max(b.abs())
-    }).fold(0.0, f64::max);
+    let smax = settled
+        .iter()
+        .flat_map(|s| s.stress.iter())
+        .map(|st| {
+            let (a, b, _) = draw::principal(*st);
+            a.abs().max(b.abs())
+        })
+        .fold(0.0, f64::max);
     let h_el = {
         let b = draw::bbox(&[first], 0.0);
         ((b[1] - b[0]) * (b[3] - b[2]) / first.elems.len().max(1) as f64).sqrt() * 0.8
@@ -145,15 +154,8 @@ pub fn plot_run(dir: &Path) -> Result<PlotReport> {
             None => String::new(),
         }
     };
-    let info_for = |t: f64, name: &str, heading: String, compact: bool| FrameInfo {
-        heading,
-        loads: format!("load levels: {}", levels(t, name)),
-        mag,
-        stress_ref: smax,
-        stress_len: h_el,
-        bbox,
-        compact,
-    };
+    let info_for =
+        |t: f64, name: &str, heading: String, compact: bool| FrameInfo { heading, loads: format!("load levels: {}", levels(t, name)), mag, stress_ref: smax, stress_len: h_el, bbox, compact };
     let mut rep = PlotReport { mag, notes, ..Default::default() };
     for (k, (t, s)) in snaps.iter().enumerate() {
         let label = s.name.trim_start_matches("snapshot_").trim_end_matches(".vtu").to_string();
@@ -167,11 +169,15 @@ pub fn plot_run(dir: &Path) -> Result<PlotReport> {
         let last = snaps.len() - 1;
         let mut pick = vec![i0.saturating_sub(1), i0, i0 + (last - i0) / 2, last];
         pick.dedup();
-        let panels: Vec<(FrameInfo, &Snapshot)> = pick.iter().enumerate().map(|(j, &i)| {
-            let (t, s) = &snaps[i];
-            let tag = ["(a)", "(b)", "(c)", "(d)"][j];
-            (info_for(*t, &s.name, format!("{tag} {}: {} crack faces", s.name.trim_start_matches("snapshot_").trim_end_matches(".vtu"), s.crack_faces()), true), s)
-        }).collect();
+        let panels: Vec<(FrameInfo, &Snapshot)> = pick
+            .iter()
+            .enumerate()
+            .map(|(j, &i)| {
+                let (t, s) = &snaps[i];
+                let tag = ["(a)", "(b)", "(c)", "(d)"][j];
+                (info_for(*t, &s.name, format!("{tag} {}: {} crack faces", s.name.trim_start_matches("snapshot_").trim_end_matches(".vtu"), s.crack_faces()), true), s)
+            })
+            .collect();
         rep.sequence = panels.iter().map(|p| p.1.name.clone()).collect();
         let (pw, ph) = frame_size(bbox, 700);
         let cols = 2u32;

@@ -41,9 +41,7 @@ impl Snapshot {
                 _ => None,
             })
         };
-        let num = |arrs: &[Attribute], name: &str| -> Result<Vec<f64>> {
-            find(arrs, name).and_then(|b| b.cast_into::<f64>()).ok_or_else(|| bad(format!("has no numeric array \"{name}\"")))
-        };
+        let num = |arrs: &[Attribute], name: &str| -> Result<Vec<f64>> { find(arrs, name).and_then(|b| b.cast_into::<f64>()).ok_or_else(|| bad(format!("has no numeric array \"{name}\""))) };
         let disp = num(&p.data.point, "displacement")?;
         if disp.len() != 3 * n {
             return Err(bad(format!("\"displacement\" has {} values for {n} points", disp.len())));
@@ -218,7 +216,8 @@ pub fn stages(dir: &Path) -> Result<Option<Vec<(String, bool, u64)>>> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(FlemError::Other(format!("{}: cannot be read ({e})", path.display()))),
     };
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| FlemError::Other(format!("{}:{}:{}: not valid JSON ({e}){}", path.display(), e.line(), e.column(), if e.is_eof() { "; the file is cut short" } else { "" })))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| FlemError::Other(format!("{}:{}:{}: not valid JSON ({e}){}", path.display(), e.line(), e.column(), if e.is_eof() { "; the file is cut short" } else { "" })))?;
     let bad = |key: String, what: &str| FlemError::Other(format!("{}: {key} {what}", path.display()));
     let list = v.get("stages").and_then(|s| s.as_array()).ok_or_else(|| bad("stages".into(), "is missing or not a list"))?;
     list.iter()
@@ -329,7 +328,11 @@ mod tests {
         let one = "    <DataSet timestep=\"1e0\" group=\"\" part=\"0\" file=\"a.vtu\"/>\n";
         std::fs::write(dir.join("results.pvd"), pvd(one, true)).unwrap();
         assert_eq!(super::snapshot_list(&dir).unwrap(), vec![(1.0, dir.join("a.vtu"))]);
-        for (text, want) in [(pvd(&one.replace("1e0", "1x0"), true), "results.pvd:4: timestep=\"1x0\""), (pvd(&one.replace(" file=", " fle="), true), "results.pvd:4: a <DataSet> without"), (pvd(one, false), "results.pvd: cut short")] {
+        for (text, want) in [
+            (pvd(&one.replace("1e0", "1x0"), true), "results.pvd:4: timestep=\"1x0\""),
+            (pvd(&one.replace(" file=", " fle="), true), "results.pvd:4: a <DataSet> without"),
+            (pvd(one, false), "results.pvd: cut short"),
+        ] {
             std::fs::write(dir.join("results.pvd"), &text).unwrap();
             let e = super::snapshot_list(&dir).unwrap_err().to_string();
             assert!(e.contains(want), "{text:?}: {e}");
