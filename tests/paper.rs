@@ -209,7 +209,7 @@ fn direct_shear(file: &str, to_the_end: bool) -> (usize, usize, Vec<ShearRow>, f
 /// References (statics of the upper block, bc pre-separated carries nothing, side ab from
 /// (2,4) to (4,8), q = 100 rho g on the top, 8 cm):
 /// (1) under q alone nothing fails: near uniaxial compression q below the uniaxial compressive
-///     strength 2 c cos(phi)/(1 - sin(phi)) = 133 rho g (METHOD 4);
+///     strength 2 c cos(phi)/(1 - sin(phi)) = 130.8 rho g (METHOD 4);
 /// (2) cd as a rigid-block slip plane with cohesion: p_lim = 8 (c + q tan(phi)) /
 ///     (4 - 2 tan(phi)) = 268.5 rho g; the first split comes below it (elastic stress
 ///     concentrations at b and along cd);
