@@ -99,7 +99,11 @@ impl Model {
             FlemError::config(file, key, format!("= \"{name}\" names no edge set of the mesh{hint}; edge sets are {names:?}"))
         })?;
         set.iter()
-            .map(|&[p, q]| self.topo.edge_between(PointId(p), PointId(q)).ok_or_else(|| FlemError::config(file, key, format!("= \"{name}\": points {p} and {q} are not joined by an element edge"))))
+            .map(|&[p, q]| {
+                self.topo
+                    .edge_between(PointId(p), PointId(q))
+                    .ok_or_else(|| FlemError::config(file, key, format!("= \"{name}\": {} are not joined by an element edge", crate::mesh::FileIds::points(self.mesh.ids.as_ref(), &[p, q]))))
+            })
             .collect()
     }
 

@@ -95,6 +95,22 @@ impl FileIds {
         }
     }
 
+    /// Elements by their file ids, `more` after the list: "element tags 14, 15, 16, ...",
+    /// "VTK cells 3, 4 (0-based, as in the file)", or "elements 14, 15, 16, ..." for a mesh
+    /// without file ids (generated: its element numbers are the only ones there are).
+    pub fn cells(ids: Option<&FileIds>, es: &[usize], more: &str) -> String {
+        match ids.filter(|ids| es.iter().all(|&e| e < ids.cells.len())) {
+            Some(ids) => {
+                let v: Vec<String> = es.iter().map(|&e| ids.cells[e].to_string()).collect();
+                format!("{}s {}{more}{}", ids.cell_word, v.join(", "), ids.based())
+            }
+            None => {
+                let v: Vec<String> = es.iter().map(|e| e.to_string()).collect();
+                format!("elements {}{more}", v.join(", "))
+            }
+        }
+    }
+
     /// Corner points by their file ids: "points [node tags 3, 4, 9]" or "points [3, 4, 9]
     /// (0-based, in file order)".
     pub fn points(ids: Option<&FileIds>, ps: &[u32]) -> String {

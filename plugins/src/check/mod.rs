@@ -135,11 +135,12 @@ impl Fragments {
         Fragments { elem_frag, n, cluster_frag }
     }
 
-    /// "fragment 2 (elements 14, 15, 16, ... ; 40 elements, around point (x, y))".
+    /// "fragment 2 (element tags 14, 15, 16, ...; 40 elements, around point (x, y))" (the ids of
+    /// the mesh file; "elements 14, ..." for a generated mesh).
     fn describe(&self, model: &Model, f: u32) -> String {
         let elems: Vec<usize> = (0..self.elem_frag.len()).filter(|&e| self.elem_frag[e] == f).collect();
-        let list: Vec<String> = elems.iter().take(3).map(|e| e.to_string()).collect();
         let more = if elems.len() > 3 { ", ..." } else { "" };
+        let list = flem_core::mesh::FileIds::cells(model.mesh.ids.as_ref(), &elems[..elems.len().min(3)], more);
         let (mut sx, mut sy, mut m) = (0.0, 0.0, 0.0);
         for &e in &elems {
             for &p in model.mesh.cells[e].corners() {
@@ -149,7 +150,7 @@ impl Fragments {
                 m += 1.0;
             }
         }
-        format!("fragment {f} (elements {}{more}; {} elements, around point ({:.6}, {:.6}))", list.join(", "), elems.len(), sx / m, sy / m)
+        format!("fragment {f} ({list}; {} elements, around point ({:.6}, {:.6}))", elems.len(), sx / m, sy / m)
     }
 }
 
