@@ -667,12 +667,13 @@ fn dynamic_crack_with_cohesive_contact_keeps_the_energy_balance() {
 /// together and sheared: pairs switch masters at the junctions of cracks, and splits halve the
 /// area of pairs that carry load. Reference: energy conservation of central differences with a
 /// contact law whose dashpots are zero (METHOD section 6: no energy may be created),
-/// W_ext = KE + U + D_damping + E_contact + D_contact; the same relative residual tolerance as
-/// tests/paper.rs (1e-2) at the end of every stage, and no stage may end with more than 1e-3 of
+/// W_ext = KE + U + D_damping + E_contact + D_contact; relative residual below 1e-3 at the end of
+/// every stage (tests/paper.rs allows 1e-2), and no stage may end with more than 1e-3 of
 /// energy created (signed residual). Measured before the fix: 0.23 at p = 180 (energy created:
 /// a pair born 6.3e-2 deep, behind the face of a column its slave had been sliding under, took
 /// the whole overlap as spring compression, 3.2e4 erg from nothing), 0.031 at p = 260 (a split
-/// halved a loaded pair's area and kept its force: twice the energy); after: at most 1.3e-3.
+/// halved a loaded pair's area and kept its force: twice the energy); after: at most 1.3e-3, and
+/// 1.6e-4 since spring_dashpot's slip dissipation is the trapezoid (session 5).
 #[test]
 fn contact_between_faces_split_in_compression_creates_no_energy() {
     flem_plugins::link();
@@ -704,6 +705,6 @@ fn contact_between_faces_split_in_compression_creates_no_energy() {
     }
     let splits = s.model.topo.n_clusters() - n_points;
     assert!(splits >= 12, "the scene no longer splits under compression ({splits} new nodes): the test does not test what it says");
-    assert!(worst < 1e-2, "energy residual {worst:.3e}");
+    assert!(worst < 1e-3, "energy residual {worst:.3e}");
     assert!(created < 1e-3, "energy created: {created:.3e} of the work");
 }
