@@ -654,9 +654,14 @@ fn dynamic_crack_with_cohesive_contact_keeps_the_energy_balance() {
     assert!(far <= 1, "{far} new nodes away from the notch's crack band");
     // The contact law really worked the crack faces: separating the plate through its 9 cm
     // ligament releases at least G_c x ligament = 0.009 (Griffith; Akantu's cohesive run of the
-    // same plate: 0.0096); branching and friction add to it, and since session 5 the impact
-    // losses of contacts born from an open gap (9.42e-3 before, 1.02e-2 at dt_safety 0.5,
-    // 1.15e-2 at 0.49): tolerance 0.9 to 1.3 x.
+    // same plate: 0.0096); branching and friction add to it, and since session 5 the slip,
+    // area and shear-release terms of the law's accounting (9.42e-3 before, 1.02e-2 at
+    // dt_safety 0.5, 1.15e-2 at 0.49; the kink terms net only -4e-5 to -7e-5): tolerance 0.9 to
+    // 1.3 x. Caveat (session 5 review): the kink terms are the explicit scheme's O(dt) error at
+    // the law's kinks, of both signs, gross 5-6 % of the work (impacts +7.3e-4, releases -7.3e-4
+    // at 0.5) booked as dissipation, so the "no energy created" assert above does not see them;
+    // the law itself is held by its unit test (work = stored + dissipated; a 10 % error in the
+    // fracture energy fails it and gives a residual of 5e-2 here).
     assert!((0.9 * 0.009..=1.3 * 0.009).contains(&released), "energy dissipated by the contact law {released:.4e} against G_c x ligament 9e-3");
 }
 

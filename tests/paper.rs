@@ -365,6 +365,15 @@ fn paper_plot_writes_frames_sequence_and_curve() {
     let rep = flem_plot::plot_run(&dir).unwrap();
     assert!(rep.notes.iter().any(|m| m.contains(&format!("history.csv:{}: the last line is cut", n + 1))), "{:?}", rep.notes);
     assert!(rep.notes.iter().any(|m| m.contains("summary.json is missing")), "{:?}", rep.notes);
+    // A run stopped before its first history row (Ctrl-C: the summary writes the header only),
+    // or with its only row cut: frames drawn, no curve, a note (it panicked in session 5's review).
+    let header = good.lines().next().unwrap();
+    for text in [format!("{header}\n"), format!("{header}\n{short}")] {
+        std::fs::write(&hist, &text).unwrap();
+        let rep = flem_plot::plot_run(&dir).unwrap();
+        assert!(rep.notes.iter().any(|m| m.contains("has no rows: no load-displacement curve")), "{:?}", rep.notes);
+        assert!(!rep.files.iter().any(|f| f.to_string_lossy().contains("load_displacement")), "{:?}", rep.files);
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -468,4 +468,13 @@ fn vtk_parse_errors_name_the_line_and_array() {
     let (n, size) = cells_line[6..].split_once(' ').unwrap();
     let e = err("t.vtk", "vtk", legacy.replacen(cells_line, &format!("CELLS {n} {}", size.parse::<u64>().unwrap() - 1), 1).as_bytes());
     assert!(e.contains(&format!("line 7: CELLS {n} {}: its {n} cells take {size} values", size.parse::<u64>().unwrap() - 1)), "{e}");
+    // Counts from a damaged file beyond u32 (vtkio refuses them): the scanner must neither walk
+    // 1e14 cells (it hung) nor wrap its products (POINTS x 3 gave the opposite diagnosis).
+    let t0 = std::time::Instant::now();
+    let e = err("t.vtk", "vtk", legacy.replacen(cells_line, &format!("CELLS 99999999999999 {size}"), 1).as_bytes());
+    assert!(e.contains(&format!("line 7: CELLS 99999999999999 {size}: its {size} values hold {n} cells, not 99999999999999")), "{e}");
+    let points_line = legacy.lines().find(|l| l.starts_with("POINTS")).unwrap();
+    let e = err("t.vtk", "vtk", legacy.replacen(points_line, "POINTS 6148914691236517206 double", 1).as_bytes());
+    assert!(e.contains("line 7: \"CELLS\" in POINTS (line 5), value 136 of more than 2^64 declared, is not a number"), "{e}");
+    assert!(t0.elapsed().as_secs_f64() < 5.0, "the scanner took {:?}", t0.elapsed());
 }

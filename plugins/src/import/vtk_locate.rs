@@ -123,9 +123,9 @@ pub(crate) fn locate_xml(bytes: &[u8]) -> Option<String> {
             let comps = attr(tag, "NumberOfComponents").and_then(|v| v.trim().parse::<u64>().ok()).unwrap_or(1).max(1);
             let sec = stack.iter().rev().nth(1).map(|e| e.0.as_str()).unwrap_or("");
             let want = match (sec, array_name.as_deref()) {
-                ("Points", _) => counts.0.map(|p| (p * comps, "NumberOfPoints")),
-                ("PointData", _) => counts.0.map(|p| (p * comps, "NumberOfPoints")),
-                ("Cells", Some("offsets" | "types")) | ("CellData", _) => counts.1.map(|c| (c * comps, "NumberOfCells")),
+                ("Points", _) => counts.0.map(|p| (p.saturating_mul(comps), "NumberOfPoints")),
+                ("PointData", _) => counts.0.map(|p| (p.saturating_mul(comps), "NumberOfPoints")),
+                ("Cells", Some("offsets" | "types")) | ("CellData", _) => counts.1.map(|c| (c.saturating_mul(comps), "NumberOfCells")),
                 _ => None,
             };
             if let Some((w, what)) = want {
@@ -180,28 +180,35 @@ pub(crate) fn locate_legacy(bytes: &[u8]) -> Option<String> {
                 Some((l, t)) => {
                     let ok = if whole { t.parse::<i64>().is_ok() } else { t.parse::<f64>().is_ok() };
                     if !ok {
-                        return Err(format!("line {l}: \"{}\" in {what} (line {line}), value {} of {count}, is not a{} number", t.escape_debug(), j + 1, if whole { " whole" } else { "" }));
+                        let of = if count == u64::MAX { String::from("more than 2^64 declared") } else { count.to_string() };
+                        return Err(format!("line {l}: \"{}\" in {what} (line {line}), value {} of {of}, is not a{} number", t.escape_debug(), j + 1, if whole { " whole" } else { "" }));
                     }
                 }
             }
         }
-        Ok(k + count as usize)
+        Ok(k.saturating_add(count as usize))
     };
     while k < toks.len() {
         let (line, kw) = toks[k];
         let kw_up = kw.to_ascii_uppercase();
         let res = match kw_up.as_str() {
-            "POINTS" => num(k + 1).map(|n| values(k + 3, 3 * n, "POINTS", line, false)),
+            "POINTS" => num(k + 1).map(|n| values(k + 3, n.saturating_mul(3), "POINTS", line, false)),
             // Version 5 files: CELLS n m, then OFFSETS and CONNECTIVITY arrays (not checked here).
             "CELLS" if toks.get(k + 3).is_some_and(|t| t.1.parse::<i64>().is_err()) => return None,
             "CELLS" => num(k + 1).zip(num(k + 2)).map(|(n, size)| {
                 let end = values(k + 3, size, "CELLS", line, true)?;
                 // n groups "count i1 .. icount" must fill exactly `size` values.
-                let (mut j, mut used) = (k + 3, 0u64);
-                for _ in 0..n {
+                // (Counts come from a damaged file: the walk stops at the section's end, and
+                // sums saturate, so a count of 1e14 neither loops for days nor wraps.)
+                let (mut j, mut used, mut cells) = (k + 3, 0u64, 0u64);
+                while cells < n && j < end {
                     let c = toks.get(j).and_then(|t| t.1.parse::<u64>().ok()).unwrap_or(0);
-                    used += 1 + c;
-                    j += 1 + c as usize;
+                    used = used.saturating_add(c.saturating_add(1));
+                    j = j.saturating_add((c as usize).saturating_add(1));
+                    cells += 1;
+                }
+                if cells < n {
+                    return Err(format!("line {line}: CELLS {n} {size}: its {size} values hold {cells} cells, not {n}"));
                 }
                 if used != size {
                     return Err(format!("line {line}: CELLS {n} {size}: its {n} cells take {used} values, not the {size} it declares"));
@@ -225,18 +232,18 @@ pub(crate) fn locate_legacy(bytes: &[u8]) -> Option<String> {
                 if toks.get(j).is_some_and(|t| t.1.eq_ignore_ascii_case("LOOKUP_TABLE")) {
                     j += 2;
                 }
-                Some(values(j, n_data * comps, &format!("SCALARS {name}"), line, false))
+                Some(values(j, n_data.saturating_mul(comps), &format!("SCALARS {name}"), line, false))
             }
             "VECTORS" | "NORMALS" => {
                 let name = toks.get(k + 1).map_or("?", |t| t.1);
-                Some(values(k + 3, 3 * n_data, &format!("{kw_up} {name}"), line, false))
+                Some(values(k + 3, n_data.saturating_mul(3), &format!("{kw_up} {name}"), line, false))
             }
             "FIELD" => num(k + 2).map(|arrays| {
                 let mut j = k + 3;
                 for _ in 0..arrays {
                     let Some((l, name)) = toks.get(j).copied() else { return Err(format!("line {last_line}: the file ends in FIELD (line {line}) before all its {arrays} arrays: it is cut short")) };
                     let (Some(c), Some(t)) = (num(j + 1), num(j + 2)) else { return Err(format!("line {l}: field array \"{}\" lacks its component and tuple counts", name.escape_debug())) };
-                    j = values(j + 4, c * t, &format!("field array {name}"), l, false)?;
+                    j = values(j + 4, c.saturating_mul(t), &format!("field array {name}"), l, false)?;
                 }
                 Ok(j)
             }),

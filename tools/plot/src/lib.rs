@@ -201,7 +201,12 @@ pub fn plot_run(dir: &Path) -> Result<PlotReport> {
             },
         )?);
     }
-    rep.files.extend(load_curve(dir, &hist, &stages, &out)?);
+    if hist.rows.is_empty() {
+        // A run stopped before its first history row (Ctrl-C early; its summary writes the header).
+        rep.notes.push(format!("{} has no rows: no load-displacement curve", dir.join("history.csv").display()));
+    } else {
+        rep.files.extend(load_curve(dir, &hist, &stages, &out)?);
+    }
     Ok(rep)
 }
 
