@@ -75,7 +75,7 @@ fn crack_separating_an_unsupported_fragment_is_named() {
     assert!(rows[1].splits >= 5, "{:?}", rows[1]);
     let e = rows[1].implicit_error.as_deref().unwrap_or_else(|| panic!("no implicit error after the crack: {:?}", rows[1]));
     eprintln!("{e}");
-    assert!(e.contains("fragment 1 (elements 12, 13, 14, ...; 20 elements") && e.contains("leave a translation or rotation free"), "{e}");
+    assert!(e.contains("fragment 1 (elements 12, 13, 14, ... (0-based, in file order); 20 elements") && e.contains("leave a translation or rotation free"), "{e}");
     assert!(rows[1].rel_l2_displacement.is_none() && !rows[1].within_tolerance && rows[1].vtu.is_none());
 }
 

@@ -73,10 +73,7 @@ impl Loads {
                             _ => Err(FlemError::config(
                                 file,
                                 key("edges"),
-                                format!(
-                                    "= \"{edges}\": the edge between {} lies inside the body; loads go on boundary edges",
-                                    crate::mesh::FileIds::points(model.mesh.ids.as_ref(), &[ed.points[0].0, ed.points[1].0])
-                                ),
+                                format!("= \"{edges}\": the edge between {} lies inside the body; loads go on boundary edges", model.mesh.points_name(&[ed.points[0].0, ed.points[1].0])),
                             )),
                         }
                     })

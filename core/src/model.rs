@@ -102,7 +102,7 @@ impl Model {
             .map(|&[p, q]| {
                 self.topo
                     .edge_between(PointId(p), PointId(q))
-                    .ok_or_else(|| FlemError::config(file, key, format!("= \"{name}\": {} are not joined by an element edge", crate::mesh::FileIds::points(self.mesh.ids.as_ref(), &[p, q]))))
+                    .ok_or_else(|| FlemError::config(file, key, format!("= \"{name}\": {} are not joined by an element edge", self.mesh.points_name(&[p, q]))))
             })
             .collect()
     }

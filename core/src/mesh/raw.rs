@@ -79,47 +79,44 @@ impl FileIds {
         }
     }
 
+    /// The ids of `idx` (cells or points) joined by ", ", the file's word for them ("element
+    /// tag", "VTK point"...) and the note after them; without file ids (a generated or handmade
+    /// mesh, or an index past the file's list) the 0-based indices, no word and
+    /// " (0-based, in file order)". Every name below is built from this.
+    fn list(ids: Option<&FileIds>, cells: bool, idx: &[usize]) -> (String, Option<&'static str>, &'static str) {
+        let file = ids.map(|i| if cells { (i, &i.cells, i.cell_word) } else { (i, &i.points, i.point_word) }).filter(|(_, v, _)| idx.iter().all(|&k| k < v.len()));
+        match file {
+            Some((i, v, word)) => (idx.iter().map(|&k| v[k].to_string()).collect::<Vec<_>>().join(", "), Some(word), i.based()),
+            None => (idx.iter().map(usize::to_string).collect::<Vec<_>>().join(", "), None, " (0-based, in file order)"),
+        }
+    }
+
     /// See [`RawMesh::cell_name`].
     pub fn cell(ids: Option<&FileIds>, e: usize) -> String {
-        match ids.and_then(|ids| ids.cells.get(e).map(|t| (ids, t))) {
-            Some((ids, t)) => format!("{} {t}{}", ids.cell_word, ids.based()),
-            None => format!("element {e} (0-based, in file order)"),
-        }
+        let (l, word, note) = Self::list(ids, true, &[e]);
+        format!("{} {l}{note}", word.unwrap_or("element"))
     }
 
     /// See [`RawMesh::point_name`].
     pub fn point(ids: Option<&FileIds>, p: usize) -> String {
-        match ids.and_then(|ids| ids.points.get(p).map(|t| (ids, t))) {
-            Some((ids, t)) => format!("{} {t}{}", ids.point_word, ids.based()),
-            None => format!("point {p} (0-based, in file order)"),
-        }
+        let (l, word, note) = Self::list(ids, false, &[p]);
+        format!("{} {l}{note}", word.unwrap_or("point"))
     }
 
-    /// Elements by their file ids, `more` after the list: "element tags 14, 15, 16, ...",
-    /// "VTK cells 3, 4 (0-based, as in the file)", or "elements 14, 15, 16, ..." for a mesh
-    /// without file ids (generated: its element numbers are the only ones there are).
+    /// Elements, `more` after the list: "element tags 14, 15, 16, ...", "VTK cells 3, 4
+    /// (0-based, as in the file)", "elements 14, 15, 16, ... (0-based, in file order)".
     pub fn cells(ids: Option<&FileIds>, es: &[usize], more: &str) -> String {
-        match ids.filter(|ids| es.iter().all(|&e| e < ids.cells.len())) {
-            Some(ids) => {
-                let v: Vec<String> = es.iter().map(|&e| ids.cells[e].to_string()).collect();
-                format!("{}s {}{more}{}", ids.cell_word, v.join(", "), ids.based())
-            }
-            None => {
-                let v: Vec<String> = es.iter().map(|e| e.to_string()).collect();
-                format!("elements {}{more}", v.join(", "))
-            }
-        }
+        let (l, word, note) = Self::list(ids, true, es);
+        format!("{}s {l}{more}{note}", word.unwrap_or("element"))
     }
 
-    /// Corner points by their file ids: "points [node tags 3, 4, 9]" or "points [3, 4, 9]
-    /// (0-based, in file order)".
+    /// Corner points: "points [node tags 3, 4, 9]" or "points [3, 4, 9] (0-based, in file
+    /// order)".
     pub fn points(ids: Option<&FileIds>, ps: &[u32]) -> String {
-        match ids.filter(|ids| ps.iter().all(|&p| (p as usize) < ids.points.len())) {
-            Some(ids) => {
-                let v: Vec<String> = ps.iter().map(|&p| ids.points[p as usize].to_string()).collect();
-                format!("points [{}s {}]{}", ids.point_word, v.join(", "), ids.based())
-            }
-            None => format!("points {ps:?} (0-based, in file order)"),
+        let idx: Vec<usize> = ps.iter().map(|&p| p as usize).collect();
+        match Self::list(ids, false, &idx) {
+            (l, Some(word), note) => format!("points [{word}s {l}]{note}"),
+            (l, None, note) => format!("points [{l}]{note}"),
         }
     }
 }
@@ -160,6 +157,16 @@ impl RawMesh {
     /// file)", "point 33 (0-based, in file order)").
     pub fn point_name(&self, p: usize) -> String {
         FileIds::point(self.ids.as_ref(), p)
+    }
+
+    /// Points as the user's file names them ("points [node tags 3, 18]"; see [`FileIds::points`]).
+    pub fn points_name(&self, ps: &[u32]) -> String {
+        FileIds::points(self.ids.as_ref(), ps)
+    }
+
+    /// Elements as the user's file names them, `more` after the list ([`FileIds::cells`]).
+    pub fn cells_name(&self, es: &[usize], more: &str) -> String {
+        FileIds::cells(self.ids.as_ref(), es, more)
     }
 
     /// Checks the mesh; returns warnings (reoriented cells) or the first error, naming the file

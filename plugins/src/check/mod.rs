@@ -136,11 +136,11 @@ impl Fragments {
     }
 
     /// "fragment 2 (element tags 14, 15, 16, ...; 40 elements, around point (x, y))" (the ids of
-    /// the mesh file; "elements 14, ..." for a generated mesh).
+    /// the mesh file; "elements 14, ... (0-based, in file order)" for a generated mesh).
     fn describe(&self, model: &Model, f: u32) -> String {
         let elems: Vec<usize> = (0..self.elem_frag.len()).filter(|&e| self.elem_frag[e] == f).collect();
         let more = if elems.len() > 3 { ", ..." } else { "" };
-        let list = flem_core::mesh::FileIds::cells(model.mesh.ids.as_ref(), &elems[..elems.len().min(3)], more);
+        let list = model.mesh.cells_name(&elems[..elems.len().min(3)], more);
         let (mut sx, mut sy, mut m) = (0.0, 0.0, 0.0);
         for &e in &elems {
             for &p in model.mesh.cells[e].corners() {
@@ -662,7 +662,7 @@ mod tests {
         let solver = ImplicitSolver::new();
         let e = solver.solve(&m, &fix, &f, &zero).unwrap_err().to_string();
         eprintln!("{e}");
-        assert!(e.contains("fragment 1 (elements 8, 9, 10, ...; 8 elements"), "{e}");
+        assert!(e.contains("fragment 1 (elements 8, 9, 10, ... (0-based, in file order); 8 elements"), "{e}");
         assert!(e.contains("no prescribed dof"), "{e}");
         fix[top] = 1;
         let e = solver.solve(&m, &fix, &f, &zero).unwrap_err().to_string();
