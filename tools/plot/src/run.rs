@@ -237,8 +237,7 @@ mod tests {
     /// A history whose last row was cut by a kill (no newline): only the whole rows are read.
     #[test]
     fn history_ignores_a_cut_last_row() {
-        let dir = std::env::temp_dir().join(format!("flem-plot-cut-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = folder("cut");
         std::fs::write(dir.join("history.csv"), "step,time\n1,1e-1\n2,2e-1\n3,3e").unwrap();
         let h = super::History::read(&dir).unwrap();
         assert_eq!(h.header, ["step", "time"]);
