@@ -668,11 +668,16 @@ fn sigkill_during_output_leaves_every_file_whole() {
 fn a_run_without_splits_replaces_an_older_split_log() {
     let dir = tmp("stale-splits");
     let text = tension_text();
-    let mut s = Simulation::new(scene(&text)).unwrap();
-    let mut w = OutputWriter::new(&dir, &s).unwrap();
-    s.run(&mut w).unwrap();
-    w.write_summary(&s, 0.0).unwrap();
-    let old = std::fs::read_to_string(dir.join("splits.csv")).unwrap();
+    // A whole run into `dir`, as `flem run` does it; returns the splits.csv it leaves.
+    let run_into = |text: &str, cracking: bool| {
+        let mut s = Simulation::new(scene(text)).unwrap();
+        assert_eq!(s.scene.file.cracking.is_some(), cracking);
+        let mut w = OutputWriter::new(&dir, &s).unwrap();
+        s.run(&mut w).unwrap();
+        w.write_summary(&s, 0.0).unwrap();
+        std::fs::read_to_string(dir.join("splits.csv")).unwrap()
+    };
+    let old = run_into(&text, true);
     assert!(old.lines().count() > 1, "the cracking run wrote no split row");
     // The same specimen without [cracking]: elastic, no split.
     let mut skip = false;
@@ -686,12 +691,7 @@ fn a_run_without_splits_replaces_an_older_split_log() {
         })
         .map(|l| format!("{l}\n"))
         .collect();
-    let mut s = Simulation::new(scene(&elastic)).unwrap();
-    assert!(s.scene.file.cracking.is_none());
-    let mut w = OutputWriter::new(&dir, &s).unwrap();
-    s.run(&mut w).unwrap();
-    w.write_summary(&s, 0.0).unwrap();
-    let new = std::fs::read_to_string(dir.join("splits.csv")).unwrap();
+    let new = run_into(&elastic, false);
     assert_eq!(new.lines().count(), 1, "splits.csv of the run without splits: {new}");
     assert!(new.starts_with("time,step,point"), "{new}");
     let _ = std::fs::remove_dir_all(&dir);
