@@ -67,7 +67,7 @@ use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use flem_core::traits::ParamError;
 use serde::{Deserialize, Serialize};
 
-use super::coulomb_cap;
+use super::{coulomb_cap, slip_dissipation};
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -236,9 +236,7 @@ impl ContactLaw for Cohesive {
             let (es, slipped) = coulomb_cap(trial, self.friction * normal.max(0.0) + cap_extra);
             h.es = es;
             if slipped {
-                // Work of the tangential force over the step (trapezoid) less the change of
-                // e_s^2 / (2 k_s): (e_s,old + e_s)(trial - e_s) / (2 k_s).
-                diss += 0.5 * (es_old + es) * (trial - es) / ks;
+                diss += slip_dissipation(es_old, trial, es, ks);
             }
             let active = k.gap < 0.0 || (h.fresh && h.max_open < df);
             *o = PairForce { normal, tangential: es, active, stored: stored_n + 0.5 * es * es / ks, dissipated: diss };

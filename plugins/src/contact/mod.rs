@@ -33,6 +33,16 @@ pub(crate) fn coulomb_cap(es: f64, limit: f64) -> (f64, bool) {
     }
 }
 
+/// Energy dissipated by a Coulomb slip in one step: the tangential spring went from `es_old` to
+/// the trial `es_old - k_s A dslip` (`trial`, stiffness `ks = k_s A`) and was capped to `es`.
+/// The ledger credits the step the trapezoid `1/2 (es_old + es) dslip` with
+/// `dslip = (es_old - trial) / ks`; less the change of stored `es^2 / (2 ks)` this leaves
+/// `(es_old + es)(trial - es) / (2 ks)` (the rectangle `|trial - es| |es| / ks` misses the
+/// work done while the cap moves with the normal force).
+pub(crate) fn slip_dissipation(es_old: f64, trial: f64, es: f64, ks: f64) -> f64 {
+    0.5 * (es_old + es) * (trial - es) / ks
+}
+
 #[cfg(test)]
 mod tests {
     use flem_core::contact::ContactLaw;

@@ -46,7 +46,7 @@ use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use flem_core::traits::ParamError;
 use serde::{Deserialize, Serialize};
 
-use super::coulomb_cap;
+use super::{coulomb_cap, slip_dissipation};
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -95,7 +95,7 @@ impl ContactLaw for SpringDashpot {
             let (capped, slipped) = coulomb_cap(trial, self.friction * normal);
             let mut diss = 0.0;
             if slipped {
-                diss += 0.5 * (es_old + capped) * (h.es - capped) / ks;
+                diss += slip_dissipation(es_old, h.es, capped, ks);
                 h.es = capped;
                 ds = 0.0;
             }
