@@ -12,10 +12,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use flem_core::checkpoint::{self, Checkpoint};
+use flem_core::mesh::topology::SplitRecord;
+use flem_core::output::checkpoint::{self, Checkpoint};
 use flem_core::output::{OutputWriter, WriterState, OUTPUT_SECTION, OUTPUT_SECTION_VERSION};
 use flem_core::solver::{Observer, Progress, Simulation, StagePos};
-use flem_core::topology::SplitRecord;
 use flem_core::FlemError;
 
 use crate::common::{root, scene};
@@ -628,7 +628,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
                 args.extend(["--resume", dir.to_str().unwrap()]);
             }
             let mut child = Command::new(FLEM).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
-            rng = flem_core::weibull::splitmix64(rng);
+            rng = flem_core::cracking::weibull::splitmix64(rng);
             std::thread::sleep(Duration::from_millis(20 + rng % span_ms));
             let done = child.try_wait().unwrap().is_some();
             if !done {

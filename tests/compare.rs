@@ -1,6 +1,6 @@
 //! FLEM equilibrium vs the implicit check solver (issue 5), through the `[check]` path
-//! (`flem_core::check::Comparer`) and the `flem compare` command.
-use flem_core::check::{Comparer, StageComparison};
+//! (`flem_core::output::compare::Comparer`) and the `flem compare` command.
+use flem_core::output::compare::{Comparer, StageComparison};
 use flem_core::solver::NoOutput;
 
 use crate::common::{root, scene};

@@ -77,7 +77,7 @@ fn registry_names_deserialise() {
     flem_plugins::link();
     for (kind, name) in flem_plugins::registry() {
         if kind == "damping" {
-            let r: Result<Box<dyn flem_core::damping::Damping>, _> = toml::from_str(&format!("type = \"{name}\""));
+            let r: Result<Box<dyn flem_core::plugin::damping::Damping>, _> = toml::from_str(&format!("type = \"{name}\""));
             // A missing parameter is fine here; an unknown name is not.
             if let Err(e) = r {
                 assert!(!e.to_string().contains("unknown variant"), "{kind} {name}: {e}");

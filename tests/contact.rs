@@ -1,7 +1,7 @@
 //! Contact and co-rotational kinematics (issue 4). Every test names its reference and
 //! tolerance.
 use flem_core::contact::Master;
-use flem_core::damping::Damping;
+use flem_core::plugin::damping::Damping;
 use flem_core::solver::{NoOutput, Simulation};
 use flem_plugins::snippets::toml_blocks;
 

@@ -1,7 +1,7 @@
 //! Cracking verification (issue 3): first split at sigma_t, crack perpendicular to the load,
 //! each criterion selected by `type` in the same scene.
+use flem_core::mesh::topology::SplitRecord;
 use flem_core::solver::{NoOutput, Observer, Simulation};
-use flem_core::topology::SplitRecord;
 
 use crate::common::{root, scene};
 
@@ -121,9 +121,9 @@ fn uniaxial_compression_fails_in_shear_at_ucs() {
         sim.run(&mut log).unwrap();
         assert!(log.0.iter().all(|(st, _)| *st == 1), "{rule}: split below UCS: {:?}", log.0.first());
         let first = &log.0.first().unwrap_or_else(|| panic!("{rule}: no split above UCS")).1;
-        assert_eq!(first.mode, flem_core::traits::FailureMode::Shear);
+        assert_eq!(first.mode, flem_core::plugin::traits::FailureMode::Shear);
         let s = first.stress;
-        let p = flem_core::traits::principal(s, 0.0);
+        let p = flem_core::plugin::traits::principal(s, 0.0);
         assert!((p.s1 - p.s3 - ucs).abs() < 0.05 * ucs && p.s3.abs() < 0.05 * ucs, "{rule}: first split at s1 = {}, s3 = {} (UCS {ucs})", p.s1, p.s3);
         println!("{rule}: first split at s1 - s3 = {:.4} = {:.4} UCS, {} splits", p.s1 - p.s3, (p.s1 - p.s3) / ucs, log.0.len());
         for (_, e) in &log.0 {
@@ -174,7 +174,7 @@ fn notched_plate_cracks_from_the_tip_at_p_crit() {
     let (mut corner, mut nodal) = (Vec::new(), Vec::new());
     el.model.nodal_stress(&el.state.u, &mut corner, &mut nodal);
     let ct = el.model.topo.point_clusters[tip][0].idx();
-    let s1 = -flem_core::traits::principal(nodal[ct], el.model.material_of(flem_core::ids::ElemId::new(0)).szz(nodal[ct])).s3;
+    let s1 = -flem_core::plugin::traits::principal(nodal[ct], el.model.material_of(flem_core::ids::ElemId::new(0)).szz(nodal[ct])).s3;
     let p_crit = 1.0 / s1;
     println!("notch tip: sigma1 = {s1:.4} per unit traction, p_crit = {p_crit:.4} sigma_t");
     assert!(s1 > 1.5, "the notch concentrates stress (sigma1 = {s1})");
@@ -186,7 +186,7 @@ fn notched_plate_cracks_from_the_tip_at_p_crit() {
     assert!(log.0.iter().all(|(st, _)| *st == 1), "split below p_crit: {:?}", log.0.first());
     let first = &log.0.first().expect("no split at 1.03 p_crit").1;
     assert_eq!(first.point.idx(), tip, "the first split is at the notch tip");
-    let p = flem_core::traits::principal(first.stress, 0.0);
+    let p = flem_core::plugin::traits::principal(first.stress, 0.0);
     assert!((-p.s3 - 1.03).abs() < 0.03, "nodal sigma1 at the first split {} (1.03 expected)", -p.s3);
     let mesh = &sim.model.mesh;
     let topo = &sim.model.topo;

@@ -7,10 +7,10 @@ use std::process::Command;
 use std::sync::OnceLock;
 
 use flem_core::cracking::SplitEvent;
-use flem_core::dynload::{self, abi};
+use flem_core::mesh::topology::SplitRecord;
+use flem_core::plugin::dynload::{self, abi};
 use flem_core::scene::Scene;
 use flem_core::solver::{Observer, Simulation};
-use flem_core::topology::SplitRecord;
 
 use crate::common::root;
 

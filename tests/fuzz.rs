@@ -144,7 +144,7 @@ impl Observer for FiniteGuard {
         self.look(sim, "snapshot");
         Ok(())
     }
-    fn splits(&mut self, sim: &Simulation, _rec: &flem_core::topology::SplitRecord, _ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+    fn splits(&mut self, sim: &Simulation, _rec: &flem_core::mesh::topology::SplitRecord, _ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
         self.look(sim, "splits");
         Ok(())
     }
@@ -170,7 +170,7 @@ fn check_written(m: &Mutant, scratch: &Path) -> Result<(), String> {
         let mut sim = Simulation::new(scene).map_err(|e| format!("rebuilding: {e}"))?;
         let mut w = flem_core::output::OutputWriter::new(&dir, &sim).map_err(|e| e.to_string())?;
         let _ = if sim.scene.file.check.is_some() {
-            let mut c = flem_core::check::Comparer::new(&mut w, &dir).map_err(|e| e.to_string())?;
+            let mut c = flem_core::output::compare::Comparer::new(&mut w, &dir).map_err(|e| e.to_string())?;
             sim.run(&mut c)
         } else {
             sim.run(&mut w)
@@ -231,7 +231,7 @@ fn evaluate(m: &Mutant, scratch: &Path) -> Verdict {
         };
         let mut guard = FiniteGuard::default();
         let r = if sim.scene.file.check.is_some() {
-            let mut c = match flem_core::check::Comparer::new(&mut guard, &scratch.join("compare")) {
+            let mut c = match flem_core::output::compare::Comparer::new(&mut guard, &scratch.join("compare")) {
                 Ok(c) => c,
                 Err(e) => return Verdict::RunFailed(format!("(harness) {e}")),
             };
@@ -921,7 +921,7 @@ fn several_splits_in_one_check_reach_new_clusters() {
     #[derive(Default)]
     struct Most(usize, FiniteGuard);
     impl Observer for Most {
-        fn splits(&mut self, sim: &Simulation, _r: &flem_core::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+        fn splits(&mut self, sim: &Simulation, _r: &flem_core::mesh::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
             self.0 = self.0.max(ev.iter().map(|e| e.cluster).collect::<std::collections::BTreeSet<_>>().len());
             self.1.look(sim, "splits");
             Ok(())

@@ -4,8 +4,8 @@
 //! check only), each also on a finer mesh. The measured numbers are printed (`--nocapture`)
 //! and collected in docs/paper.md.
 use flem_core::ids::EdgeId;
+use flem_core::plugin::traits::principal;
 use flem_core::solver::Simulation;
-use flem_core::traits::principal;
 
 use crate::common::{rel, root};
 
@@ -80,7 +80,7 @@ struct SplitLog {
     separated_at: Option<usize>,
 }
 impl flem_core::solver::Observer for SplitLog {
-    fn splits(&mut self, s: &Simulation, _r: &flem_core::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+    fn splits(&mut self, s: &Simulation, _r: &flem_core::mesh::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
         self.events.extend(ev.iter().cloned());
         if self.separated_at.is_none() && s.model.topo.fragments().1 >= 2 {
             self.separated_at = Some(self.events.len());

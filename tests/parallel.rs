@@ -6,8 +6,8 @@
 //! the threads really share the work; the cracking scene splits during the run, so the
 //! schedule is also exercised after `remap`.
 use flem_core::cracking::SplitEvent;
+use flem_core::mesh::topology::SplitRecord;
 use flem_core::solver::{Observer, Simulation};
-use flem_core::topology::SplitRecord;
 
 use crate::common::{root, scene};
 

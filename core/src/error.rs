@@ -42,3 +42,20 @@ impl FlemError {
         FlemError::Mesh { file: file.into(), msg: msg.into() }
     }
 }
+
+/// Nearest name by edit distance, for "did you mean" hints.
+pub fn nearest<'a>(name: &str, options: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    fn lev(a: &str, b: &str) -> usize {
+        let b: Vec<char> = b.chars().collect();
+        let mut prev: Vec<usize> = (0..=b.len()).collect();
+        for (i, ca) in a.chars().enumerate() {
+            let mut cur = vec![i + 1];
+            for (j, cb) in b.iter().enumerate() {
+                cur.push((prev[j] + (ca != *cb) as usize).min(prev[j + 1] + 1).min(cur[j] + 1));
+            }
+            prev = cur;
+        }
+        prev[b.len()]
+    }
+    options.into_iter().map(|o| (lev(name, o), o)).filter(|(d, o)| *d <= (o.len() / 2).max(2)).min().map(|(_, o)| o)
+}

@@ -5,12 +5,13 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::check::CheckCfg;
-use crate::damping::Damping;
+pub use crate::element::model::MaterialCfg;
 use crate::element::Plane;
-use crate::error::{FlemError, Result};
+use crate::error::{nearest, FlemError, Result};
 use crate::mesh::{MeshSource, ValidationOptions};
-use crate::traits::{FailureCriterion, ParamError, SeparationRule};
+use crate::plugin::check::CheckCfg;
+use crate::plugin::damping::Damping;
+use crate::plugin::traits::{FailureCriterion, ParamError, SeparationRule};
 
 /// The scene file as written (after defaults).
 #[derive(Debug, Serialize, Deserialize)]
@@ -75,29 +76,6 @@ impl Default for ModelCfg {
     fn default() -> Self {
         ModelCfg { plane: Plane::Strain, gravity: [0.0; 2], separated: Vec::new(), orientation: ValidationOptions::Reorient }
     }
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MaterialCfg {
-    /// Element region (mesh group) this material applies to; "all" for every element.
-    #[serde(default = "all")]
-    pub region: String,
-    pub young_modulus: f64,
-    pub poisson_ratio: f64,
-    pub density: f64,
-    #[serde(default = "one")]
-    pub thickness: f64,
-    /// Co-rotational kinematics (crate::corot): rigid rotations carry no stress.
-    #[serde(default)]
-    pub corotational: bool,
-}
-
-fn all() -> String {
-    "all".into()
-}
-fn one() -> f64 {
-    1.0
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -322,9 +300,9 @@ impl Default for OutputCfg {
 #[serde(deny_unknown_fields)]
 pub struct CrackingCfg {
     /// A built-in (typetag) or a plugin from a `[plugins] load` library (`dynload`).
-    #[serde(deserialize_with = "crate::dynload::de_criterion")]
+    #[serde(deserialize_with = "crate::plugin::dynload::de_criterion")]
     pub criterion: Box<dyn FailureCriterion>,
-    #[serde(deserialize_with = "crate::dynload::de_separation")]
+    #[serde(deserialize_with = "crate::plugin::dynload::de_separation")]
     pub separation: Box<dyn SeparationRule>,
     /// Steps between failure checks, when `at_equilibrium = false`.
     #[serde(default = "default_check_every")]
@@ -385,23 +363,6 @@ fn range(file: &str, key: &str, v: f64, lo: f64, lo_incl: bool, hi: f64, hi_incl
     ParamError::range(key, v, lo, lo_incl, hi, hi_incl).map_err(|e| FlemError::config(file, e.key, e.msg))
 }
 
-/// Nearest name by edit distance, for "did you mean" hints.
-pub fn nearest<'a>(name: &str, options: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
-    fn lev(a: &str, b: &str) -> usize {
-        let b: Vec<char> = b.chars().collect();
-        let mut prev: Vec<usize> = (0..=b.len()).collect();
-        for (i, ca) in a.chars().enumerate() {
-            let mut cur = vec![i + 1];
-            for (j, cb) in b.iter().enumerate() {
-                cur.push((prev[j] + (ca != *cb) as usize).min(prev[j + 1] + 1).min(cur[j] + 1));
-            }
-            prev = cur;
-        }
-        prev[b.len()]
-    }
-    options.into_iter().map(|o| (lev(name, o), o)).filter(|(d, o)| *d <= (o.len() / 2).max(2)).min().map(|(_, o)| o)
-}
-
 impl Scene {
     /// Reads and validates a scene file.
     pub fn from_file(path: &Path) -> Result<Scene> {
@@ -413,7 +374,7 @@ impl Scene {
     /// Parses and validates scene text; `path` is used in messages, `base_dir` for relative paths.
     pub fn from_str(text: &str, path: &Path, base_dir: &Path) -> Result<Scene> {
         let name = path.display().to_string();
-        crate::dynload::load_scene_plugins(text, &name, base_dir)?;
+        crate::plugin::dynload::load_scene_plugins(text, &name, base_dir)?;
         let mut file: SceneFile = toml::from_str(text).map_err(|e| parse_error(&name, text, e))?;
         if file.solver.damping.is_none() {
             // The default: adaptive dynamic relaxation (a plugin; an error, not a panic, when the

@@ -16,9 +16,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Result;
+use flem_core::element::model::Model;
 use flem_core::element::Plane;
 use flem_core::mesh::{CellKind, Rectangle, ValidationOptions};
-use flem_core::model::Model;
 use flem_core::scene::{MaterialCfg, Scene};
 use flem_core::solver::{NoOutput, Simulation};
 use serde_json::{json, Value};
@@ -115,8 +115,8 @@ fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts) -> Result<Val
     // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
     let node_bytes = nc * (5 * 16 + 8 + 1);
     let kernel_bytes = match kind {
-        CellKind::Q4 => <flem_core::element::Q4 as flem_core::kernel::Blocked<4>>::BYTES_PER_ELEM,
-        CellKind::T3 => <flem_core::element::T3 as flem_core::kernel::Blocked<3>>::BYTES_PER_ELEM,
+        CellKind::Q4 => <flem_core::element::Q4 as flem_core::element::kernel::Blocked<4>>::BYTES_PER_ELEM,
+        CellKind::T3 => <flem_core::element::T3 as flem_core::element::kernel::Blocked<3>>::BYTES_PER_ELEM,
     };
     Ok(json!({
         "kind": kind_name(kind), "nx": nx, "ny": ny, "elements": ne, "clusters": nc,

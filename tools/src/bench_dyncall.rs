@@ -15,9 +15,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use flem_core::plugin::traits::{principal, FailureCheck, FailureCriterion, Principal};
 use flem_core::scene::Scene;
 use flem_core::solver::{NoOutput, Simulation};
-use flem_core::traits::{principal, FailureCheck, FailureCriterion, Principal};
 
 #[derive(clap::Args)]
 pub struct Args {

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use flem_core::check::rel_l2;
+use flem_core::output::compare::rel_l2;
 use flem_core::scene::Scene;
 use flem_core::solver::{NoOutput, Simulation};
 use serde::Serialize;

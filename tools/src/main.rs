@@ -4,8 +4,9 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use flem_core::check::{CheckCfg, Comparer};
+use flem_core::output::compare::Comparer;
 use flem_core::output::OutputWriter;
+use flem_core::plugin::check::CheckCfg;
 use flem_core::scene::Scene;
 use flem_core::solver::NoOutput;
 use flem_core::solver::{Simulation, StagePos};
@@ -199,16 +200,16 @@ fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_s
 
 fn plugins(libs: &[PathBuf], scene: Option<&Path>) -> Result<()> {
     for l in libs {
-        flem_core::dynload::load_library(l)?;
+        flem_core::plugin::dynload::load_library(l)?;
     }
     if let Some(p) = scene {
         let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-        flem_core::dynload::load_scene_plugins(&text, &p.display().to_string(), p.parent().unwrap_or(Path::new("")))?;
+        flem_core::plugin::dynload::load_scene_plugins(&text, &p.display().to_string(), p.parent().unwrap_or(Path::new("")))?;
     }
     for (kind, name) in flem_plugins::registry() {
         println!("{kind:<12} {name}");
     }
-    for p in flem_core::dynload::loaded() {
+    for p in flem_core::plugin::dynload::loaded() {
         println!("{:<12} {:<24} loaded from {} (FLEM core {}, {})", p.kind, p.name, p.file.display(), p.core_version, p.rustc_version);
     }
     Ok(())
@@ -287,7 +288,7 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     let mut pos = StagePos::start(0);
     let mut resumed = None;
     if let Some(dir) = &resume {
-        let (ck, path, refused) = flem_core::checkpoint::load_newest(dir, &sim)?;
+        let (ck, path, refused) = flem_core::output::checkpoint::load_newest(dir, &sim)?;
         for r in &refused {
             eprintln!("warning: {r}");
         }
@@ -319,7 +320,7 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
         let mut c = Comparer::new(&mut w, &out)?;
         let r = sim.run_from(pos, &mut c);
         bar.finish_and_clear();
-        eprint!("{}", flem_core::check::table(&c.rows));
+        eprint!("{}", flem_core::output::compare::table(&c.rows));
         r
     } else {
         sim.run_from(pos, &mut w)
@@ -378,7 +379,7 @@ fn compare(mut scene: Scene, out: Option<PathBuf>) -> Result<()> {
     c.on_row =
         Some(Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit)));
     let r = sim.run(&mut c);
-    print!("{}", flem_core::check::table(&c.rows));
+    print!("{}", flem_core::output::compare::table(&c.rows));
     r?;
     println!("results in {}", out.join("compare.json").display());
     let failed: Vec<&str> = c.rows.iter().filter(|r| r.implicit_error.is_some()).map(|r| r.name.as_str()).collect();

@@ -55,7 +55,7 @@ use std::fmt::Debug;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{FlemError, Result};
-use crate::traits::ParamError;
+use crate::plugin::traits::ParamError;
 
 pub use search::Contact;
 

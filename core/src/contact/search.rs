@@ -6,11 +6,11 @@
 //! deterministic candidate order (by face index) with no dependency; a tree would need a
 //! sort of its query results to be deterministic anyway.
 use super::{ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, PairKinematics, PairState};
+use crate::element::model::Model;
 use crate::element::{self, Q4, T3};
 use crate::error::Result;
 use crate::ids::{EdgeId, ElemId, PointId};
-use crate::model::Model;
-use crate::topology::{SplitRecord, Topology};
+use crate::mesh::topology::{SplitRecord, Topology};
 use serde::{Deserialize, Serialize};
 
 const NONE: u32 = u32::MAX;

@@ -5,6 +5,7 @@
 mod raw;
 mod rect;
 mod rects;
+pub mod topology;
 
 pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
 pub use rect::{Notch, Rectangle};

@@ -10,7 +10,7 @@
 //! ```
 //!
 //! The macro exports the C entry point `flem_plugin_entry_v1` (see
-//! [`flem_core::dynload::abi`]) with the FLEM core version and compiler this SDK was built with;
+//! [`flem_core::plugin::dynload::abi`]) with the FLEM core version and compiler this SDK was built with;
 //! the host refuses a library built for another core or ABI version. The shims here:
 //! - parse the scene's parameter table (JSON text) into your struct; an unknown, missing or
 //!   ill-typed key is reported with the key's name ([`serde_path_to_error`]);
@@ -25,9 +25,9 @@ use std::any::Any;
 use std::ffi::c_void;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-pub use flem_core::dynload::abi;
 pub use flem_core::ids::{ClusterId, EdgeId, PointId};
-pub use flem_core::traits::{line_angle, principal, ray_angle, FailureCheck, FailureMode, FanView, LinkGeom, ParamError, Principal, Proposal};
+pub use flem_core::plugin::dynload::abi;
+pub use flem_core::plugin::traits::{line_angle, principal, ray_angle, FailureCheck, FailureMode, FanView, LinkGeom, ParamError, Principal, Proposal};
 pub use serde;
 
 use abi::{
@@ -36,7 +36,7 @@ use abi::{
 };
 use serde::de::DeserializeOwned;
 
-/// A failure criterion (the dynamic twin of [`flem_core::traits::FailureCriterion`]).
+/// A failure criterion (the dynamic twin of [`flem_core::plugin::traits::FailureCriterion`]).
 /// Inputs are compression positive; `scale` multiplies the strengths at this point.
 pub trait Criterion: DeserializeOwned + Send + Sync + 'static {
     /// Checks the parameters; the error names the key and the allowed range.
@@ -46,7 +46,7 @@ pub trait Criterion: DeserializeOwned + Send + Sync + 'static {
     fn check(&self, p: &Principal, scale: f64) -> FailureCheck;
 }
 
-/// A separation rule (the dynamic twin of [`flem_core::traits::SeparationRule`]).
+/// A separation rule (the dynamic twin of [`flem_core::plugin::traits::SeparationRule`]).
 pub trait Separation: DeserializeOwned + Send + Sync + 'static {
     fn validate(&self) -> Result<(), ParamError> {
         Ok(())

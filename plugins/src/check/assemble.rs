@@ -18,10 +18,10 @@
 use std::hash::{DefaultHasher, Hash, Hasher};
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use flem_core::block::Block;
+use flem_core::element::block::Block;
+use flem_core::element::model::Model;
 use flem_core::element::{self, Dmat, Plane, Shape, Q4, T3};
 use flem_core::mesh::CellKind;
-use flem_core::model::Model;
 
 /// Hash of everything the pattern and the matrix values depend on: number of clusters, fixity
 /// bits, connectivity, reference coordinates and materials.

@@ -48,8 +48,8 @@ use faer::prelude::*;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use faer::Side;
-use flem_core::check::CheckSolver;
-use flem_core::model::Model;
+use flem_core::element::model::Model;
+use flem_core::plugin::check::CheckSolver;
 use flem_core::solver::Simulation;
 use flem_core::FlemError;
 use serde::{Deserialize, Serialize};
@@ -461,9 +461,9 @@ pub fn static_solve(sim: &Simulation) -> Result<Vec<[f64; 2]>, FlemError> {
 mod tests {
     use std::path::Path;
 
+    use flem_core::element::model::Model;
     use flem_core::element::Plane;
     use flem_core::mesh::{CellKind, RawCell, RawMesh, Rectangle, ValidationOptions};
-    use flem_core::model::Model;
     use flem_core::scene::{MaterialCfg, Scene};
     use flem_core::solver::{NoOutput, Simulation};
 
@@ -496,7 +496,7 @@ mod tests {
     #[test]
     fn doc_snippet_parses_and_solves_through_the_trait() {
         crate::link();
-        let got = crate::snippets::doc_snippets::<flem_core::check::CheckCfg>(&[("check/mod.rs", include_str!("mod.rs"))], &["check"], &[]);
+        let got = crate::snippets::doc_snippets::<flem_core::plugin::check::CheckCfg>(&[("check/mod.rs", include_str!("mod.rs"))], &["check"], &[]);
         let s = sim("[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = 4\nny = 2\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[[stage]]\n");
         let fix: Vec<u8> = s.x0.iter().map(|x| if x[0] == 0.0 { 3 } else { 0 }).collect();
         let f: Vec<[f64; 2]> = s.x0.iter().map(|x| if x[0] == 2.0 { [0.0, -1.0] } else { [0.0; 2] }).collect();

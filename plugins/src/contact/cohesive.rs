@@ -64,7 +64,7 @@
 //! law = { type = "cohesive", normal_stiffness = 1e6, shear_stiffness = 4e5, tensile_strength = 1.0, fracture_energy = 0.01, friction = 0.577 }
 //! ```
 use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
-use flem_core::traits::ParamError;
+use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
 
 use super::{coulomb_cap, slip_dissipation};

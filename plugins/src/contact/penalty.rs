@@ -17,7 +17,7 @@
 //! law = { type = "penalty", normal_stiffness = 1e5, friction = 0.3, slip_velocity = 1e-4 }
 //! ```
 use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
-use flem_core::traits::ParamError;
+use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -43,7 +43,7 @@
 //! friction = 0.577            # paper Table 1
 //! ```
 use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
-use flem_core::traits::ParamError;
+use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
 
 use super::{coulomb_cap, slip_dissipation};

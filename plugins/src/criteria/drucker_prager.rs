@@ -42,7 +42,7 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
+use flem_core::plugin::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
 
 use super::{holds, ratio_index, shear_check};
 
@@ -188,7 +188,7 @@ impl FailureCriterion for DruckerPrager {
 mod tests {
     use super::*;
     use crate::criteria::mohr_coulomb::mc_shear_fails;
-    use flem_core::traits::FailureMode;
+    use flem_core::plugin::traits::FailureMode;
 
     const C: f64 = 0.1;
     const PHI_DEG: f64 = 30.0;

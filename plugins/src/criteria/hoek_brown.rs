@@ -34,7 +34,7 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
+use flem_core::plugin::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
 
 use super::{holds, ratio_index, shear_check, tension_check};
 
@@ -106,7 +106,7 @@ impl FailureCriterion for HoekBrown {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use flem_core::traits::FailureMode;
+    use flem_core::plugin::traits::FailureMode;
 
     fn classic(m: f64) -> HoekBrown {
         HoekBrown { sigma_ci: 100.0, m_b: m, s: 1.0, a: 0.5 }

@@ -2,7 +2,7 @@
 //!
 //! What: each criterion takes the in-plane principal stresses of a cluster in the
 //! geomechanics convention (**compression positive**, `s1 >= s3`, plus the out-of-plane `s2`
-//! and the sigma1 direction `theta1`, see [`flem_core::traits::principal`]) and answers
+//! and the sigma1 direction `theta1`, see [`flem_core::plugin::traits::principal`]) and answers
 //! failed or not, the mode (tension or shear), the failure-plane direction(s) and a failure
 //! index (>= 1 failed, clamped to [0, 1e6]).
 //!
@@ -11,13 +11,13 @@
 //!
 //! How they are selected: `type = "name"` in the scene's `[cracking.criterion]` table (typetag).
 //! Units: any consistent stress unit (the paper uses kgf/cm^2); angles in config are degrees
-//! (`_deg`), radians inside. `scale` (strength scatter, see [`flem_core::weibull`]) multiplies every
+//! (`_deg`), radians inside. `scale` (strength scatter, see [`flem_core::cracking::weibull`]) multiplies every
 //! strength of a criterion at a point.
 //!
 //! Shared conventions:
 //! - Failure-plane directions are radians in [0, pi) from +x, in ascending order for shear.
 //! - When `s1 == s3` the sigma1 direction is undefined; we use `theta1` as supplied, which
-//!   [`flem_core::traits::principal`] sets to 0 (the +x axis) in that case.
+//!   [`flem_core::plugin::traits::principal`] sets to 0 (the +x axis) in that case.
 //! - A NaN input never fails (all comparisons are false) and gives index 0.
 pub mod drucker_prager;
 pub mod hoek_brown;
@@ -26,7 +26,7 @@ pub mod rankine;
 
 use std::f64::consts::PI;
 
-use flem_core::traits::{FailureCheck, FailureMode};
+use flem_core::plugin::traits::{FailureCheck, FailureMode};
 
 /// The registered criterion names (typetag `type = "..."`), in documentation order.
 pub const NAMES: &[&str] = &["mohr_coulomb", "rankine", "drucker_prager", "hoek_brown"];
@@ -93,7 +93,7 @@ pub fn shear_planes(theta1: f64, phi: f64) -> [f64; 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use flem_core::traits::FailureCriterion;
+    use flem_core::plugin::traits::FailureCriterion;
 
     const SOURCES: &[(&str, &str)] = &[
         ("mohr_coulomb.rs", include_str!("mohr_coulomb.rs")),

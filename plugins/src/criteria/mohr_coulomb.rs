@@ -45,7 +45,7 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
+use flem_core::plugin::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
 
 use super::{holds, ratio_index, shear_check, tension_check};
 
@@ -133,7 +133,7 @@ impl FailureCriterion for MohrCoulomb {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use flem_core::traits::{principal, FailureMode};
+    use flem_core::plugin::traits::{principal, FailureMode};
 
     fn paper() -> MohrCoulomb {
         MohrCoulomb { cohesion: 0.1, friction_angle_deg: 30.0, tensile_strength: 1.0, tension: true, shear: true }

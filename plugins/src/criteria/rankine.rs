@@ -15,7 +15,7 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
+use flem_core::plugin::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
 
 use super::{holds, tension_check};
 
@@ -52,7 +52,7 @@ impl FailureCriterion for Rankine {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use flem_core::traits::{principal, FailureMode};
+    use flem_core::plugin::traits::{principal, FailureMode};
 
     /// Uniaxial tension along x (METHOD table rows 1-2): 1.2 fails, 0.8 holds, plane at 90 deg;
     /// index -s3/sigma_t. Reference: the definition; tolerance 1e-12.

@@ -21,8 +21,8 @@
 //! type = "adaptive"
 //! ```
 
-use flem_core::damping::{Damping, DampingCoeffs, StepStats};
-use flem_core::traits::ParamError;
+use flem_core::plugin::damping::{Damping, DampingCoeffs, StepStats};
+use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
 
 /// The paper's mass-proportional viscous damping, eta = alpha m (paper eq. 5; METHOD 7).

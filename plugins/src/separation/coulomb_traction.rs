@@ -39,7 +39,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{ray_angle, FailureCheck, FailureMode, FanView, ParamError, Proposal, SeparationRule};
+use flem_core::plugin::traits::{ray_angle, FailureCheck, FailureMode, FanView, ParamError, Proposal, SeparationRule};
 
 use super::sigma1_nearest::propose_along;
 use super::traction::traction;
@@ -58,7 +58,7 @@ pub struct CoulombTraction {
 impl CoulombTraction {
     /// The Coulomb excess `|t_s| - (c + sigma_n tan(phi))` of the tension-positive stress `s`
     /// on the plane of a link, `sigma_n = -t_n`.
-    pub fn excess(&self, s: [f64; 3], l: &flem_core::traits::LinkGeom) -> f64 {
+    pub fn excess(&self, s: [f64; 3], l: &flem_core::plugin::traits::LinkGeom) -> f64 {
         let (tn, ts) = traction(s, l);
         ts.abs() - (self.cohesion - tn * self.friction_angle_deg.to_radians().tan())
     }
@@ -96,7 +96,7 @@ mod tests {
     use super::super::fixture::{failed, fan, ids, links};
     use super::*;
     use crate::criteria::mohr_coulomb::MohrCoulomb;
-    use flem_core::traits::{principal, FailureCriterion};
+    use flem_core::plugin::traits::{principal, FailureCriterion};
     use FailureMode::{Shear, Tension};
 
     /// c = 0.1, phi = 30 deg (METHOD 4's worked values).

@@ -27,7 +27,7 @@ pub mod traction;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 use flem_core::ids::EdgeId;
-use flem_core::traits::{line_angle, ray_angle, LinkGeom, Proposal};
+use flem_core::plugin::traits::{line_angle, ray_angle, LinkGeom, Proposal};
 
 /// The registered rule names (typetag `type = "..."`), in documentation order.
 pub const NAMES: &[&str] = &["sigma1_nearest", "shear_plane_nearest", "traction", "coulomb_traction"];
@@ -103,7 +103,7 @@ pub(crate) fn open_cut(links: &[LinkGeom], d: f64) -> Option<Proposal> {
 #[cfg(test)]
 pub(crate) mod fixture {
     use flem_core::ids::{ClusterId, EdgeId, PointId};
-    use flem_core::traits::{principal, FailureCheck, FailureMode, FanView, LinkGeom};
+    use flem_core::plugin::traits::{principal, FailureCheck, FailureMode, FanView, LinkGeom};
 
     /// Links at the given angles (degrees), edge ids 0, 1, ... in that order.
     pub fn links(deg: &[f64]) -> Vec<LinkGeom> {
@@ -141,7 +141,7 @@ pub(crate) mod fixture {
     }
 
     /// The cut edges as ids.
-    pub fn ids(p: Option<flem_core::traits::Proposal>) -> Option<Vec<u32>> {
+    pub fn ids(p: Option<flem_core::plugin::traits::Proposal>) -> Option<Vec<u32>> {
         p.map(|p| p.edges.iter().map(|e| e.0).collect())
     }
 }
@@ -149,7 +149,7 @@ pub(crate) mod fixture {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use flem_core::traits::SeparationRule;
+    use flem_core::plugin::traits::SeparationRule;
 
     const SOURCES: &[(&str, &str)] = &[
         ("sigma1_nearest.rs", include_str!("sigma1_nearest.rs")),

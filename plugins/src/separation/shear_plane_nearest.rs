@@ -21,7 +21,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{ray_angle, FailureCheck, FailureMode, FanView, Proposal, SeparationRule};
+use flem_core::plugin::traits::{ray_angle, FailureCheck, FailureMode, FanView, Proposal, SeparationRule};
 
 use super::sigma1_nearest::propose_along;
 use super::{closed_from_first, line_cand, open_from, pick, Cand, TIE};
@@ -63,7 +63,7 @@ mod tests {
     use super::super::fixture::{failed, fan_dir, ids, links};
     use super::*;
     use crate::criteria::mohr_coulomb::MohrCoulomb;
-    use flem_core::traits::{principal, FailureCriterion};
+    use flem_core::plugin::traits::{principal, FailureCriterion};
 
     fn run(f: &FanView, c: &FailureCheck) -> Option<Vec<u32>> {
         ids(ShearPlaneNearest {}.propose(f, c))

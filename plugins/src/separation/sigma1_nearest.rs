@@ -18,7 +18,7 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{FailureCheck, FanView, Proposal, SeparationRule};
+use flem_core::plugin::traits::{FailureCheck, FanView, Proposal, SeparationRule};
 
 use super::{closed_cut, open_cut};
 
@@ -48,7 +48,7 @@ impl SeparationRule for Sigma1Nearest {
 mod tests {
     use super::super::fixture::{failed, fan, fan_dir, ids, links};
     use super::*;
-    use flem_core::traits::FailureMode::{Shear, Tension};
+    use flem_core::plugin::traits::FailureMode::{Shear, Tension};
 
     fn run(f: &FanView) -> Option<Vec<u32>> {
         ids(Sigma1Nearest {}.propose(f, &failed(Tension, &[])))

@@ -23,7 +23,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use serde::{Deserialize, Serialize};
 
-use flem_core::traits::{ray_angle, FailureCheck, FailureMode, FanView, LinkGeom, Proposal, SeparationRule};
+use flem_core::plugin::traits::{ray_angle, FailureCheck, FailureMode, FanView, LinkGeom, Proposal, SeparationRule};
 
 use super::{pick, Cand, TIE};
 

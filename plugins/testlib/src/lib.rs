@@ -1,5 +1,5 @@
 //! Test fixture for tests/dynplug.rs: a library as an older FLEM would have built it. Its
-//! descriptor header (the frozen first fields of `flem_core::dynload::abi::Descriptor`, written
+//! descriptor header (the frozen first fields of `flem_core::plugin::dynload::abi::Descriptor`, written
 //! out by hand since this crate has no dependencies) says plugin ABI 1 and FLEM core
 //! "0.0.1-old"; the host must refuse it before reading anything else.
 

@@ -3,9 +3,9 @@
 //! dispatch per element and no allocation inside a step.
 use std::marker::PhantomData;
 
+use crate::element::kernel::{Blocked, Schedule, SharedForces, LANES};
 use crate::element::{self, Dmat, Material};
 use crate::ids::ElemId;
-use crate::kernel::{Blocked, Schedule, SharedForces, LANES};
 use crate::mesh::CellKind;
 
 /// A batch of elements of one kind and one material, seen by the solver.
@@ -52,7 +52,7 @@ pub trait Block: Send + Sync {
     /// Upper bound of the highest natural frequency of each element (Gershgorin on M^-1/2 K M^-1/2).
     fn max_omega_bound(&self) -> f64;
     /// Strain energy of blocks whose forces are not linear in `u` (co-rotational,
-    /// `crate::corot`); `None` for linear blocks, where the solver uses `1/2 u . F_int`.
+    /// `crate::element::corot`); `None` for linear blocks, where the solver uses `1/2 u . F_int`.
     fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
         None
     }

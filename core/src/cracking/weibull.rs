@@ -1,5 +1,5 @@
 //! Weibull strength scatter: a deterministic per-point factor for the `scale` argument of
-//! [`FailureCriterion::check`](flem_core::traits::FailureCriterion::check) (METHOD section 4;
+//! [`FailureCriterion::check`](flem_core::plugin::traits::FailureCriterion::check) (METHOD section 4;
 //! not in the paper, which uses uniform strengths; Akantu's cohesive models do the same).
 //!
 //! The factor `X` is Weibull distributed with shape (modulus) `m > 0` and scale

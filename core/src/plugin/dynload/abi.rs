@@ -15,7 +15,7 @@
 //! `extern "C"` (that would abort the process).
 use std::ffi::c_void;
 
-use crate::traits::{FailureCheck, FailureMode, Principal};
+use crate::plugin::traits::{FailureCheck, FailureMode, Principal};
 
 /// Version of this ABI (the layout of everything after the descriptor header). Bump it, and
 /// the symbol name, whenever any type of this module changes.
@@ -173,7 +173,7 @@ impl CFailureCheck {
     }
 }
 
-/// [`crate::traits::LinkGeom`] across the boundary.
+/// [`crate::plugin::traits::LinkGeom`] across the boundary.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct CLink {
@@ -182,7 +182,7 @@ pub struct CLink {
     pub normal: [f64; 2],
 }
 
-/// [`crate::traits::FanView`] across the boundary.
+/// [`crate::plugin::traits::FanView`] across the boundary.
 #[repr(C)]
 #[derive(Copy, Clone, Debug)]
 pub struct CFan {

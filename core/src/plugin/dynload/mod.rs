@@ -27,7 +27,7 @@ use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 
 use crate::error::{FlemError, Result};
-use crate::traits::{FailureCriterion, SeparationRule};
+use crate::plugin::traits::{FailureCriterion, SeparationRule};
 use abi::{Descriptor, PluginEntry, ABI_VERSION, CORE_VERSION, ENTRY_SYMBOL, KIND_CRITERION, KIND_SEPARATION, RUSTC_VERSION};
 pub use wrap::{DynCriterion, DynSeparation};
 

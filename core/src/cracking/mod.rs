@@ -1,11 +1,13 @@
 //! Cracking (METHOD sections 3-5): nodal stress recovery, failure checks, separation proposals
 //! and the one place where splits are applied, in a deterministic order (score, then id).
+pub mod weibull;
+
+use crate::cracking::weibull::weibull_scale;
+use crate::element::model::Model;
 use crate::ids::{ClusterId, EdgeId, PointId};
-use crate::model::Model;
+use crate::mesh::topology::{SplitRecord, Topology};
+use crate::plugin::traits::{principal, principal_values, FailureCheck, FailureMode, FanView, LinkGeom, Principal};
 use crate::scene::CrackingCfg;
-use crate::topology::{SplitRecord, Topology};
-use crate::traits::{principal, principal_values, FailureCheck, FailureMode, FanView, LinkGeom, Principal};
-use crate::weibull::weibull_scale;
 
 /// One applied split, for the split log.
 #[derive(Clone, Debug)]
@@ -76,7 +78,7 @@ impl Cracking {
     }
 
     /// Direction (radians, [0, 2 pi)) of every joined edge of the fan, in the current configuration.
-    pub fn link_geometry(topo: &Topology, fan: &crate::topology::Fan, x0: &[[f64; 2]], u: &[[f64; 2]], out: &mut Vec<LinkGeom>) {
+    pub fn link_geometry(topo: &Topology, fan: &crate::mesh::topology::Fan, x0: &[[f64; 2]], u: &[[f64; 2]], out: &mut Vec<LinkGeom>) {
         out.clear();
         let xc = |c: ClusterId| [x0[c.idx()][0] + u[c.idx()][0], x0[c.idx()][1] + u[c.idx()][1]];
         let xp = xc(fan.cluster);

@@ -1,6 +1,6 @@
-//! The implicit check (METHOD.md section 10): the [`CheckSolver`] trait that plugins implement
-//! (the built-in one is faer's sparse Cholesky, `type = "faer_cholesky"`), the `[check]` scene
-//! section, and the FLEM-vs-implicit comparison run after every stage.
+//! The FLEM-vs-implicit comparison run after every stage (METHOD.md section 10): an observer of
+//! the solver that calls the scene's check solver (`crate::plugin::check::CheckSolver`, chosen
+//! by the `[check]` section, `crate::plugin::check::CheckCfg`).
 //!
 //! After a stage reaches equilibrium, the check solver solves the linear static problem of the
 //! *same* model: the current clusters (after any split), the current fixities and prescribed
@@ -19,101 +19,17 @@
 //! `nodal_stress_implicit`, `displacement_difference` and `nodal_stress_difference`, each
 //! FLEM minus implicit) and `compare.json` (rewritten atomically after every stage). A ratio
 //! whose denominator is zero, or any non-finite number, is written as `null`, never as NaN.
-//!
-//! ```toml
-//! [check]                                # every key optional
-//! solver = { type = "faer_cholesky" }    # the check solver plugin (default)
-//! tolerance = 1e-6                       # bound on both relative L2 differences
-//! vtu = true                             # write compare_NNNN_<stage>.vtu per stage
-//! ```
-use std::fmt::Debug;
+use crate::cracking::SplitEvent;
+use crate::error::{FlemError, Result};
+use crate::mesh::topology::SplitRecord;
+use crate::output::{atomic_write, prepare_dir, snapshot_vtk, vtu_bytes};
+use crate::plugin::check::CheckSolver;
+use crate::solver::{Observer, Progress, Simulation};
+use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-use serde::{Deserialize, Serialize};
 use vtkio::model::{Attribute, DataSet, Piece};
-
-use crate::cracking::SplitEvent;
-use crate::error::{FlemError, Result};
-use crate::model::Model;
-use crate::output::{atomic_write, prepare_dir, snapshot_vtk, vtu_bytes};
-use crate::solver::{Observer, Progress, Simulation};
-use crate::topology::SplitRecord;
-use crate::traits::ParamError;
-
-/// A direct solver of the linear static problem of a model (METHOD section 10).
-///
-/// `solve` takes `&self`: an implementation keeps what it can reuse between calls (a symbolic
-/// factorisation, a sparsity pattern) behind interior mutability, so one configured solver in a
-/// scene serves every stage.
-#[typetag::serde(tag = "type")]
-pub trait CheckSolver: Debug + Send + Sync {
-    /// Checks the parameters; the error names the key and the allowed range.
-    fn validate(&self) -> Result<(), ParamError> {
-        Ok(())
-    }
-    /// Solves `K u = f_ext` with the dofs flagged in `fix` (bit 1 = x, bit 2 = y) prescribed to
-    /// `u_prescribed`; returns the displacement of every cluster. A singular system (a fragment
-    /// without enough support) is an error naming the fragment, never a NaN solution.
-    fn solve(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>>;
-}
-
-/// `[check]`: compare every stage's equilibrium with the implicit solve.
-#[derive(Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CheckCfg {
-    /// The check solver; filled in with "faer_cholesky" when the scene names none.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub solver: Option<Box<dyn CheckSolver>>,
-    /// A stage is `within_tolerance` when both relative L2 differences are at most this.
-    #[serde(default = "default_tol")]
-    pub tolerance: f64,
-    /// Write one comparison VTU per stage.
-    #[serde(default = "yes")]
-    pub vtu: bool,
-}
-
-fn default_tol() -> f64 {
-    1e-6
-}
-fn yes() -> bool {
-    true
-}
-
-impl CheckCfg {
-    /// `[check]` with every default (the check solver named "faer_cholesky", which must be
-    /// linked into the program: `flem-plugins`).
-    pub fn with_defaults(file: &str) -> Result<CheckCfg> {
-        let mut c = CheckCfg { solver: None, tolerance: default_tol(), vtu: true };
-        c.fill_default(file)?;
-        Ok(c)
-    }
-
-    /// Fills in the default solver.
-    pub fn fill_default(&mut self, file: &str) -> Result<()> {
-        if self.solver.is_none() {
-            let s = toml::from_str("type = \"faer_cholesky\"").map_err(|e| {
-                FlemError::config(file, "check.solver", format!("is not given and the default \"faer_cholesky\" is not registered in this program ({e}); link flem-plugins or name a check solver"))
-            })?;
-            self.solver = Some(s);
-        }
-        Ok(())
-    }
-
-    /// Validates the keys (errors name `check.<key>`).
-    pub fn validate(&self, file: &str) -> Result<()> {
-        ParamError::range("check.tolerance", self.tolerance, 0.0, false, 1.0, false).map_err(|e| FlemError::config(file, e.key, e.msg))?;
-        if let Some(s) = &self.solver {
-            s.validate().map_err(|e| FlemError::config(file, format!("check.solver.{}", e.key), e.msg))?;
-        }
-        Ok(())
-    }
-
-    pub fn solver(&self) -> &dyn CheckSolver {
-        self.solver.as_deref().expect("Scene::from_str fills in the default check solver")
-    }
-}
 
 /// The comparison of one stage (one entry of `compare.json`).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -273,7 +189,7 @@ impl<'a> Comparer<'a> {
     }
 
     fn write_json(&self, sim: &Simulation) -> Result<()> {
-        let tol = sim.scene.file.check.as_ref().map_or(default_tol(), |c| c.tolerance);
+        let tol = sim.scene.file.check.as_ref().map_or(crate::plugin::check::default_tol(), |c| c.tolerance);
         let v = serde_json::json!({
             "scene": sim.scene.path.display().to_string(),
             "title": sim.scene.file.title,

@@ -15,10 +15,10 @@
 //!
 //! Why a separate block type: the linear `ElementBlock` kernel stays untouched (and fast);
 //! the choice is made once per block when the model is built, never inside the element loop.
-use crate::block::{Block, ElementBlock};
+use crate::element::block::{Block, ElementBlock};
+use crate::element::kernel::Blocked;
 use crate::element::{self, Material};
 use crate::ids::ElemId;
-use crate::kernel::Blocked;
 use crate::mesh::CellKind;
 
 /// An [`ElementBlock`] with co-rotational kinematics.

@@ -1,11 +1,36 @@
 //! The model: mesh groups, the topology of copies and clusters, and the element blocks.
-use crate::block::{Block, ElementBlock};
+use serde::{Deserialize, Serialize};
+
+use crate::element::block::{Block, ElementBlock};
 use crate::element::{Material, Plane, Q4, T3};
 use crate::error::{FlemError, Result};
 use crate::ids::{EdgeId, ElemId, PointId};
+use crate::mesh::topology::{SplitRecord, Topology};
 use crate::mesh::{CellKind, RawMesh};
-use crate::scene::MaterialCfg;
-use crate::topology::{SplitRecord, Topology};
+
+/// `[[material]]`: the material of an element region (linear elastic; METHOD section 2).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialCfg {
+    /// Element region (mesh group) this material applies to; "all" for every element.
+    #[serde(default = "all")]
+    pub region: String,
+    pub young_modulus: f64,
+    pub poisson_ratio: f64,
+    pub density: f64,
+    #[serde(default = "one")]
+    pub thickness: f64,
+    /// Co-rotational kinematics (crate::element::corot): rigid rotations carry no stress.
+    #[serde(default)]
+    pub corotational: bool,
+}
+
+fn all() -> String {
+    "all".into()
+}
+fn one() -> f64 {
+    1.0
+}
 
 pub struct Model {
     pub mesh: RawMesh,
@@ -61,10 +86,10 @@ impl Model {
             }
             let corot = corot_of(region);
             if !q4.is_empty() {
-                blocks.push(if corot { Box::new(crate::corot::CorotBlock(q4)) } else { Box::new(q4) });
+                blocks.push(if corot { Box::new(crate::element::corot::CorotBlock(q4)) } else { Box::new(q4) });
             }
             if !t3.is_empty() {
-                blocks.push(if corot { Box::new(crate::corot::CorotBlock(t3)) } else { Box::new(t3) });
+                blocks.push(if corot { Box::new(crate::element::corot::CorotBlock(t3)) } else { Box::new(t3) });
             }
         }
         for blk in blocks.iter_mut() {
@@ -85,7 +110,7 @@ impl Model {
             Some(v) => Ok(v.iter().map(|&p| PointId(p)).collect()),
             None => {
                 let names: Vec<&str> = self.mesh.node_sets.keys().map(String::as_str).collect();
-                let hint = crate::scene::nearest(name, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
+                let hint = crate::error::nearest(name, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
                 Err(FlemError::config(file, key, format!("= \"{name}\" names no node set of the mesh{hint}; node sets are {names:?}")))
             }
         }
@@ -95,7 +120,7 @@ impl Model {
     pub fn edge_set(&self, name: &str, key: &str, file: &str) -> Result<Vec<EdgeId>> {
         let set = self.mesh.edge_sets.get(name).ok_or_else(|| {
             let names: Vec<&str> = self.mesh.edge_sets.keys().map(String::as_str).collect();
-            let hint = crate::scene::nearest(name, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
+            let hint = crate::error::nearest(name, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
             FlemError::config(file, key, format!("= \"{name}\" names no edge set of the mesh{hint}; edge sets are {names:?}"))
         })?;
         set.iter()

@@ -3,9 +3,9 @@
 //! Edge loads belong to the copies of the element that owns the edge, so after a split they
 //! follow the right part by themselves. A point load acts on the point's first cluster; a
 //! support holds every cluster of its point.
+use crate::element::model::Model;
 use crate::error::{FlemError, Result};
 use crate::ids::{ElemId, PointId};
-use crate::model::Model;
 use crate::scene::{LoadCfg, SceneFile};
 
 #[derive(Clone, Debug)]

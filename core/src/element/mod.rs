@@ -3,6 +3,15 @@
 //! Elements are small-strain, linear elastic, in plane strain or plane stress, with lumped
 //! (row-sum) mass. Stress is tension-positive here, `[sxx, syy, sxy]`; failure criteria convert
 //! to the geomechanics convention (compression positive) at their boundary, once.
+//!
+//! The folder holds the element math and what is built from it: [`kernel`] (the blocked,
+//! vectorised internal force), [`block`] (one element kind and material per block, monomorphised),
+//! [`corot`] (co-rotational blocks) and [`model`] (topology + blocks: the model the solver steps).
+pub mod block;
+pub mod corot;
+pub mod kernel;
+pub mod model;
+
 use serde::{Deserialize, Serialize};
 
 use crate::mesh::CellKind;

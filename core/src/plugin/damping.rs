@@ -6,7 +6,7 @@
 //! `v+ = ((1 - a dt/2) v- + dt (F - local |F| sign(v-)) / m) / (1 + a dt/2)`.
 use std::fmt::Debug;
 
-use crate::traits::ParamError;
+use crate::plugin::traits::ParamError;
 
 /// Coefficients for one step.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]

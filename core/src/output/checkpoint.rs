@@ -42,9 +42,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
-use crate::damping::{DampingCoeffs, StepStats};
 use crate::error::{FlemError, Result};
 use crate::ids::{ClusterId, EdgeId};
+use crate::plugin::damping::{DampingCoeffs, StepStats};
 use crate::solver::{Ledger, Simulation, StagePos, StageResult};
 
 pub const MAGIC: &[u8; 8] = b"FLEMCKPT";

@@ -1,13 +1,18 @@
 //! The explicit solver: central difference with damping treated implicitly in velocity
 //! (METHOD section 7), stages marched to equilibrium (section 8), an energy ledger and the
 //! stable time step.
+//!
+//! Beside it: [`loads`] (supports and loads resolved on the model). The damping trait is a plugin
+//! trait (`crate::plugin::damping`).
+pub mod loads;
+
 use crate::cracking::Cracking;
-use crate::damping::{DampingCoeffs, StepStats};
+use crate::element::model::Model;
 use crate::error::{FlemError, Result};
-use crate::loads::Loads;
-use crate::model::Model;
+use crate::mesh::topology::SplitRecord;
+use crate::plugin::damping::{DampingCoeffs, StepStats};
 use crate::scene::Scene;
-use crate::topology::SplitRecord;
+use crate::solver::loads::Loads;
 
 /// Nodal state, one array per field, indexed by cluster.
 #[derive(Clone, Debug, Default)]

@@ -2,6 +2,8 @@
 //! `summary.json`. Every file is written to a temporary name and renamed into place, so a
 //! reader never sees half a file, except the two CSV logs, which are appended to row by row
 //! ([`csvlog`]: at most a last row cut by SIGKILL, which readers ignore and resume removes).
+pub mod checkpoint;
+pub mod compare;
 pub mod csvlog;
 
 use std::fmt::Write as _;
@@ -9,13 +11,13 @@ use std::path::{Path, PathBuf};
 
 use vtkio::model::{Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version, VertexNumbers, Vtk};
 
-use crate::checkpoint::Checkpoint;
 use crate::cracking::SplitEvent;
 use crate::error::{FlemError, Result};
 use crate::ids::EdgeId;
+use crate::mesh::topology::SplitRecord;
 use crate::mesh::CellKind;
+use crate::output::checkpoint::Checkpoint;
 use crate::solver::{Observer, Progress, Simulation, StagePos};
-use crate::topology::SplitRecord;
 
 /// Writes `bytes` to `path` atomically and durably: a temporary file in the same folder
 /// (`.NAME.tmpPID`), fsync, rename over `path`, fsync of the folder. A reader, or a run killed
@@ -249,7 +251,7 @@ impl OutputWriter {
         history.push_str(",external_work,kinetic,strain,damping,energy_residual,unbalanced_ratio\n");
         // A new run in a folder holding an older run's checkpoints numbers its own after them,
         // so that they are the newest (and the old ones get pruned); `resume` renumbers.
-        let ck_seq = crate::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
+        let ck_seq = crate::output::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
         let history = csvlog::CsvLog::new(dir.join("history.csv"), history);
         let splits = csvlog::CsvLog::new(dir.join("splits.csv"), String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"));
         let w = OutputWriter {
@@ -268,7 +270,7 @@ impl OutputWriter {
             ck_keep: sim.scene.file.output.checkpoint_keep,
             ck_seconds: sim.scene.file.output.checkpoint_seconds,
             ck_time: std::time::Instant::now(),
-            scene_hash: crate::checkpoint::scene_hash(sim),
+            scene_hash: crate::output::checkpoint::scene_hash(sim),
         };
         atomic_write(&dir.join("scene.resolved.toml"), sim.scene.resolved_toml().as_bytes())?;
         Ok(w)
@@ -423,9 +425,9 @@ impl Observer for OutputWriter {
         self.history.sync()?;
         self.splits.sync()?;
         ck.put_section(OUTPUT_SECTION, OUTPUT_SECTION_VERSION, &WriterState { snapshots: self.snapshots.clone(), history: self.history.mark(), splits: self.splits.mark() })?;
-        let path = self.dir.join(crate::checkpoint::file_name(ck.seq));
+        let path = self.dir.join(crate::output::checkpoint::file_name(ck.seq));
         atomic_write(&path, &ck.encode(self.scene_hash)?)?;
-        crate::checkpoint::prune(&self.dir, ck.seq, self.ck_keep)?;
+        crate::output::checkpoint::prune(&self.dir, ck.seq, self.ck_keep)?;
         self.ck_seq += 1;
         self.ck_time = std::time::Instant::now();
         self.last_checkpoint = Some(path);

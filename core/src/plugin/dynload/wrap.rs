@@ -13,7 +13,7 @@ use serde::{Serialize, Serializer};
 use super::abi::{CFailureCheck, CFan, CLink, CPrincipal, ErrorOut, PluginEntry, RStr, STATUS_ERROR, STATUS_NONE, STATUS_OK, STATUS_PANIC};
 use super::PluginInfo;
 use crate::ids::EdgeId;
-use crate::traits::{FailureCheck, FailureCriterion, FanView, ParamError, Principal, Proposal, SeparationRule};
+use crate::plugin::traits::{FailureCheck, FailureCriterion, FanView, ParamError, Principal, Proposal, SeparationRule};
 
 /// One instance made by the plugin's `create`, or the parameter error it gave.
 struct Instance {
