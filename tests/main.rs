@@ -9,6 +9,7 @@ mod cracking;
 mod dynplug;
 mod fuzz;
 mod interop;
+mod layout;
 mod paper;
 mod parallel;
 mod verification;

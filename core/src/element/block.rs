@@ -1,6 +1,12 @@
 //! Element blocks: one element kind and one material per block, the kernel monomorphised
 //! inside. The solver calls each block once per step through `dyn Block`; there is no dynamic
 //! dispatch per element and no allocation inside a step.
+//!
+//! Kinds: Q4 (2x2 Gauss points) and T3. A block is generic over `Shape<N>` (`element/mod.rs`)
+//! and monomorphised per kind. Connectivity is by cluster index (`Block::conn`), so an unsplit
+//! node costs what a plain FEM node costs. The force kernel and its parallel schedule live in
+//! `element/kernel.rs`, the co-rotational block in `element/corot.rs`; `element/model.rs`
+//! builds the blocks of a `Model`.
 use std::marker::PhantomData;
 
 use crate::element::kernel::{Blocked, Schedule, SharedForces, LANES};

@@ -15,6 +15,10 @@
 //!
 //! Why a separate block type: the linear `ElementBlock` kernel stays untouched (and fast);
 //! the choice is made once per block when the model is built, never inside the element loop.
+//! It is a separate `Block` impl wrapping `ElementBlock` (issue 4).
+//!
+//! Energy and stable step: `Model::strain_energy` uses each co-rotational element's local
+//! energy; the stable-step power iteration probes with tiny displacements (the tangent).
 use crate::element::block::{Block, ElementBlock};
 use crate::element::kernel::Blocked;
 use crate::element::{self, Material};

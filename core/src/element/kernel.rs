@@ -22,6 +22,14 @@
 //! contributions in the same order (colour, then element) whatever the number of threads: the
 //! result is bit-identical to one thread. A split only re-points corners at new clusters whose
 //! elements shared the parent cluster before, so the colouring stays valid after `remap`.
+//!
+//! **Threads, node update, measurement.** A step gathers `u` for a pack, computes its 8
+//! elements as one vectorised loop and scatters. The chunks of one colour run on the rayon pool
+//! of `solver.threads` (`Model::pool`; 0 = all cores, 1 = no pool). The node update
+//! (`solver/mod.rs`) adds its ledger sums per fixed 4096-node chunk (`NODE_CHUNK`), so whole
+//! runs, not only the forces, are bit-identical to one thread (tests/parallel.rs).
+//! `element::internal_force` stays the reference. `flem bench step` (`tools/src/bench.rs`)
+//! measures it all (JSON); figures of one session against Akantu are in `docs/perf/README.md`.
 use crate::element::{Dmat, Shape, Q4, T3};
 
 /// Elements per pack (the width of the vectorised loop: two AVX2 or one AVX-512 register).

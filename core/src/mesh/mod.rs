@@ -2,6 +2,26 @@
 //!
 //! Importers (gmsh, VTK) and the built-in rectangle generator all produce a [`RawMesh`];
 //! [`RawMesh::validate`] checks it and reorients clockwise cells before a model is built.
+//!
+//! # What a raw mesh holds, and what validation refuses
+//! Points, cells, named node and edge sets, and regions. `validate()` reorients clockwise cells
+//! and refuses zero-area cells, duplicate points, unreferenced points and edges shared by more
+//! than two elements; coordinates are bounded by `MAX_COORD` (1e100), so that an overflow is
+//! refused by name instead of surfacing as a divergence. Sources implement [`MeshSource`]
+//! (typetag, `[mesh] type = "..."`): `rectangle` and `rectangles` here (`rect.rs`, `rects.rs`),
+//! `gmsh` and `vtk` in `plugins/src/import/`. The topology of copies and clusters is built
+//! from a validated mesh in `topology.rs`.
+//!
+//! # File ids in messages
+//! Importers keep the file's ids (`RawMesh::ids`, `FileIds`: gmsh node and element tags, VTK
+//! point and cell indices counting skipped cells), so messages name `"element tag 57"`,
+//! `"points [node tags 3, 4, 9]"`, `"VTK cell 12 (0-based, as in the file)"`; without them
+//! (generated or handmade meshes) `"element 12 (0-based, in file order)"`. The same names serve
+//! edge sets that are not element edges, loads on interior edges and the check solver's
+//! unsupported fragments (`FileIds::points`, `FileIds::cells`). vtkio's parse errors carry no
+//! position: on that failure path only, `plugins/src/import/vtk_locate.rs` scans the file for
+//! the line and the data array, section and piece (a cut file, a bad tag, a non-number, a
+//! wrong count).
 mod raw;
 mod rect;
 mod rects;

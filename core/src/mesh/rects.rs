@@ -17,6 +17,10 @@
 //!   { name = "block", origin = [1.0, 0.5000001], width = 1.0, height = 1.0, nx = 4, ny = 4 },
 //! ]
 //! ```
+//!
+//! One body cut in parts instead: `[mesh] type = "rectangle"` has `cuts = [y, ...]`
+//! (`rect.rs`): interior grid lines whose edges form the edge set `cut` (declare it in
+//! `model.separated`), a pre-cut specimen.
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};

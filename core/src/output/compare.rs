@@ -19,6 +19,12 @@
 //! `nodal_stress_implicit`, `displacement_difference` and `nodal_stress_difference`, each
 //! FLEM minus implicit) and `compare.json` (rewritten atomically after every stage). A ratio
 //! whose denominator is zero, or any non-finite number, is written as `null`, never as NaN.
+//!
+//! [`Comparer`] is an `Observer` wrapper: it forwards everything to the run's observer (the
+//! output writer) and at `Observer::stage_end` solves the current model (clusters after splits,
+//! current fixities and load levels). `compare.json` also holds the wall times, the ratio
+//! reached and the number of dofs. Used by `flem compare` and by `flem run` when the scene has
+//! `[check]`.
 use crate::cracking::SplitEvent;
 use crate::error::{FlemError, Result};
 use crate::mesh::topology::SplitRecord;

@@ -27,7 +27,16 @@
 //! of the contents. [`CsvLog::resume`] reads the file's first `len` bytes, refuses (naming the
 //! file and the checkpoint) a file that is shorter or whose prefix changed, then truncates it
 //! to `len` and appends from there; a resumed run therefore writes the same bytes as an
-//! uninterrupted one.
+//! uninterrupted one. Resuming into another folder copies the recorded prefix there; a log the
+//! checkpoint did not record yet is removed.
+//!
+//! # Why, and the remaining cases
+//! Rewriting the whole file per row was quadratic: a 22k-step run with `history_every = 1` took
+//! 52 s instead of 0.1 s (and its checkpoints shrank from 4.5 MB to 6 KB once they stopped
+//! carrying the logs). A write error cuts the file back to its last whole row and names it. A
+//! log that got no row is written with its header only when `summary.json` is, so a run without
+//! splits never leaves an older run's `splits.csv` in its folder. `flem plot`'s note for a cut
+//! last line names `history.csv:LINE`.
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};

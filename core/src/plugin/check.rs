@@ -9,6 +9,10 @@
 //! tolerance = 1e-6                       # bound on both relative L2 differences
 //! vtu = true                             # write compare_NNNN_<stage>.vtu per stage
 //! ```
+//!
+//! The trait (typetag): `solve(&self, model, fix, f_ext, u_p)`; reusable data lives behind
+//! interior mutability so one configured solver serves every stage. The built-in
+//! `faer_cholesky` and `flem bench implicit` live in `plugins/src/check/`.
 use std::fmt::Debug;
 
 use serde::{Deserialize, Serialize};

@@ -4,6 +4,61 @@
 //!
 //! Beside it: [`loads`] (supports and loads resolved on the model). The damping trait is a plugin
 //! trait (`crate::plugin::damping`).
+//!
+//! # State
+//! `State`: one `Vec` per field (u, v, f_int, f_ext, f_con, mass, fixity, ...) indexed by
+//! cluster; a split's `SplitRecord` is applied to every one of them.
+//!
+//! # The step (`Simulation::step`)
+//! 1. `f_int` from every block (no allocation, no per-element dispatch; `element/kernel.rs`).
+//! 2. `f_ext` = constant loads (recomputed only when levels change or a split happens) + follower
+//!    pressures (only if the scene has any).
+//! 3. Contact forces `f_con` (only with `[contact]`: Verlet list, narrow phase, law batch;
+//!    `crate::contact`).
+//! 4. Damping coefficients from the `Damping` plugin (one call per step); central-difference update
+//!    with damping implicit in velocity, in fixed node chunks
+//!    (`NodeCtx::update::<CONTACT, LOCAL, FULL, STATS>`: contact and local damping compiled out
+//!    when absent). The stage loop asks for a *full* step (`step_as(true)`: the whole energy
+//!    ledger plus the unbalanced-force ratio, fused) only when something reads them after it
+//!    (ratio checks every `ratio_every` steps, history rows, snapshots, the last step); other
+//!    steps sum only what accumulates (work, damping, contact work; and the kinetic energy,
+//!    `u.F`, `u.Mu` if the damping `uses_rayleigh_stats`). The divergence guard runs on full
+//!    steps (before any output), on steps that sum the kinetic energy, and before every
+//!    checkpoint (`guard_now`). `Simulation::step()` is always full.
+//! 5. Failure checks (`crate::cracking`), only if `[cracking]` exists: by default when the stage
+//!    reaches equilibrium (`at_equilibrium`; again after each split until a check splits
+//!    nothing; `stall_steps` also checks a stage that never comes to rest), or every
+//!    `check_every` steps. Nodal stress (corner stress at 0.9999, averaged over each cluster's
+//!    copies), criterion (one batch call), separation rule per failed cluster, `Topology::cut`
+//!    in order (index desc, cluster id), arrays follow the record, and the stable step is
+//!    re-estimated (warm-started power iteration; dt follows it down) unless dt is below the
+//!    element bound (safe for any splitting; `iterations = 0` marks the deferred estimate, made
+//!    at the stage's end). Corner-stress gradients are computed once per block; with an
+//!    `isotropic` criterion (the built-ins) the sigma1 direction (atan2) is computed only at
+//!    failing points. Points still beyond the criterion that the rule did not cut (an open
+//!    fan's edges all more than 45 deg from sigma1) stay elastic above their strength: the
+//!    method has no plasticity; `Cracking::beyond_criterion` counts them (summary.json,
+//!    `flem run`).
+//! 6. Every `ratio_every` steps: unbalanced-force ratio; a stage ends at its tolerance or step
+//!    limit.
+//!
+//! # Invariants kept here
+//! - Stable step: `Simulation::estimate_stable_step` (power iteration on `M^-1/2 K M^-1/2`, times
+//!   the damping scheme's `stability_factor`); a `dt` above it is refused unless
+//!   `allow_unstable_dt`. With `[contact]` it includes the contact term
+//!   `omega^2 = omega_el^2 + 4 k A_max / m_min` (`StableStep::dt_contact`). `flem stability`
+//!   measures both (`tools/src/stability.rs`).
+//! - Divergence: `step()` stops with `FlemError::Diverged` (step, dt, dt_crit) before anything
+//!   non-finite is written; output writers clamp nothing silently (`state_is_finite` in
+//!   `output/mod.rs` only guards a diverged state that is never written).
+//! - Energy ledger: `Ledger` (trapezoidal work, KE as `1/2 m v- . v+`): exact for linear
+//!   elasticity; the contact terms are described in `crate::contact`.
+//! - Bit-identical results for any `solver.threads`: the node update sums per fixed node chunk
+//!   (`NODE_CHUNK`), the element loop per colour (`element/kernel.rs`).
+//!
+//! The stage loop is re-entrant (`run_from(StagePos)`) for checkpoints: `output/checkpoint.rs`.
+//! Results leave through the [`Observer`] trait, which the output writer and the comparer
+//! (`crate::output`) implement: the solver never depends on them.
 pub mod loads;
 
 use crate::cracking::Cracking;

@@ -17,12 +17,14 @@
 //! faer 0.24 calls: the lower triangle of `K_ff` is assembled on a pattern built from the
 //! cluster graph (`assemble.rs`: `SymbolicSparseColMat::new_checked`, values scattered in place;
 //! not `try_new_from_triplets`, whose sort cost as much as the factorisation),
-//! `SymbolicLlt::try_new(a.symbolic(), Side::Lower)`; the pattern and the symbolic factorisation
-//! are kept and reused while the fingerprint (number of clusters, fixity bits, connectivity) is
-//! unchanged; `Llt::try_new_with_symbolic(sym.clone(), a.as_ref(), Side::Lower)` and `Llt::solve`.
+//! `SymbolicLlt::try_new(a.symbolic(), Side::Lower)`; the pattern, the symbolic and the numeric
+//! factorisation are kept and reused while the fingerprint (clusters, fixities, connectivity,
+//! geometry, materials) is unchanged; `Llt::try_new_with_symbolic(sym.clone(), a.as_ref(),
+//! Side::Lower)` and `Llt::solve`. A later stage then costs one right-hand side from the force
+//! kernel and two triangular solves. Element `B^T D B` is written out per block (`assemble.rs`).
 //! `flem bench implicit` (`bench.rs`) times this path against faer's bare Cholesky.
 //!
-//! Selected in a scene by the `[check]` section (core/src/check.rs), which compares every
+//! Selected in a scene by the `[check]` section (core/src/plugin/check.rs), which compares every
 //! stage's FLEM equilibrium with this solve:
 //!
 //! ```toml

@@ -35,6 +35,12 @@
 //! cohesion = 98066.5          # 0.1 kgf/cm^2 in dyn/cm^2 (paper Table 1)
 //! friction_angle_deg = 30.0
 //! ```
+//!
+//! Relation to the other rules (issue 8): on a closed fan it picks the best link and the best
+//! one on the other side, as `traction` does, reusing `traction::traction` and the shared `pick`
+//! tie rule. On orthogonal fans it cuts the same edges as the paper's rule (equal `|t_s|` on
+//! both planes: the less compressed one wins); it differs on skewed fans and open fans. The
+//! direct shear scene with contact and both rules: `docs/paper.md`.
 use std::f64::consts::FRAC_PI_2;
 
 use serde::{Deserialize, Serialize};

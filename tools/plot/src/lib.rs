@@ -15,6 +15,22 @@
 //! Text uses DejaVu Sans, bundled (`fonts/DejaVuSans.ttf`, Bitstream Vera licence with public
 //! domain DejaVu changes: `fonts/LICENSE-DejaVu.txt`) and registered with plotters' `ab_glyph`
 //! feature, so no system font or library is needed.
+//!
+//! # How (issue 8)
+//! Reading only what a run wrote keeps this crate independent of the solver: `flem plot DIR`,
+//! `flem run --plot`, or `[output] plots = true`. `run.rs` reads, `draw.rs` draws on any
+//! plotters backend (frame, curve), this file renders each picture twice (bitmap into memory,
+//! PNG-encoded with `png`; SVG into a string) and writes both with `output::atomic_write`. The
+//! font is registered once. The magnification and stress scale come from the snapshots of
+//! stages in equilibrium, so a fragment flying off after a full separation does not shrink the
+//! picture. Damaged input is never read as NaN or guessed: `history.csv:LINE: ...` for a row
+//! with the wrong number of fields, a field that is not a finite number (empty is "not computed
+//! yet"), an empty or fractional `step`/`stage`, a step going back; `summary.json:LINE:COL` when
+//! it is not JSON (cut), `summary.json: stages[K].KEY` for a damaged stage list;
+//! `results.pvd:LINE` for a bad `<DataSet>`. Without summary.json every stage is taken as in
+//! equilibrium (a note says so). `splits.csv` is not read by `flem plot`. The charts of
+//! `flem chart` and `flem stability` are in `charts.rs`. The paper's scenes and their results:
+//! `configs/paper/`, `docs/paper.md`, `tests/paper.rs`.
 pub mod charts;
 pub mod draw;
 pub mod run;
