@@ -696,3 +696,42 @@ fn a_run_without_splits_replaces_an_older_split_log() {
     assert!(new.starts_with("time,step,point"), "{new}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Two runs given one `--out` folder (issue 23's reproduction: the notched plate, then the
+/// opening model 0.2 s later): the second is refused at once, naming the folder and the first
+/// run's process, and writes nothing there; `--resume` into the held folder is refused the same
+/// way. The first run's files stay its own (summary title, resolved scene). A SIGKILLed holder
+/// releases the lock (the OS drops it with the process): a later run takes the folder.
+#[test]
+fn a_second_run_into_a_locked_folder_is_refused() {
+    let dir = tmp("lock");
+    // The notched plate made long: a tolerance no stage reaches and many steps.
+    let long = std::fs::read_to_string(notch_path()).unwrap().replace("tolerance = 1e-5", "tolerance = 1e-300").replace("max_steps = 12000", "max_steps = 100000000");
+    std::fs::create_dir_all(&dir).unwrap();
+    let long_path = dir.with_extension("toml");
+    std::fs::write(&long_path, long).unwrap();
+    let d = dir.to_str().unwrap();
+    let mut first = Command::new(FLEM).args(["run", long_path.to_str().unwrap(), "--quiet", "--out", d]).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let holder = format!("process {} (", first.id());
+    wait_for(|| std::fs::read_to_string(dir.join(".flem.lock")).is_ok_and(|s| s.starts_with(&holder)), "the first run's lock");
+    std::thread::sleep(Duration::from_millis(200));
+    let opening = root().join("configs/paper/opening.toml");
+    for args in [vec!["run", opening.to_str().unwrap(), "--quiet", "--out", d], vec!["run", long_path.to_str().unwrap(), "--quiet", "--resume", d]] {
+        let t = Instant::now();
+        let second = flem_run(&args);
+        let err = String::from_utf8_lossy(&second.stderr);
+        assert_eq!(second.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(d) && err.contains("in use by another run") && err.contains(&holder), "{args:?}: {err}");
+        assert!(t.elapsed() < Duration::from_secs(20), "the refusal was not at once");
+    }
+    assert!(first.try_wait().unwrap().is_none(), "the first run did not survive the second's refusal");
+    let resolved = std::fs::read_to_string(dir.join("scene.resolved.toml")).unwrap_or_default();
+    assert!(!resolved.contains("opening"), "the second run wrote its scene into the held folder");
+    // SAFETY: kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(first.id() as i32, libc::SIGKILL) }, 0);
+    first.wait().unwrap();
+    let after = flem_run(&["run", opening.to_str().unwrap(), "--quiet", "--out", d]);
+    assert!(after.status.success(), "a killed run left the folder locked: {}", String::from_utf8_lossy(&after.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&long_path);
+}

@@ -70,6 +70,9 @@ fn libs() -> &'static Libs {
 /// A scene from text whose relative paths resolve against `base`.
 fn scene_in(text: &str, base: &Path) -> flem_core::Result<Scene> {
     flem_plugins::link();
+    // These scenes are the tests' own: consent to their libraries (the refusal without it is
+    // tested through the CLI, in its own process, by scene_plugins_load_only_with_consent).
+    dynload::set_scene_plugin_consent(true);
     Scene::from_str(text, Path::new("<dynplug scene>"), base)
 }
 
@@ -229,7 +232,7 @@ fn cli_lists_loaded_plugins_and_survives_a_panic() {
     std::fs::create_dir_all(&dir).unwrap();
     let scene = dir.join("panic.toml");
     std::fs::write(&scene, tension_scene(&load_line(lib), "type = \"example_panic\"\nwhen = \"check\"", "type = \"sigma1_nearest\"")).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_flem")).arg("run").arg(&scene).arg("--out").arg(dir.join("out")).arg("--quiet").output().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_flem")).arg("run").arg(&scene).arg("--out").arg(dir.join("out")).arg("--quiet").arg("--allow-plugins").output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("error: criterion \"example_panic\"") && err.contains("asked to panic in check"), "{err}");
@@ -282,4 +285,53 @@ fn docs_are_the_tested_example() {
         }
     }
     assert_eq!(n, 2, "one scene snippet in each file");
+}
+
+/// The shipped plugin scene (configs/plugins/example_rankine.toml, issue 23): a library named
+/// by a scene loads only with the user's consent. Without `--allow-plugins` the run is refused
+/// naming the key, the library and the flag, and `flem check` validates the rest of the scene
+/// without loading it; with the flag, or with the library's folder in FLEM_PLUGIN_PATH, it runs
+/// and cracks (the tension crack splits above sigma_t).
+#[test]
+fn scene_plugins_load_only_with_consent() {
+    let lib = &libs().example;
+    let scene = root().join("configs/plugins/example_rankine.toml");
+    let named = std::fs::read_to_string(&scene).unwrap();
+    // The scene names target/release's library; the tests may build into another target folder,
+    // so a copy names the library they built (by its absolute path).
+    let text = named.replace("\"../../target/release/libflem_plugin_example.so\"", &format!("{:?}", lib.display().to_string()));
+    assert_ne!(text, named, "the shipped scene no longer names ../../target/release/libflem_plugin_example.so");
+    let dir = std::env::temp_dir().join(format!("flem-consent-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let sc = dir.join("example_rankine.toml");
+    std::fs::write(&sc, &text).unwrap();
+    let flem = |args: &[&str], env: Option<(&str, &Path)>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_flem"));
+        c.args(args).env_remove("FLEM_PLUGIN_PATH").env("XDG_CONFIG_HOME", dir.join("no-config"));
+        if let Some((k, v)) = env {
+            c.env(k, v);
+        }
+        c.output().unwrap()
+    };
+    let s = sc.to_str().unwrap();
+    let out_dir = dir.join("out");
+    let o = dir.join("out").display().to_string();
+    let refused = flem(&["run", s, "--quiet", "--out", &o], None);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(err.contains("plugins.load[0]") && err.contains("libflem_plugin_example") && err.contains("--allow-plugins") && err.contains("Nothing was loaded"), "{err}");
+    assert!(!out_dir.join("summary.json").exists(), "a refused run wrote results");
+    let checked = flem(&["check", s], None);
+    let (cout, cerr) = (String::from_utf8_lossy(&checked.stdout), String::from_utf8_lossy(&checked.stderr));
+    assert!(checked.status.success() && cout.contains(&format!("{s}: ok")), "{cout}{cerr}");
+    assert!(cerr.contains("was not loaded") && cerr.contains("\"example_rankine\" is not built in"), "{cerr}");
+    for (args, env) in [(vec!["run", s, "--quiet", "--out", &o, "--allow-plugins"], None), (vec!["run", s, "--quiet", "--out", &o], Some(("FLEM_PLUGIN_PATH", lib.parent().unwrap())))] {
+        let ran = flem(&args, env);
+        assert!(ran.status.success(), "{args:?} {env:?}: {}", String::from_utf8_lossy(&ran.stderr));
+        let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("summary.json")).unwrap()).unwrap();
+        let splits: u64 = summary["stages"].as_array().unwrap().iter().map(|st| st["splits"].as_u64().unwrap()).sum();
+        assert!(splits > 0, "the tension crack did not split: {summary}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -141,6 +141,9 @@ pub fn run(a: &Args) -> Result<()> {
         None => std::env::current_exe()?.with_file_name(format!("{}flem_plugin_example{}", std::env::consts::DLL_PREFIX, std::env::consts::DLL_SUFFIX)),
     };
     anyhow::ensure!(lib.exists(), "{} does not exist: build it with `cargo build --release -p flem-plugin-example` or give --load", lib.display());
+    // The library is the one named on this command line (or flem's own example beside it): the
+    // user's choice, so the scene this benchmark builds around it may load it.
+    flem_core::plugin::dynload::set_scene_plugin_consent(true);
     let b = measure(a, &lib, "rankine")?;
     let d = measure(a, &lib, "example_rankine")?;
     let cb = b.sim.scene.file.cracking.as_ref().context("cracking")?.criterion.as_ref();

@@ -15,6 +15,11 @@
 //! (no other point both faster and more accurate) is marked over the chart's error, the first
 //! of analytic, reference, implicit that exists. Written: chart.csv, chart.json (and the
 //! pictures, see `plot`).
+//!
+//! How: the scene is edited as a TOML table (damping, `dt_safety`, tolerance, `nx`/`ny` x r),
+//! each variant runs to equilibrium without output (`NoOutput`), the implicit solves are
+//! `flem_plugins::check::static_solve`; for the refined reference (positions shared with the
+//! coarse mesh) points with several clusters are skipped. Pictures by `flem_plot::charts`.
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -351,6 +356,7 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     }
     let stem = scene_path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "scene".into());
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_chart")));
+    let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let sw = if quick { Sweep::quick() } else { Sweep::full() };
     let pts = sweep(&scene, &text, &sw, analytic.as_ref(), stages, no_cracking)?;

@@ -31,6 +31,12 @@ const DEFAULT_NAME: &str = "configs/paper/opening.toml";
 struct Cli {
     #[command(subcommand)]
     cmd: Option<Cmd>,
+    /// Let scenes load the native plugin libraries they name in `[plugins] load` (code that runs
+    /// on this machine: give it only for scenes you trust). Without it such a scene is refused,
+    /// unless the library lies in a folder listed in FLEM_PLUGIN_PATH or in
+    /// ~/.config/flem/plugins; `flem check` then validates the rest of the scene without loading.
+    #[arg(long, global = true)]
+    allow_plugins: bool,
 }
 
 #[derive(Subcommand)]
@@ -160,6 +166,7 @@ enum BenchWhat {
 fn main() -> ExitCode {
     flem_plugins::link();
     let cli = Cli::parse();
+    flem_core::plugin::dynload::set_scene_plugin_consent(cli.allow_plugins);
     let r = match cli.cmd {
         None => run_default(),
         Some(Cmd::Run { scene, out, quiet, resume, plot }) => load(&scene).and_then(|s| run(s, out, quiet, resume, plot)),
@@ -225,6 +232,17 @@ fn run_default() -> Result<()> {
     run(scene, None, false, None, false)
 }
 
+/// Locks a run's output folder for this process (`flem_core::output::lock`), naming this
+/// command in the lock file; a folder held by another run is refused.
+pub(crate) fn lock_out(out: &Path) -> Result<flem_core::output::lock::DirLock> {
+    let cmd: Vec<String> = std::env::args().collect();
+    let l = flem_core::output::lock::lock_dir(out, &cmd.join(" "))?;
+    if let Some(n) = &l.note {
+        eprintln!("warning: {n}");
+    }
+    Ok(l)
+}
+
 /// A run stopped by SIGINT/SIGTERM after writing a checkpoint (exit code 130).
 #[derive(Debug)]
 struct Stopped(String);
@@ -251,21 +269,56 @@ fn resume_command(scene: &Path, out: &Path) -> String {
 fn check(scenes: &[PathBuf]) -> Result<()> {
     anyhow::ensure!(!scenes.is_empty(), "give at least one scene file");
     for p in scenes {
-        let sim = Simulation::new(load(p)?)?;
+        let (scene, notes) = load_for_check(p)?;
+        let sim = Simulation::new(scene)?;
         for w in &sim.warnings {
             eprintln!("warning: {w}");
         }
+        for n in &notes {
+            eprintln!("note: {n}");
+        }
         println!(
-            "{}: ok ({} elements, {} points, {} stages, dt = {:.3e}, dt_crit = {:.3e})",
+            "{}: ok ({} elements, {} points, {} stages, dt = {:.3e}, dt_crit = {:.3e}){}",
             p.display(),
             sim.model.n_elems(),
             sim.model.topo.n_points,
             sim.scene.file.stages.len(),
             sim.dt,
-            sim.stable.dt_crit
+            sim.stable.dt_crit,
+            if notes.is_empty() { "" } else { "; its plugin libraries were not loaded (see the notes)" }
         );
     }
     Ok(())
+}
+
+/// A scene for `flem check`: loaded as `flem run` would, except that plugin libraries the user
+/// has not consented to (`--allow-plugins`, trusted folders) are not loaded. The scene is then
+/// validated without them: its `[plugins]` table is left out and a criterion or separation rule
+/// that is not built in stands in as a built-in (rankine, sigma1_nearest) so that everything
+/// else is checked; the notes say what was not.
+fn load_for_check(p: &Path) -> Result<(Scene, Vec<String>)> {
+    use flem_core::plugin::dynload::{self, abi};
+    let text = std::fs::read_to_string(p).map_err(|e| FlemError::config(p.display().to_string(), "", format!("cannot be read: {e}")))?;
+    let base = p.parent().map(Path::to_path_buf).unwrap_or_default();
+    let name = p.display().to_string();
+    let libs = dynload::scene_plugin_paths(&text, &name, &base)?;
+    if libs.iter().all(|(_, _, full)| dynload::may_load(full)) {
+        return Ok((Scene::from_str(&text, p, &base)?, Vec::new()));
+    }
+    let mut doc: toml::Table = toml::from_str(&text).context("the scene is not TOML")?;
+    doc.remove("plugins");
+    let mut notes: Vec<String> = libs.iter().map(|(k, s, _)| format!("{name}: {k} = \"{s}\" was not loaded (no --allow-plugins; nothing of the scene's plugin libraries was)")).collect();
+    if let Some(cr) = doc.get_mut("cracking").and_then(|c| c.as_table_mut()) {
+        for (key, kind, stand_in) in [("criterion", abi::KIND_CRITERION, "type = \"rankine\"\ntensile_strength = 1.0"), ("separation", abi::KIND_SEPARATION, "type = \"sigma1_nearest\"")] {
+            let Some(t) = cr.get(key).and_then(|v| v.get("type")).and_then(|v| v.as_str()).map(str::to_string) else { continue };
+            if !dynload::is_builtin(kind, &t) {
+                notes.push(format!("{name}: cracking.{key}.type = \"{t}\" is not built in; it would come from the plugin libraries, so it and its parameters were not checked"));
+                cr.insert(key.into(), toml::Value::Table(toml::from_str(stand_in).expect("a built-in table")));
+            }
+        }
+    }
+    let stripped = toml::to_string(&doc).context("re-writing the scene without its plugins")?;
+    Ok((Scene::from_str(&stripped, p, &base)?, notes))
 }
 
 fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>, plot_flag: bool) -> Result<()> {
@@ -273,7 +326,9 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
     let out = out.or_else(|| resume.clone()).unwrap_or_else(|| PathBuf::from("out").join(stem));
     let scene_path = scene.path.clone();
-    // Fail on an unwritable folder before any step is computed.
+    // One run at a time in a folder (held until this function returns, released by the OS if
+    // the process dies); then fail on an unwritable folder before any step is computed.
+    let _lock = lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     // SIGINT/SIGTERM set a flag the run polls once per step; a second signal while the flag is
     // set ends the process at once (files stay whole: every write is atomic, or one append of
@@ -366,6 +421,7 @@ fn plot(dir: &Path) -> Result<()> {
 fn compare(mut scene: Scene, out: Option<PathBuf>) -> Result<()> {
     let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_compare")));
+    let _lock = lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     if scene.file.check.is_none() {
         scene.file.check = Some(CheckCfg::with_defaults(&scene.path.display().to_string())?);

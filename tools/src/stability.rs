@@ -20,6 +20,10 @@
 //!    singular; the implicit check solver must name the fragment while the explicit run goes on.
 //!
 //! Writes stability.csv, stability.json and stability.md (the table of docs/stability.md).
+//!
+//! The studies' names (`Row::study`): `explicit_dt`, `contact_dt`, `damping`,
+//! `implicit_after_separation`. The blow-up runs are dynamic stages with `allow_unstable_dt`,
+//! stopped by the solver's divergence guard. Results of the last run: `docs/stability/`.
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -283,6 +287,7 @@ pub fn csv(rows: &[Row]) -> String {
 
 pub fn run(out: Option<PathBuf>, quick: bool) -> Result<()> {
     let out = out.unwrap_or_else(|| PathBuf::from("out/stability"));
+    let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let mut rows = Vec::new();
     explicit_dt(quick, &mut rows).context("explicit step study")?;

@@ -2,9 +2,22 @@
 //! `summary.json`. Every file is written to a temporary name and renamed into place, so a
 //! reader never sees half a file, except the two CSV logs, which are appended to row by row
 //! ([`csvlog`]: at most a last row cut by SIGKILL, which readers ignore and resume removes).
+//!
+//! # Atomicity
+//! `atomic_write` (temp file `.NAME.tmpPID` + fsync + rename + fsync of the folder; the temp
+//! file is removed on any error) writes every result file: VTU, PVD, JSON, checkpoints, PNGs,
+//! and the headers of the CSV logs (no `fs::write`/`File::create` elsewhere in the library);
+//! only the rows of the two CSV logs are appended (`csvlog.rs`). `prepare_dir` probes the
+//! folder (before any step) and removes temp files left by killed runs. Nothing non-finite is
+//! written and nothing is clamped silently: a diverged run stops before any snapshot, and
+//! `state_is_finite` guards the state whatever the caller does.
+//!
+//! Beside the writer: `checkpoint.rs` (checkpoints and resume) and `compare.rs` (the
+//! FLEM-vs-implicit comparison). Both the writer and the comparer are `crate::solver::Observer`s.
 pub mod checkpoint;
 pub mod compare;
 pub mod csvlog;
+pub mod lock;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

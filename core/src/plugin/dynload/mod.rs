@@ -17,10 +17,24 @@
 //!   names from it live as long as the process);
 //! - a plugin name may not shadow a built-in or a name from another loaded library;
 //! - plugin errors and panics come back as `Err` (the SDK catches panics on its side).
+//!
+//! How a scene gets there: `Scene::from_str` first loads the `[plugins] load` libraries
+//! (libloading), then deserializes the scene; the criterion and separation tables go through
+//! `de_criterion`/`de_separation`, which read them as TOML values and build a `DynCriterion` /
+//! `DynSeparation` when `type` names a loaded plugin, else hand them to typetag. The library's
+//! one C entry point, `flem_plugin_entry_v1`, returns a `#[repr(C)]` descriptor (`abi.rs`)
+//! whose frozen header (ABI version, FLEM core version, compiler) is checked first; only C
+//! types cross, parameters go as JSON text, errors come back in a host buffer. A 64-bit ELF
+//! whose headers or loadable segments reach past the end of the file (truncated) is refused by
+//! name before dlopen, which would map it and die of SIGBUS. The failure check calls a dynamic
+//! criterion once per 256 points (`try_check_batch`, which also carries a plugin's error or
+//! panic up as a `FlemError`). Writing a plugin: docs/plugins.md, `plugins/sdk`,
+//! `plugins/example`.
 pub mod abi;
 mod wrap;
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 
 use serde::de::Error as _;
@@ -92,7 +106,7 @@ pub fn check_header(d: &Descriptor, file: &str) -> Result<(String, String)> {
 
 /// Whether a typetag built-in of this kind has this name (the registry is only reachable
 /// through deserialization: an unknown name gives "unknown variant").
-fn is_builtin(kind: u32, name: &str) -> bool {
+pub fn is_builtin(kind: u32, name: &str) -> bool {
     let mut t = toml::Table::new();
     t.insert("type".into(), toml::Value::String(name.into()));
     let msg = match kind {
@@ -215,12 +229,58 @@ pub fn loaded() -> Vec<PluginInfo> {
     REGISTRY.lock().unwrap_or_else(|p| p.into_inner()).iter().map(|r| r.info.clone()).collect()
 }
 
-/// Loads the libraries of a scene's `[plugins] load` list (paths relative to `base_dir`) before
-/// the rest of the scene is deserialized. Text that is not TOML is left to the scene parser.
-pub fn load_scene_plugins(text: &str, file: &str, base_dir: &Path) -> Result<()> {
-    let Ok(doc) = toml::from_str::<toml::Table>(text) else { return Ok(()) };
-    let Some(list) = doc.get("plugins").and_then(|p| p.get("load")) else { return Ok(()) };
-    let Some(list) = list.as_array() else { return Ok(()) }; // the scene parser names the type error
+/// Whether the user consented to loading the libraries that scenes name (`--allow-plugins`).
+static CONSENT: AtomicBool = AtomicBool::new(false);
+
+/// The environment variable listing folders (separated like `PATH`) whose libraries a scene
+/// may load without `--allow-plugins`: folders the user set up for plugins they trust.
+pub const PLUGIN_PATH_VAR: &str = "FLEM_PLUGIN_PATH";
+
+/// Gives (or takes back) the user's consent to load the plugin libraries that scenes name
+/// (`flem --allow-plugins`). Without it a scene's `[plugins] load` is refused before anything
+/// is loaded, unless the library lies in a trusted folder ([`trusted_dirs`]).
+pub fn set_scene_plugin_consent(on: bool) {
+    CONSENT.store(on, Ordering::SeqCst);
+}
+
+/// Whether consent was given with [`set_scene_plugin_consent`].
+pub fn scene_plugin_consent() -> bool {
+    CONSENT.load(Ordering::SeqCst)
+}
+
+/// The folders whose libraries a scene may load without explicit consent: each folder of
+/// `FLEM_PLUGIN_PATH`, and the user's own `$XDG_CONFIG_HOME/flem/plugins` (or
+/// `~/.config/flem/plugins`). A folder is trusted because the user made it, as a macro
+/// folder of an office suite is; a scene file alone never is.
+pub fn trusted_dirs() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::env::var_os(PLUGIN_PATH_VAR).map(|p| std::env::split_paths(&p).filter(|d| !d.as_os_str().is_empty()).collect()).unwrap_or_default();
+    let config = std::env::var_os("XDG_CONFIG_HOME").filter(|s| !s.is_empty()).map(PathBuf::from).or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")));
+    if let Some(c) = config {
+        v.push(c.join("flem").join("plugins"));
+    }
+    v
+}
+
+/// Whether a library (an existing file) lies inside a trusted folder (both canonical, so that
+/// `..` or a symbolic link cannot lead out of it).
+fn in_trusted_dir(lib: &Path) -> bool {
+    let Ok(lib) = lib.canonicalize() else { return false };
+    trusted_dirs().iter().filter_map(|d| d.canonicalize().ok()).any(|d| lib.starts_with(d))
+}
+
+/// Whether a scene may load this library: the user consented, or it lies in a trusted folder.
+pub fn may_load(lib: &Path) -> bool {
+    scene_plugin_consent() || in_trusted_dir(lib)
+}
+
+/// The libraries of a scene's `[plugins] load` list: (key, path as written, path resolved
+/// against `base_dir`). Text that is not TOML, or a list that is not one, gives none (the scene
+/// parser names the error); an entry that is not a string is an error naming its key.
+pub fn scene_plugin_paths(text: &str, file: &str, base_dir: &Path) -> Result<Vec<(String, String, PathBuf)>> {
+    let Ok(doc) = toml::from_str::<toml::Table>(text) else { return Ok(Vec::new()) };
+    let Some(list) = doc.get("plugins").and_then(|p| p.get("load")) else { return Ok(Vec::new()) };
+    let Some(list) = list.as_array() else { return Ok(Vec::new()) };
+    let mut out = Vec::new();
     for (i, item) in list.iter().enumerate() {
         let key = format!("plugins.load[{i}]");
         let Some(s) = item.as_str() else { return Err(FlemError::config(file, key, "must be a path (a string)")) };
@@ -229,6 +289,30 @@ pub fn load_scene_plugins(text: &str, file: &str, base_dir: &Path) -> Result<()>
         if full.is_relative() && full.parent().is_none_or(|d| d.as_os_str().is_empty()) {
             full = Path::new(".").join(full); // never let the system search its folders
         }
+        out.push((key, s.to_string(), full));
+    }
+    Ok(out)
+}
+
+/// Loads the libraries of a scene's `[plugins] load` list (paths relative to `base_dir`) before
+/// the rest of the scene is deserialized. Each library needs the user's consent
+/// ([`set_scene_plugin_consent`], or a trusted folder): without it the scene is refused before
+/// any library is loaded, naming the library and the flag.
+pub fn load_scene_plugins(text: &str, file: &str, base_dir: &Path) -> Result<()> {
+    let libs = scene_plugin_paths(text, file, base_dir)?;
+    {
+        if let Some((key, s, full)) = libs.iter().find(|(_, _, full)| !may_load(full)) {
+            return Err(FlemError::config(
+                file,
+                key.clone(),
+                format!(
+                    "= \"{s}\" names a native library ({}), which would run its code on this machine; a scene loads one only with your consent: give --allow-plugins to the flem command (or put the library in a folder listed in {PLUGIN_PATH_VAR}, or in ~/.config/flem/plugins). Nothing was loaded",
+                    full.display()
+                ),
+            ));
+        }
+    }
+    for (key, s, full) in libs {
         load_library(&full).map_err(|e| FlemError::config(file, key, format!("= \"{s}\": {e}")))?;
     }
     Ok(())
