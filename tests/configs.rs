@@ -33,6 +33,20 @@ fn every_config_scene_passes_check() {
     }
 }
 
+/// Every verification scene carries a `[check]` section, so that `flem run` compares each of its
+/// equilibria with the implicit solve by default (issue 23).
+#[test]
+fn every_verification_scene_has_a_check_section() {
+    flem_plugins::link();
+    let mut files = Vec::new();
+    toml_files(&root().join("configs/verification"), &mut files);
+    assert!(files.len() >= 4, "configs/verification lost files");
+    for f in files {
+        let scene = Scene::from_file(&f).unwrap();
+        assert!(scene.file.check.is_some(), "{} has no [check] section", f.display());
+    }
+}
+
 /// Each file in tests/bad_scenes starts with `# expect: <text>`; loading it must fail with a
 /// message containing that text (and the file name).
 #[test]

@@ -39,13 +39,15 @@ mod tests;
 pub use gmsh::{read_msh_bytes, Gmsh};
 pub use vtk::{read_vtk_bytes, Vtk};
 
-/// Resolves `file` against `base_dir` and reads it whole; the error names the full path.
+/// Resolves `file` against `base_dir` and reads it whole. A file that cannot be read is the
+/// scene's error, key `mesh.file` (the file "mesh (file)" is replaced by the scene's name where
+/// the scene is known, as for generated meshes); the message names the full path.
 pub(crate) fn read_input(base_dir: &Path, file: &str) -> Result<(String, PathBuf, Vec<u8>)> {
     let path = base_dir.join(file);
     let shown = path.display().to_string();
     match std::fs::read(&path) {
         Ok(b) => Ok((shown, path, b)),
-        Err(e) => Err(FlemError::mesh(&shown, format!("cannot read the mesh file {shown}: {e}"))),
+        Err(e) => Err(FlemError::config("mesh (file)", "mesh.file", format!("= \"{file}\": cannot read the mesh file {shown}: {e}"))),
     }
 }
 

@@ -144,7 +144,7 @@ fn vtk_missing_region_array_is_named() {
 #[test]
 fn missing_file_names_the_path() {
     let e = Gmsh { file: "no_such.msh".into() }.load(&meshes()).unwrap_err().to_string();
-    assert!(e.contains("cannot read the mesh file") && e.contains("meshes/no_such.msh"), "{e}");
+    assert!(e.contains("cannot read the mesh file") && e.contains("meshes/no_such.msh") && e.contains("mesh.file = \"no_such.msh\""), "{e}");
     let e = Vtk { file: "no_such.vtu".into(), region_array: None }.load(&meshes()).unwrap_err().to_string();
     assert!(e.contains("meshes/no_such.vtu"), "{e}");
 }
