@@ -34,6 +34,7 @@ def main():
     ])
     mesh("rect_tri.geo", [("rect_tri_v22.msh", 2.2, False)])
     mesh("plate_hole.geo", [("plate_hole_v41.msh", 4.1, False)])
+    mesh("plate_hole_fine.geo", [("plate_hole_fine_v41.msh", 4.1, False)])
     # A tiny .vtu from the quad rectangle with a cell array "region" (1 = domain), via meshio.
     import meshio
     import numpy as np

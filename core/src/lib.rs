@@ -8,6 +8,7 @@ pub mod contact;
 pub mod cracking;
 pub mod element;
 pub mod error;
+pub mod expr;
 pub mod ids;
 pub mod mesh;
 pub mod output;

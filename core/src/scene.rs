@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 pub use crate::element::model::MaterialCfg;
 use crate::element::Plane;
 use crate::error::{nearest, FlemError, Result};
+pub use crate::expr::LoadValue;
 use crate::mesh::{MeshSource, ValidationOptions};
 use crate::plugin::check::CheckCfg;
 use crate::plugin::damping::Damping;
@@ -164,14 +165,16 @@ pub enum LoadCfg {
     Pressure {
         name: String,
         edges: String,
-        value: f64,
+        /// A number, or an expression of x, y, t (`crate::expr`).
+        value: LoadValue,
         #[serde(default)]
         follow: bool,
     },
-    /// Traction vector (force per length per thickness) on an edge set, fixed direction.
-    Traction { name: String, edges: String, value: [f64; 2] },
-    /// Force on every point of a node set.
-    Point { name: String, nodes: String, value: [f64; 2] },
+    /// Traction vector (force per length per thickness) on an edge set, fixed direction. Each
+    /// component a number or an expression of x, y, t.
+    Traction { name: String, edges: String, value: [LoadValue; 2] },
+    /// Force on every point of a node set (each component a number or an expression).
+    Point { name: String, nodes: String, value: [LoadValue; 2] },
     /// Prescribed velocity of a node set (components not given are free).
     Velocity {
         name: String,
@@ -437,9 +440,19 @@ impl Scene {
                 return Err(FlemError::config(&n, format!("load[{i}].name"), format!("= \"{}\" is used twice; load names must be unique", l.name())));
             }
             names.push(l.name());
+            let lv: Vec<&LoadValue> = match l {
+                LoadCfg::Pressure { value, .. } => vec![value],
+                LoadCfg::Traction { value, .. } | LoadCfg::Point { value, .. } => value.iter().collect(),
+                _ => Vec::new(),
+            };
+            for (d, v) in lv.iter().enumerate() {
+                let key = if lv.len() == 1 { format!("load[{i}].value") } else { format!("load[{i}].value[{d}]") };
+                v.compile().map_err(|e| FlemError::config(&n, key, e))?;
+            }
+            // Expressions are bounded where they are evaluated (solver::loads).
+            let numbers = lv.iter().filter_map(|v| if let LoadValue::Number(x) = v { Some(*x) } else { None });
             let vals: Vec<f64> = match l {
-                LoadCfg::Pressure { value, .. } => vec![*value],
-                LoadCfg::Traction { value, .. } | LoadCfg::Point { value, .. } => value.to_vec(),
+                LoadCfg::Pressure { .. } | LoadCfg::Traction { .. } | LoadCfg::Point { .. } => numbers.collect(),
                 LoadCfg::Velocity { x, y, .. } | LoadCfg::Displacement { x, y, .. } => {
                     if x.is_none() && y.is_none() {
                         return Err(FlemError::config(&n, format!("load[{i}]"), "prescribes neither x nor y; give at least one"));

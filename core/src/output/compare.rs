@@ -103,7 +103,7 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
         ..Default::default()
     };
     let t0 = Instant::now();
-    let r = solver.solve(&sim.model, &sim.state.fix, &sim.external_force(), &sim.state.u);
+    let r = sim.external_force().and_then(|f| solver.solve(&sim.model, &sim.state.fix, &f, &sim.state.u));
     c.wall_seconds_implicit = t0.elapsed().as_secs_f64();
     let u_imp = match r {
         Ok(u) if u.iter().all(|v| v[0].is_finite() && v[1].is_finite()) => u,

@@ -5,34 +5,43 @@
 //! support holds every cluster of its point.
 use crate::element::model::Model;
 use crate::error::{FlemError, Result};
+use crate::expr::Field;
 use crate::ids::{ElemId, PointId};
-use crate::scene::{LoadCfg, SceneFile};
+use crate::scene::{LoadCfg, SceneFile, MAX_MAGNITUDE};
+
+/// The two Gauss points of a face, as the fraction `s` of the way from its first end.
+const GAUSS_S: [f64; 2] = [0.5 - 0.288_675_134_594_812_9, 0.5 + 0.288_675_134_594_812_9];
 
 #[derive(Clone, Debug)]
 enum Kind {
-    /// Pressure (`vector = None`) or traction on (element, local edge) faces.
-    Edge {
-        faces: Vec<(ElemId, u8)>,
-        pressure: f64,
-        traction: [f64; 2],
-        follow: bool,
-    },
-    Point {
-        points: Vec<PointId>,
-        value: [f64; 2],
-    },
+    /// Pressure or traction on (element, local edge) faces. `ends`: for values given by
+    /// expressions without `t`, per face the consistent end values `[p_a, p_b, tx_a, tx_b, ty_a,
+    /// ty_b]` (2-point Gauss along the face, computed once); `None` when every value is a
+    /// number (the constant path) or when an expression uses `t` (evaluated at each step).
+    Edge { faces: Vec<(ElemId, u8)>, pressure: Field, traction: [Field; 2], follow: bool, ends: Option<Vec<[f64; 6]>> },
+    /// `at`: per point, the value of expressions without `t` (None: numbers, or `t` used).
+    Point { points: Vec<PointId>, value: [Field; 2], at: Option<Vec<[f64; 2]>> },
     /// Prescribed velocity (`displacement = false`) or displacement of the given components.
-    Prescribed {
-        points: Vec<PointId>,
-        value: [Option<f64>; 2],
-        displacement: bool,
-    },
+    Prescribed { points: Vec<PointId>, value: [Option<f64>; 2], displacement: bool },
 }
 
 #[derive(Clone, Debug)]
 pub struct Load {
     pub name: String,
+    /// `load[i]`, for messages.
+    key: String,
     kind: Kind,
+}
+
+impl Load {
+    /// Whether the load is an expression of time (evaluated at every step).
+    fn uses_t(&self) -> bool {
+        match &self.kind {
+            Kind::Edge { pressure, traction, .. } => pressure.uses_t() || traction.iter().any(Field::uses_t),
+            Kind::Point { value, .. } => value.iter().any(Field::uses_t),
+            Kind::Prescribed { .. } => false,
+        }
+    }
 }
 
 /// Resolved supports and loads of a scene.
@@ -44,6 +53,39 @@ pub struct Loads {
     pub gravity: [f64; 2],
     /// True when some pressure follows the deformed edge (recomputed every step).
     pub has_follower: bool,
+    /// True when some load is an expression of time (recomputed every step, that load only).
+    pub has_time: bool,
+    /// The scene file, for messages of expressions evaluated during the run.
+    file: String,
+}
+
+/// Checks an evaluated load value: finite and within the magnitude bound.
+fn checked(v: f64, f: &Field, key: &str, file: &str, x: [f64; 2], t: f64) -> Result<f64> {
+    if v.is_finite() && v.abs() <= MAX_MAGNITUDE {
+        Ok(v)
+    } else {
+        Err(FlemError::config(
+            file,
+            format!("{key}.value"),
+            format!("= \"{}\" gives {v} at (x, y) = ({}, {}), t = {t}; a load value must be finite and at most 1e100 in magnitude", f.text(), x[0], x[1]),
+        ))
+    }
+}
+
+/// The consistent end values of a face's fields at time `t` (reference coordinates `xa`, `xb`):
+/// `F_a = sum_g (1 - s_g) F(x_g)`, `F_b = sum_g s_g F(x_g)` (2-point Gauss, weight 1/2 each on
+/// the unit interval, times 2 so that a constant F gives F_a = F_b = F).
+fn face_ends(fields: [&Field; 3], xa: [f64; 2], xb: [f64; 2], t: f64, key: &str, file: &str) -> Result<[f64; 6]> {
+    let mut out = [0.0; 6];
+    for (k, f) in fields.iter().enumerate() {
+        for s in GAUSS_S {
+            let x = [xa[0] + s * (xb[0] - xa[0]), xa[1] + s * (xb[1] - xa[1])];
+            let v = checked(f.at(x[0], x[1], t), f, key, file, x, t)?;
+            out[2 * k] += (1.0 - s) * v;
+            out[2 * k + 1] += s * v;
+        }
+    }
+    Ok(out)
 }
 
 impl Loads {
@@ -79,19 +121,54 @@ impl Loads {
                     })
                     .collect()
             };
+            // Values were checked to compile by Scene::validate.
+            let field = |v: &crate::scene::LoadValue| v.compile().map_err(|e| FlemError::config(file, key("value"), e));
             let kind = match l {
                 LoadCfg::Pressure { edges, value, follow, .. } => {
                     has_follower |= *follow;
-                    Kind::Edge { faces: faces(edges)?, pressure: *value, traction: [0.0; 2], follow: *follow }
+                    Kind::Edge { faces: faces(edges)?, pressure: field(value)?, traction: [Field::Const(0.0), Field::Const(0.0)], follow: *follow, ends: None }
                 }
-                LoadCfg::Traction { edges, value, .. } => Kind::Edge { faces: faces(edges)?, pressure: 0.0, traction: *value, follow: false },
-                LoadCfg::Point { nodes, value, .. } => Kind::Point { points: model.node_set(nodes, &key("nodes"), file)?, value: *value },
+                LoadCfg::Traction { edges, value, .. } => Kind::Edge { faces: faces(edges)?, pressure: Field::Const(0.0), traction: [field(&value[0])?, field(&value[1])?], follow: false, ends: None },
+                LoadCfg::Point { nodes, value, .. } => Kind::Point { points: model.node_set(nodes, &key("nodes"), file)?, value: [field(&value[0])?, field(&value[1])?], at: None },
                 LoadCfg::Velocity { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: false },
                 LoadCfg::Displacement { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: true },
             };
-            loads.push(Load { name: l.name().to_string(), kind });
+            let mut load = Load { name: l.name().to_string(), key: format!("load[{i}]"), kind };
+            // Expressions without t: evaluated here, once per face or point (and checked).
+            let uses_t = load.uses_t();
+            let x0 = |p: PointId| model.mesh.points[p.idx()];
+            match &mut load.kind {
+                Kind::Edge { faces, pressure, traction, ends, .. } if !uses_t && (pressure.constant().is_none() || traction.iter().any(|t| t.constant().is_none())) => {
+                    let mut v = Vec::with_capacity(faces.len());
+                    for &f in faces.iter() {
+                        let (pa, pb) = Self::face_points(model, f);
+                        v.push(face_ends([pressure, &traction[0], &traction[1]], x0(pa), x0(pb), 0.0, &load.key, file)?);
+                    }
+                    *ends = Some(v);
+                }
+                Kind::Point { points, value, at } if !uses_t && value.iter().any(|f| f.constant().is_none()) => {
+                    let mut v = Vec::with_capacity(points.len());
+                    for &p in points.iter() {
+                        let x = x0(p);
+                        v.push([checked(value[0].at(x[0], x[1], 0.0), &value[0], &load.key, file, x, 0.0)?, checked(value[1].at(x[0], x[1], 0.0), &value[1], &load.key, file, x, 0.0)?]);
+                    }
+                    *at = Some(v);
+                }
+                _ => {}
+            }
+            loads.push(load);
         }
-        Ok(Loads { loads, point_fix, gravity: scene.model.gravity, has_follower })
+        let has_time = loads.iter().any(Load::uses_t);
+        Ok(Loads { loads, point_fix, gravity: scene.model.gravity, has_follower, has_time, file: file.to_string() })
+    }
+
+    /// The two points of a face (element, local edge), in the element's order.
+    fn face_points(model: &Model, face: (ElemId, u8)) -> (PointId, PointId) {
+        let (e, k) = face;
+        let r = model.topo.elem_copies(e);
+        let n = r.len();
+        let (ca, cb) = (r.start + k as usize, r.start + (k as usize + 1) % n);
+        (model.topo.cluster_point[model.topo.copy_cluster[ca].idx()], model.topo.cluster_point[model.topo.copy_cluster[cb].idx()])
     }
 
     fn edge_force(model: &Model, face: (ElemId, u8), x: &dyn Fn(usize) -> [f64; 2], pressure: f64, traction: [f64; 2], out: &mut [[f64; 2]]) {
@@ -112,8 +189,28 @@ impl Loads {
         }
     }
 
+    /// [`Self::edge_force`] with values that vary along the face: `ends` = the consistent end
+    /// values `[p_a, p_b, tx_a, tx_b, ty_a, ty_b]`, times `lev`.
+    fn edge_force_ends(model: &Model, face: (ElemId, u8), x: &dyn Fn(usize) -> [f64; 2], lev: f64, ends: &[f64; 6], out: &mut [[f64; 2]]) {
+        let (e, k) = face;
+        let r = model.topo.elem_copies(e);
+        let n = r.len();
+        let (ca, cb) = (r.start + k as usize, r.start + (k as usize + 1) % n);
+        let (a, b) = (model.topo.copy_cluster[ca].idx(), model.topo.copy_cluster[cb].idx());
+        let (xa, xb) = (x(a), x(b));
+        let (dx, dy) = (xb[0] - xa[0], xb[1] - xa[1]);
+        let t = model.material_of(e).thickness;
+        let len = (dx * dx + dy * dy).sqrt();
+        for (end, c) in [a, b].into_iter().enumerate() {
+            let (p, tx, ty) = (lev * ends[end], lev * ends[2 + end], lev * ends[4 + end]);
+            out[c][0] += 0.5 * t * (-p * dy + tx * len);
+            out[c][1] += 0.5 * t * (p * dx + ty * len);
+        }
+    }
+
     /// The constant part of the external force at the given levels: gravity, fixed-direction
-    /// edge loads and point loads, per cluster.
+    /// edge loads and point loads, per cluster (loads that are expressions of time are left to
+    /// [`Self::add_step_force`]).
     pub fn constant_force(&self, model: &Model, levels: &[f64], mass: &[f64], out: &mut Vec<[f64; 2]>) {
         let nc = model.topo.n_clusters();
         out.clear();
@@ -125,20 +222,27 @@ impl Loads {
         }
         let x0 = |c: usize| model.mesh.points[model.topo.cluster_point[c].idx()];
         for (l, &lev) in self.loads.iter().zip(levels) {
-            if lev == 0.0 {
+            if lev == 0.0 || l.uses_t() {
                 continue;
             }
             match &l.kind {
-                Kind::Edge { faces, pressure, traction, follow: false } => {
-                    for &f in faces {
-                        Self::edge_force(model, f, &x0, lev * pressure, [lev * traction[0], lev * traction[1]], out);
+                Kind::Edge { faces, ends: Some(ends), follow: false, .. } => {
+                    for (&f, e) in faces.iter().zip(ends) {
+                        Self::edge_force_ends(model, f, &x0, lev, e, out);
                     }
                 }
-                Kind::Point { points, value } => {
-                    for p in points {
+                Kind::Edge { faces, pressure, traction, follow: false, ends: None } => {
+                    let (p, tx, ty) = (pressure.constant().unwrap_or(0.0), traction[0].constant().unwrap_or(0.0), traction[1].constant().unwrap_or(0.0));
+                    for &f in faces {
+                        Self::edge_force(model, f, &x0, lev * p, [lev * tx, lev * ty], out);
+                    }
+                }
+                Kind::Point { points, value, at } => {
+                    for (k, p) in points.iter().enumerate() {
+                        let v = at.as_ref().map_or_else(|| [value[0].constant().unwrap_or(0.0), value[1].constant().unwrap_or(0.0)], |a| a[k]);
                         let c = model.topo.point_clusters[p.idx()][0].idx();
-                        out[c][0] += lev * value[0];
-                        out[c][1] += lev * value[1];
+                        out[c][0] += lev * v[0];
+                        out[c][1] += lev * v[1];
                     }
                 }
                 _ => {}
@@ -146,16 +250,51 @@ impl Loads {
         }
     }
 
-    /// Adds the following pressures on the current configuration (`x0 + u`).
-    pub fn add_follower_force(&self, model: &Model, levels: &[f64], x0: &[[f64; 2]], u: &[[f64; 2]], out: &mut [[f64; 2]]) {
+    /// Adds what changes within a stage, on the current configuration (`x0 + u`) at `time`:
+    /// following pressures, and the loads that are expressions of time (fixed-direction ones on
+    /// the reference configuration). Called every step when the scene has either; an expression
+    /// that gives a non-finite value is an error naming the load.
+    pub fn add_step_force(&self, model: &Model, levels: &[f64], x0: &[[f64; 2]], u: &[[f64; 2]], time: f64, out: &mut [[f64; 2]]) -> Result<()> {
         let x = |c: usize| [x0[c][0] + u[c][0], x0[c][1] + u[c][1]];
+        let xr = |c: usize| x0[c];
+        let pref = |p: PointId| model.mesh.points[p.idx()];
         for (l, &lev) in self.loads.iter().zip(levels) {
-            if let Kind::Edge { faces, pressure, follow: true, .. } = &l.kind {
-                for &f in faces {
-                    Self::edge_force(model, f, &x, lev * pressure, [0.0; 2], out);
+            let uses_t = l.uses_t();
+            match &l.kind {
+                Kind::Edge { faces, pressure, follow: true, ends, .. } => {
+                    for (k, &f) in faces.iter().enumerate() {
+                        match (ends, pressure.constant()) {
+                            (None, Some(p)) => Self::edge_force(model, f, &x, lev * p, [0.0; 2], out),
+                            (Some(e), _) => Self::edge_force_ends(model, f, &x, lev, &e[k], out),
+                            (None, None) => {
+                                let (pa, pb) = Self::face_points(model, f);
+                                let e = face_ends([pressure, &Field::Const(0.0), &Field::Const(0.0)], pref(pa), pref(pb), time, &l.key, &self.file)?;
+                                Self::edge_force_ends(model, f, &x, lev, &e, out);
+                            }
+                        }
+                    }
                 }
+                Kind::Edge { faces, pressure, traction, follow: false, .. } if uses_t && lev != 0.0 => {
+                    for &f in faces {
+                        let (pa, pb) = Self::face_points(model, f);
+                        let e = face_ends([pressure, &traction[0], &traction[1]], pref(pa), pref(pb), time, &l.key, &self.file)?;
+                        Self::edge_force_ends(model, f, &xr, lev, &e, out);
+                    }
+                }
+                Kind::Point { points, value, .. } if uses_t && lev != 0.0 => {
+                    for p in points {
+                        let xp = pref(*p);
+                        let v0 = checked(value[0].at(xp[0], xp[1], time), &value[0], &l.key, &self.file, xp, time)?;
+                        let v1 = checked(value[1].at(xp[0], xp[1], time), &value[1], &l.key, &self.file, xp, time)?;
+                        let c = model.topo.point_clusters[p.idx()][0].idx();
+                        out[c][0] += lev * v0;
+                        out[c][1] += lev * v1;
+                    }
+                }
+                _ => {}
             }
         }
+        Ok(())
     }
 
     /// Constraints at the given levels: fixity bits, prescribed velocity per cluster, and the

@@ -802,24 +802,25 @@ impl Simulation {
         let mut f = std::mem::take(&mut self.f_const);
         self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
         self.f_const = f;
-        if !self.loads.has_follower {
-            // Without following pressures the external force is this constant part: set it
-            // here (levels changed or a split happened), not in every step.
+        if !self.loads.has_follower && !self.loads.has_time {
+            // Without following pressures or loads of time the external force is this constant
+            // part: set it here (levels changed or a split happened), not in every step.
             self.state.f_ext.copy_from_slice(&self.f_const);
         }
     }
 
     /// The external force at the current load levels, per cluster: the constant part (gravity,
     /// fixed-direction edge loads, point loads) plus following pressures on the reference
-    /// configuration (u = 0), as a linear static solve sees them.
-    pub fn external_force(&self) -> Vec<[f64; 2]> {
+    /// configuration (u = 0), as a linear static solve sees them, and loads of time at the
+    /// current time (an error when such an expression is not finite there).
+    pub fn external_force(&self) -> Result<Vec<[f64; 2]>> {
         let mut f = Vec::new();
         self.loads.constant_force(&self.model, &self.levels, &self.state.mass, &mut f);
-        if self.loads.has_follower {
+        if self.loads.has_follower || self.loads.has_time {
             let zero = vec![[0.0; 2]; f.len()];
-            self.loads.add_follower_force(&self.model, &self.levels, &self.x0, &zero, &mut f);
+            self.loads.add_step_force(&self.model, &self.levels, &self.x0, &zero, self.state.time, &mut f)?;
         }
-        f
+        Ok(f)
     }
 
     /// Strain energy: `1/2 u . F_int` for linear blocks, the local energy of co-rotational ones.
@@ -840,9 +841,9 @@ impl Simulation {
     pub fn step_as(&mut self, full: bool) -> Result<()> {
         let dt = self.dt;
         self.model.internal_forces(&self.state.u, &mut self.state.f_int);
-        if self.loads.has_follower {
+        if self.loads.has_follower || self.loads.has_time {
             self.state.f_ext.copy_from_slice(&self.f_const);
-            self.loads.add_follower_force(&self.model, &self.levels, &self.x0, &self.state.u, &mut self.state.f_ext);
+            self.loads.add_step_force(&self.model, &self.levels, &self.x0, &self.state.u, self.state.time, &mut self.state.f_ext)?;
         }
         if let (Some(c), Some(cfg)) = (self.contact.as_mut(), self.scene.file.contact.as_ref()) {
             let (stored, diss) = c.compute(cfg.law.as_ref(), &self.x0, &self.state.u, &self.state.v, dt, &mut self.state.f_con);

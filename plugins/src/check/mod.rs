@@ -456,7 +456,7 @@ fn locate_singular(model: &Model, fix: &[u8], eq: &[usize], fr: &Fragments, a: &
 /// load levels (`Simulation::external_force`) and, for prescribed dofs, the current displacement
 /// (at equilibrium FLEM's prescribed dofs hold their prescribed value).
 pub fn static_solve(sim: &Simulation) -> Result<Vec<[f64; 2]>, FlemError> {
-    ImplicitSolver::new().solve(&sim.model, &sim.state.fix, &sim.external_force(), &sim.state.u)
+    ImplicitSolver::new().solve(&sim.model, &sim.state.fix, &sim.external_force()?, &sim.state.u)
 }
 
 #[cfg(test)]
