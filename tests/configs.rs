@@ -47,6 +47,38 @@ fn every_verification_scene_has_a_check_section() {
     }
 }
 
+/// Node and edge sets chosen by geometry (issue 23, `[[set]]`): configs/meshes/gmsh_bar_sets.toml
+/// names by segment, box and nearest point what gmsh_bar.toml names by the .msh file's groups.
+/// Reference: the file's physical groups (gmsh). The sets hold the same points and edges as
+/// the groups, the corner is the point at (0, 0), and the two runs agree to 1e-12.
+#[test]
+fn sets_by_geometry_select_what_the_mesh_groups_hold() {
+    flem_plugins::link();
+    let run = |name: &str| {
+        let mut s = Simulation::new(Scene::from_file(&root().join("configs/meshes").join(name)).unwrap()).unwrap();
+        s.run(&mut flem_core::solver::NoOutput).unwrap();
+        s
+    };
+    let (groups, sets) = (run("gmsh_bar.toml"), run("gmsh_bar_sets.toml"));
+    let m = &sets.model.mesh;
+    let sorted = |v: &Vec<u32>| {
+        let mut v = v.clone();
+        v.sort_unstable();
+        v
+    };
+    assert_eq!(sorted(&m.node_sets["left_line"]), sorted(&m.node_sets["left"]));
+    assert_eq!(sorted(&m.node_sets["foot"]), sorted(&m.node_sets["bottom"]));
+    let mut right: Vec<[u32; 2]> = m.edge_sets["right"].iter().map(|e| [e[0].min(e[1]), e[0].max(e[1])]).collect();
+    right.sort_unstable();
+    assert_eq!(m.edge_sets["pulled_end"], right);
+    assert_eq!(m.points[m.node_sets["corner"][0] as usize], [0.0, 0.0]);
+    let scale = groups.state.u.iter().map(|u| u[0].abs().max(u[1].abs())).fold(0.0, f64::max);
+    assert!(scale > 0.0);
+    for (a, b) in groups.state.u.iter().zip(&sets.state.u) {
+        assert!((a[0] - b[0]).abs() < 1e-12 * scale && (a[1] - b[1]).abs() < 1e-12 * scale, "{a:?} vs {b:?}");
+    }
+}
+
 /// Each file in tests/bad_scenes starts with `# expect: <text>`; loading it must fail with a
 /// message containing that text (and the file name).
 #[test]

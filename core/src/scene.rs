@@ -9,7 +9,7 @@ pub use crate::element::model::MaterialCfg;
 use crate::element::Plane;
 use crate::error::{nearest, FlemError, Result};
 pub use crate::expr::LoadValue;
-use crate::mesh::{MeshSource, ValidationOptions};
+use crate::mesh::{MeshSource, SetCfg, ValidationOptions};
 use crate::plugin::check::CheckCfg;
 use crate::plugin::damping::Damping;
 use crate::plugin::traits::{FailureCriterion, ParamError, SeparationRule};
@@ -21,6 +21,9 @@ pub struct SceneFile {
     #[serde(default)]
     pub title: String,
     pub mesh: Box<dyn MeshSource>,
+    /// `[[set]]`: node and edge sets chosen by geometry (crate::mesh::SetCfg).
+    #[serde(default, rename = "set", skip_serializing_if = "Vec::is_empty")]
+    pub sets: Vec<SetCfg>,
     #[serde(default)]
     pub model: ModelCfg,
     #[serde(rename = "material")]
@@ -39,7 +42,7 @@ pub struct SceneFile {
     pub cracking: Option<CrackingCfg>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plugins: Option<PluginsCfg>,
-    /// `[check]`: compare each stage with the implicit solve (core/src/check.rs).
+    /// `[check]`: compare each stage with the implicit solve (crate::plugin::check).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub check: Option<CheckCfg>,
     /// `[contact]`: contact between faces (crate::contact).
@@ -400,6 +403,12 @@ impl Scene {
         let n = self.path.display().to_string();
         if f.materials.is_empty() {
             return Err(FlemError::config(&n, "material", "is missing; give at least one [[material]]"));
+        }
+        for (i, set) in f.sets.iter().enumerate() {
+            set.validate(i, &n)?;
+            if f.sets[..i].iter().any(|o| o.name == set.name) {
+                return Err(FlemError::config(&n, format!("set[{i}].name"), format!("= \"{}\" is used twice; set names must be unique", set.name)));
+            }
         }
         for (i, m) in f.materials.iter().enumerate() {
             let k = |s: &str| format!("material[{i}].{s}");

@@ -25,11 +25,13 @@
 mod raw;
 mod rect;
 mod rects;
+mod select;
 pub mod topology;
 
 pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
 pub use rect::{Notch, Rectangle};
 pub use rects::{Part, Rectangles};
+pub use select::SetCfg;
 
 use crate::error::Result;
 

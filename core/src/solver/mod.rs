@@ -485,6 +485,9 @@ impl Simulation {
         }
         let mut warnings = mesh.validate(scene.file.model.orientation)?;
         mesh.derive_node_sets();
+        for (i, set) in scene.file.sets.iter().enumerate() {
+            mesh.add_selection(set, &format!("set[{i}]"), &file)?;
+        }
         let mut model = Model::new(mesh, &scene.file.materials, scene.file.model.plane, &file)?;
         let loads = Loads::new(&model, &scene.file, &file)?;
         // Pre-separated edges.
