@@ -81,7 +81,7 @@ pub fn frame<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, s: &Snapshot, in
     root.fill(&WHITE).map_err(err)?;
     let (w, h) = root.dim_in_pixel();
     let fs = if info.compact { 15 } else { 18 };
-    let legend_h = if info.compact { 48 } else { 120 };
+    let legend_h = if info.compact { 118 } else { 120 };
     let (top, bottom) = root.split_vertically(h.saturating_sub(legend_h));
     let margin = 12u32;
     let (pw, ph) = (w.saturating_sub(2 * margin).max(10) as f64, (h.saturating_sub(legend_h + 2 * margin)).max(10) as f64);
@@ -139,35 +139,41 @@ pub fn frame<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, s: &Snapshot, in
             }
         }
     }
-    // Legend.
+    // Legend: the heading, the load levels with the magnification and the stress scale, then a
+    // key of every line kind (wrapped to the frame's width; in the compact panels of the crack
+    // sequence too).
     let font = ("sans-serif", fs).into_font();
     let text = |area: &DrawingArea<DB, Shift>, t: &str, x: i32, y: i32| area.draw(&Text::new(t.to_string(), (x, y), font.clone())).map_err(err);
     text(&bottom, &info.heading, 12, 4)?;
-    let scale = if info.stress_ref > 0.0 { format!("; stress cross arm {:.3e} = {:.2} length units", info.stress_ref, info.stress_len) } else { String::new() };
-    text(&bottom, &format!("{}   displacements x {}{}", info.loads, fmt_num(mag), if info.compact { String::new() } else { scale }), 12, 4 + fs + 4)?;
-    if !info.compact {
-        let y = 4 + 2 * (fs + 8) + 6;
-        let mut x = 12;
-        let items: [(&str, RGBColor, u32, bool); 5] =
-            [("initial", GREY, 1, true), ("deformed", BLACK, 2, false), ("joined edge", JOINED, 1, true), ("separated (both ends)", OPEN, 4, false), ("separated (one end)", HALF, 4, false)];
-        for (label, col, wid, dashed) in items {
-            if dashed {
-                let mut k = 0;
-                while k < 36 {
-                    bottom.draw(&PathElement::new(vec![(x + k, y + 8), (x + (k + 5).min(36), y + 8)], col.stroke_width(wid))).map_err(err)?;
-                    k += 9;
-                }
-            } else {
-                bottom.draw(&PathElement::new(vec![(x, y + 8), (x + 36, y + 8)], col.stroke_width(wid))).map_err(err)?;
-            }
-            text(&bottom, label, x + 42, y)?;
-            x += 42 + (label.len() as i32) * (fs) * 55 / 100 + 24;
+    let sig = |v: f64| if v != 0.0 && (v.abs() >= 1e4 || v.abs() < 1e-2) { format!("{v:.3e}") } else { fmt_num(v) };
+    let scale = if info.stress_ref > 0.0 { format!("; a stress cross arm of {} (stress units) is {} length units long", sig(info.stress_ref), sig(info.stress_len)) } else { String::new() };
+    text(&bottom, &format!("{}   displacements x {}{}", info.loads, fmt_num(mag), scale), 12, 4 + fs + 4)?;
+    let items: [(&str, RGBColor, u32, bool); 7] = [
+        ("initial mesh", GREY, 1, true),
+        ("deformed outline", BLACK, 2, false),
+        ("joined edge", JOINED, 1, true),
+        ("crack face, open at both ends", OPEN, 4, false),
+        ("crack face, open at one end", HALF, 4, false),
+        ("principal stress, tension", TENSION, 2, false),
+        ("compression", COMPRESSION, 2, false),
+    ];
+    let (mut x, mut y) = (12, 4 + 2 * (fs + 4) + 6);
+    for (label, col, wid, dashed) in items {
+        let width = 42 + (label.len() as i32) * fs * 55 / 100 + 20;
+        if x + width > w as i32 && x > 12 {
+            (x, y) = (12, y + fs + 8);
         }
-        let y2 = y + fs + 10;
-        bottom.draw(&PathElement::new(vec![(12, y2 + 8), (48, y2 + 8)], TENSION.stroke_width(2))).map_err(err)?;
-        text(&bottom, "principal stress, tension", 54, y2)?;
-        bottom.draw(&PathElement::new(vec![(300, y2 + 8), (336, y2 + 8)], COMPRESSION.stroke_width(2))).map_err(err)?;
-        text(&bottom, "compression", 342, y2)?;
+        if dashed {
+            let mut k = 0;
+            while k < 36 {
+                bottom.draw(&PathElement::new(vec![(x + k, y + fs / 2), (x + (k + 5).min(36), y + fs / 2)], col.stroke_width(wid))).map_err(err)?;
+                k += 9;
+            }
+        } else {
+            bottom.draw(&PathElement::new(vec![(x, y + fs / 2), (x + 36, y + fs / 2)], col.stroke_width(wid))).map_err(err)?;
+        }
+        text(&bottom, label, x + 42, y)?;
+        x += width;
     }
     Ok(())
 }
@@ -184,8 +190,12 @@ pub fn fmt_num(v: f64) -> String {
 
 /// A load-displacement curve: the history (line) and the stage ends (markers; hollow when the
 /// stage did not reach equilibrium).
-pub fn curve<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, xlabel: &str, ylabel: &str, line: &[(f64, f64)], ends: &[(f64, f64, bool)]) -> Result<(), String> {
+/// `note` (may be empty) is written under the title.
+pub fn curve<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, note: &str, xlabel: &str, ylabel: &str, line: &[(f64, f64)], ends: &[(f64, f64, bool)]) -> Result<(), String> {
     root.fill(&WHITE).map_err(err)?;
+    if !note.is_empty() {
+        root.draw(&Text::new(note.to_string(), (100, 44), ("sans-serif", 14).into_font())).map_err(err)?;
+    }
     let all = line.iter().copied().chain(ends.iter().map(|e| (e.0, e.1)));
     let (mut x0, mut x1, mut y0, mut y1) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for (x, y) in all {

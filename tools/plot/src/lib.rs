@@ -232,8 +232,29 @@ fn frame_size(b: [f64; 4], w: u32) -> (u32, u32) {
     (w, (w as f64 * r) as u32 + 130)
 }
 
-/// The load-displacement curve: the load whose level goes highest against the probe
-/// displacement component that moves most (at the stage ends in equilibrium).
+/// The direction of a load as the run's resolved scene gives it: a traction or point load whose
+/// value is two numbers points along them; anything else (a pressure, whose direction is each
+/// edge's normal, an expression, a prescribed motion) has none here. A scene file that cannot be
+/// read gives none (the curve then shows the component that moves most).
+fn load_direction(dir: &Path, load: &str) -> Option<[f64; 2]> {
+    let text = std::fs::read_to_string(dir.join("scene.resolved.toml")).ok()?;
+    let doc: toml::Table = toml::from_str(&text).ok()?;
+    let l = doc.get("load")?.as_array()?.iter().find(|l| l.get("name").and_then(|n| n.as_str()) == Some(load))?;
+    if !matches!(l.get("type")?.as_str()?, "traction" | "point") {
+        return None;
+    }
+    let v = l.get("value")?.as_array()?;
+    let num = |x: &toml::Value| x.as_float().or_else(|| x.as_integer().map(|i| i as f64));
+    let (x, y) = (num(v.first()?)?, num(v.get(1)?)?);
+    let n = x.hypot(y);
+    (n > 0.0 && n.is_finite()).then_some([x / n, y / n])
+}
+
+/// The load-displacement curve of every stage: the load whose level goes highest against a
+/// probe's displacement along that load (the probe that moves most that way; the component that
+/// moves most when the load has no fixed direction). Stage ends in equilibrium are filled, the
+/// others hollow, every stage's end drawn; history rows far beyond the equilibrium states (a
+/// fragment flying off after a full separation) are left off the line and counted in the title.
 fn load_curve(dir: &Path, hist: &History, stages: &[(String, bool, u64)], out: &Path) -> Result<Vec<PathBuf>> {
     let Some(sc) = hist.col("stage") else { return Ok(Vec::new()) };
     let loads = hist.loads();
@@ -250,14 +271,66 @@ fn load_curve(dir: &Path, hist: &History, stages: &[(String, bool, u64)], out: &
         }
     }
     let conv = |st: usize| stages.get(st).is_none_or(|s| s.1);
-    let probes: Vec<usize> = hist.header.iter().enumerate().filter(|(_, h)| h.ends_with("_ux") || h.ends_with("_uy")).map(|(i, _)| i).collect();
-    let settled_max = |c: usize| ends.iter().filter(|e| conv(e.0)).map(|e| hist.rows[e.1][c].abs()).filter(|v| v.is_finite()).fold(0.0f64, f64::max);
-    let Some(&dc) = probes.iter().max_by(|a, b| settled_max(**a).total_cmp(&settled_max(**b))) else { return Ok(Vec::new()) };
-    let last_ok = ends.iter().rev().find(|e| conv(e.0)).map(|e| e.1).unwrap_or(hist.rows.len().saturating_sub(1));
-    let line: Vec<(f64, f64)> = hist.rows[..=last_ok.min(hist.rows.len().saturating_sub(1))].iter().map(|r| (r[dc], r[lc])).filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
-    let dmax = settled_max(dc).max(1e-300);
-    let pts: Vec<(f64, f64, bool)> = ends.iter().map(|e| (hist.rows[e.1][dc], hist.rows[e.1][lc], conv(e.0))).filter(|p| p.0.is_finite() && p.0.abs() <= 3.0 * dmax).collect();
-    let title = format!("load {load} against probe {} ({})", hist.header[dc], dir.file_name().map(|f| f.to_string_lossy().to_string()).unwrap_or_default());
-    let (xl, yl) = (format!("{} (length units)", hist.header[dc]), format!("level of load {load}"));
-    render(&out.join("load_displacement"), (900, 620), |a| draw::curve(a, &title, &xl, &yl, &line, &pts), |a| draw::curve(a, &title, &xl, &yl, &line, &pts))
+    // Candidate displacement measures: per probe, the displacement along the load's direction;
+    // without a direction, each probe component.
+    let probes: Vec<String> = hist.header.iter().filter_map(|h| h.strip_suffix("_ux").map(str::to_string)).filter(|p| hist.col(&format!("{p}_uy")).is_some()).collect();
+    let direction = load_direction(dir, load);
+    let measures: Vec<(String, Box<dyn Fn(&[f64]) -> f64>)> = match direction {
+        Some(d) => probes
+            .iter()
+            .map(|p| {
+                let (cx, cy) = (hist.col(&format!("{p}_ux")).unwrap(), hist.col(&format!("{p}_uy")).unwrap());
+                (format!("displacement of probe {p} along load {load} ({}, {})", fmt_dir(d[0]), fmt_dir(d[1])), Box::new(move |r: &[f64]| r[cx] * d[0] + r[cy] * d[1]) as Box<dyn Fn(&[f64]) -> f64>)
+            })
+            .collect(),
+        None => hist
+            .header
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| h.ends_with("_ux") || h.ends_with("_uy"))
+            .map(|(c, h)| (format!("{h} (load {load} has no fixed direction)"), Box::new(move |r: &[f64]| r[c]) as Box<dyn Fn(&[f64]) -> f64>))
+            .collect(),
+    };
+    let settled_max = |m: &dyn Fn(&[f64]) -> f64| ends.iter().filter(|e| conv(e.0)).map(|e| m(&hist.rows[e.1]).abs()).filter(|v| v.is_finite()).fold(0.0f64, f64::max);
+    let Some((label, m)) = measures.iter().max_by(|a, b| settled_max(a.1.as_ref()).total_cmp(&settled_max(b.1.as_ref()))) else { return Ok(Vec::new()) };
+    let all_max = hist.rows.iter().map(|r| m(r).abs()).filter(|v| v.is_finite()).fold(0.0f64, f64::max);
+    let dmax = settled_max(m.as_ref());
+    let limit = if dmax > 0.0 { 3.0 * dmax } else { all_max };
+    let keep = |x: f64| x.is_finite() && x.abs() <= limit;
+    let line: Vec<(f64, f64)> = hist.rows.iter().map(|r| (m(r), r[lc])).filter(|p| keep(p.0) && p.1.is_finite()).collect();
+    let off = hist.rows.iter().filter(|r| !keep(m(r))).count();
+    // Every stage's end is drawn; one far beyond the equilibrium states (a fragment flying off)
+    // sits at the edge of the chart, its true value in the title, so that the equilibrium branch
+    // keeps its scale. History rows that far are left off the line.
+    let mut far = Vec::new();
+    let pts: Vec<(f64, f64, bool)> = ends
+        .iter()
+        .map(|e| (e.0, m(&hist.rows[e.1]), hist.rows[e.1][lc], conv(e.0)))
+        .filter(|p| p.1.is_finite() && p.2.is_finite())
+        .map(|(st, x, y, c)| {
+            if keep(x) {
+                (x, y, c)
+            } else {
+                far.push(format!("stage {} ends at {x:.3e}", st + 1));
+                (x.signum() * limit, y, c)
+            }
+        })
+        .collect();
+    let run = dir.file_name().map(|f| f.to_string_lossy().to_string()).unwrap_or_default();
+    let title = format!("load {load}, every stage ({run})");
+    let mut notes = Vec::new();
+    if off > 0 {
+        notes.push(format!("{off} history rows beyond 3x the equilibrium range left off"));
+    }
+    if !far.is_empty() {
+        notes.push(format!("drawn at the edge: {}", far.join(", ")));
+    }
+    let note = notes.join("; ");
+    let (xl, yl) = (format!("{label} (length units)"), format!("level of load {load}"));
+    render(&out.join("load_displacement"), (900, 620), |a| draw::curve(a, &title, &note, &xl, &yl, &line, &pts), |a| draw::curve(a, &title, &note, &xl, &yl, &line, &pts))
+}
+
+fn fmt_dir(v: f64) -> String {
+    let t = format!("{v:.3}");
+    t.trim_end_matches('0').trim_end_matches('.').to_string()
 }
