@@ -67,7 +67,9 @@ fn flem_matches_implicit_on_three_scenes() {
 #[test]
 fn crack_separating_an_unsupported_fragment_is_named() {
     let base = std::fs::read_to_string(root().join("configs/verification/tension_crack.toml")).unwrap();
-    let text = base.replace("type = \"traction\"\nedges = \"top\"\nvalue = [0.0, 1.0]", "type = \"displacement\"\nnodes = \"top\"\ny = 0.04") + "\n[check]\n";
+    // The scene carries its own [check] (every verification scene does).
+    let text = base.replace("type = \"traction\"\nedges = \"top\"\nvalue = [0.0, 1.0]", "type = \"displacement\"\nnodes = \"top\"\ny = 0.04");
+    assert!(text.contains("\n[check]"), "tension_crack.toml lost its [check] section");
     assert!(text.contains("type = \"displacement\""), "the base scene changed");
     let rows = run_checked(&text, "crack");
     assert_eq!(rows.len(), 2);

@@ -171,7 +171,9 @@ impl Loads {
         (model.topo.cluster_point[model.topo.copy_cluster[ca].idx()], model.topo.cluster_point[model.topo.copy_cluster[cb].idx()])
     }
 
-    fn edge_force(model: &Model, face: (ElemId, u8), x: &dyn Fn(usize) -> [f64; 2], pressure: f64, traction: [f64; 2], out: &mut [[f64; 2]]) {
+    /// A face's two clusters (a, b), its edge vector `(dx, dy)` from a to b, length and
+    /// element thickness, on the configuration `x`.
+    fn face_geometry(model: &Model, face: (ElemId, u8), x: &dyn Fn(usize) -> [f64; 2]) -> ([usize; 2], f64, f64, f64, f64) {
         let (e, k) = face;
         let r = model.topo.elem_copies(e);
         let n = r.len();
@@ -179,11 +181,14 @@ impl Loads {
         let (a, b) = (model.topo.copy_cluster[ca].idx(), model.topo.copy_cluster[cb].idx());
         let (xa, xb) = (x(a), x(b));
         let (dx, dy) = (xb[0] - xa[0], xb[1] - xa[1]);
-        let t = model.material_of(e).thickness;
+        ([a, b], dx, dy, (dx * dx + dy * dy).sqrt(), model.material_of(e).thickness)
+    }
+
+    fn edge_force(model: &Model, face: (ElemId, u8), x: &dyn Fn(usize) -> [f64; 2], pressure: f64, traction: [f64; 2], out: &mut [[f64; 2]]) {
         // Outward normal times length of a counter-clockwise face: (dy, -dx).
-        let len = (dx * dx + dy * dy).sqrt();
+        let (ab, dx, dy, len, t) = Self::face_geometry(model, face, x);
         let f = [0.5 * t * (-pressure * dy + traction[0] * len), 0.5 * t * (pressure * dx + traction[1] * len)];
-        for c in [a, b] {
+        for c in ab {
             out[c][0] += f[0];
             out[c][1] += f[1];
         }
@@ -192,16 +197,8 @@ impl Loads {
     /// [`Self::edge_force`] with values that vary along the face: `ends` = the consistent end
     /// values `[p_a, p_b, tx_a, tx_b, ty_a, ty_b]`, times `lev`.
     fn edge_force_ends(model: &Model, face: (ElemId, u8), x: &dyn Fn(usize) -> [f64; 2], lev: f64, ends: &[f64; 6], out: &mut [[f64; 2]]) {
-        let (e, k) = face;
-        let r = model.topo.elem_copies(e);
-        let n = r.len();
-        let (ca, cb) = (r.start + k as usize, r.start + (k as usize + 1) % n);
-        let (a, b) = (model.topo.copy_cluster[ca].idx(), model.topo.copy_cluster[cb].idx());
-        let (xa, xb) = (x(a), x(b));
-        let (dx, dy) = (xb[0] - xa[0], xb[1] - xa[1]);
-        let t = model.material_of(e).thickness;
-        let len = (dx * dx + dy * dy).sqrt();
-        for (end, c) in [a, b].into_iter().enumerate() {
+        let (ab, dx, dy, len, t) = Self::face_geometry(model, face, x);
+        for (end, c) in ab.into_iter().enumerate() {
             let (p, tx, ty) = (lev * ends[end], lev * ends[2 + end], lev * ends[4 + end]);
             out[c][0] += 0.5 * t * (-p * dy + tx * len);
             out[c][1] += 0.5 * t * (p * dx + ty * len);
