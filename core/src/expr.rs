@@ -5,9 +5,16 @@
 //!
 //! Expressions are parsed and evaluated by the `exmex` crate (MIT/Apache-2.0, maintained, a
 //! compiled flat expression evaluated from a slice of variable values): `+ - * / ^`, `sin cos
-//! tan asin acos atan sinh cosh tanh exp ln log10 log2 sqrt abs signum floor ceil`, and the
-//! constants `PI` (`π`), `TAU`, `E`. (evalexpr, the other well-kept choice, is AGPL-licensed.)
-//! Variables other than `x`, `y`, `t` are refused when the scene is validated, naming the key.
+//! tan asin acos atan sinh cosh tanh exp ln (= log) log10 log2 sqrt cbrt abs signum floor ceil
+//! round`, `min(a, b) max(a, b) atan2(y, x)`, and the constants `PI` (`π`), `TAU`, `E`.
+//! (evalexpr, the other well-kept choice, is AGPL-licensed.) Variables other than `x`, `y`, `t`
+//! are refused when the scene is validated, naming the key. exmex binds a unary minus tighter
+//! than `^` (`-2^2` is 4 there, -4 in mathematics), so a sign written directly before a power
+//! (`-x^2`, `exp(-y^2)`) is refused with the bracketed forms to choose from, never read either way.
+//!
+//! `t` is the run's time. In a stage marched to equilibrium (not `dynamic`) that is the
+//! relaxation's pseudo-time, which depends on the damping and dt: such a scene gets a warning
+//! (a load of t belongs to a `dynamic = true` stage).
 //!
 //! When an expression is evaluated (solver/loads.rs): an edge load is integrated over each face
 //! with 2-point Gauss quadrature and linear shape functions (exact for a value linear along the
@@ -86,7 +93,12 @@ impl LoadValue {
         match self {
             LoadValue::Number(v) => Ok(Field::Const(*v)),
             LoadValue::Expr(text) => {
-                let ex = Ex::parse(text).map_err(|e| format!("= \"{text}\" is not an expression of x, y and t: {e}"))?;
+                if let Some(at) = sign_before_power(text) {
+                    return Err(format!("= \"{text}\": the sign at character {} applies to a power; write -(a^b) or (-a)^b (the expression parser would read -a^b as (-a)^b)", at + 1));
+                }
+                // A parser panic on odd input becomes the key's error, never a crash.
+                let parsed = std::panic::catch_unwind(|| Ex::parse(text)).map_err(|_| format!("= \"{text}\" could not be parsed (the expression parser failed on it)"))?;
+                let ex = parsed.map_err(|e| format!("= \"{text}\" is not an expression of x, y and t: {e}"))?;
                 let mut order = Vec::new();
                 for v in ex.var_names() {
                     order.push(match v.as_str() {
@@ -101,6 +113,70 @@ impl LoadValue {
             }
         }
     }
+}
+
+/// The byte position of a unary sign whose operand is raised to a power (`-x^2`, `2*-(y)^3`),
+/// or None. An operand is a number, a name, a bracketed group, or a function call.
+fn sign_before_power(text: &str) -> Option<usize> {
+    let b = text.as_bytes();
+    let skip_ws = |mut i: usize| {
+        while i < b.len() && b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        i
+    };
+    let close = |mut i: usize| {
+        // From an opening bracket to just past its match.
+        let mut depth = 0;
+        while i < b.len() {
+            match b[i] {
+                b'(' => depth += 1,
+                b')' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        return i + 1;
+                    }
+                }
+                _ => {}
+            }
+            i += 1;
+        }
+        i
+    };
+    let mut prev: Option<u8> = None;
+    for i in 0..b.len() {
+        let c = b[i];
+        if c.is_ascii_whitespace() {
+            continue;
+        }
+        let unary = (c == b'-' || c == b'+') && prev.is_none_or(|p| b"(,+-*/^".contains(&p)) && !prev.is_some_and(|p| p.is_ascii_alphanumeric() || p == b'.' || p == b')');
+        // A sign inside a number's exponent (2.5e-3) follows a letter: not unary.
+        if unary {
+            let mut j = skip_ws(i + 1);
+            if j < b.len() && b[j] == b'(' {
+                j = close(j);
+            } else {
+                while j < b.len()
+                    && (b[j].is_ascii_alphanumeric()
+                        || b[j] == b'_'
+                        || b[j] == b'.'
+                        || ((b[j] == b'-' || b[j] == b'+') && j > 0 && (b[j - 1] == b'e' || b[j - 1] == b'E') && j > 1 && b[j - 2].is_ascii_digit()))
+                {
+                    j += 1;
+                }
+                let k = skip_ws(j);
+                if k < b.len() && b[k] == b'(' {
+                    j = close(k);
+                }
+            }
+            let k = skip_ws(j);
+            if k < b.len() && b[k] == b'^' {
+                return Some(i);
+            }
+        }
+        prev = Some(c);
+    }
+    None
 }
 
 impl Field {
@@ -160,5 +236,23 @@ mod tests {
         assert!(e.contains("\"z\"") && e.contains("x, y"), "{e}");
         assert!(LoadValue::Expr("x +* (".into()).compile().is_err());
         assert!(LoadValue::Expr("1 / x".into()).compile().unwrap().at(0.0, 0.0, 0.0).is_infinite());
+        let m = LoadValue::Expr("min(t / 2, 1) + max(x, y) + atan2(1, 1)".into()).compile().unwrap();
+        assert!((m.at(3.0, 2.0, 1.0) - (0.5 + 3.0 + std::f64::consts::FRAC_PI_4)).abs() < 1e-15);
+    }
+
+    /// A sign directly before a power is refused (the parser would read -x^2 as (-x)^2 = +x^2);
+    /// bracketed forms, binary minus and exponents of numbers pass. Reference: the mathematical
+    /// reading, -x^2 = -(x^2).
+    #[test]
+    fn a_sign_before_a_power_is_refused() {
+        for bad in ["-x^2", "exp(-y^2)", "2 * -x ^ 3", "-(x + 1)^2", "1 + -sin(x)^2", "-2.5e-3^2"] {
+            let e = LoadValue::Expr(bad.into()).compile().unwrap_err();
+            assert!(e.contains("applies to a power"), "{bad}: {e}");
+        }
+        for good in ["-(x^2)", "(-x)^2", "exp(-(y^2))", "1 - x^2", "2.5e-3 * y^2", "-x * 2", "x^-1", "y - 2e-3^2"] {
+            assert!(LoadValue::Expr(good.into()).compile().is_ok(), "{good}");
+        }
+        let f = LoadValue::Expr("1 - x^2".into()).compile().unwrap();
+        assert_eq!(f.at(3.0, 0.0, 0.0), -8.0);
     }
 }

@@ -35,7 +35,7 @@ pub struct Load {
 
 impl Load {
     /// Whether the load is an expression of time (evaluated at every step).
-    fn uses_t(&self) -> bool {
+    pub fn uses_t(&self) -> bool {
         match &self.kind {
             Kind::Edge { pressure, traction, .. } => pressure.uses_t() || traction.iter().any(Field::uses_t),
             Kind::Point { value, .. } => value.iter().any(Field::uses_t),
@@ -263,6 +263,7 @@ impl Loads {
                         match (ends, pressure.constant()) {
                             (None, Some(p)) => Self::edge_force(model, f, &x, lev * p, [0.0; 2], out),
                             (Some(e), _) => Self::edge_force_ends(model, f, &x, lev, &e[k], out),
+                            (None, None) if lev == 0.0 => {}
                             (None, None) => {
                                 let (pa, pb) = Self::face_points(model, f);
                                 let e = face_ends([pressure, &Field::Const(0.0), &Field::Const(0.0)], pref(pa), pref(pb), time, &l.key, &self.file)?;

@@ -508,6 +508,19 @@ impl Simulation {
                 warnings.push(format!("{file}: cracking.at_equilibrium = true: failure is never checked in the dynamic stage(s) {} (they do not come to rest); set cracking.at_equilibrium = false and cracking.check_every to crack during them", dynamic.join(", ")));
             }
         }
+        if loads.has_time {
+            // A load of t in a stage marched to equilibrium follows the relaxation's pseudo-time.
+            let quasi: Vec<String> =
+                scene.file.stages.iter().enumerate().filter(|(_, s)| !s.dynamic).map(|(i, s)| if s.name.is_empty() { format!("stage[{i}]") } else { format!("\"{}\"", s.name) }).collect();
+            let which: Vec<String> = loads.loads.iter().filter(|l| l.uses_t()).map(|l| format!("\"{}\"", l.name)).collect();
+            if !quasi.is_empty() {
+                warnings.push(format!(
+                    "{file}: load(s) {} are expressions of t, but stage(s) {} march to equilibrium: there t is the relaxation's pseudo-time (it depends on the damping and dt), and a stage may come to rest before the load stops changing; use dynamic = true stages for loads of time",
+                    which.join(", "),
+                    quasi.join(", ")
+                ));
+            }
+        }
         let contact = match &scene.file.contact {
             Some(c) => Some(crate::contact::Contact::new(c, &model, &file)?),
             None => None,
