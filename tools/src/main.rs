@@ -300,6 +300,8 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     for w in &sim.warnings {
         eprintln!("warning: {w}");
     }
+    // Warnings the run adds (a stage that was never checked) are printed after it.
+    let n_warn = sim.warnings.len();
     eprintln!("{} elements, {} points; dt = {:.4e} (dt/dt_crit = {:.3}, dt_crit = {:.4e})", sim.model.n_elems(), sim.model.topo.n_points, sim.dt, sim.dt / sim.stable.dt_crit, sim.stable.dt_crit);
     let mut w = OutputWriter::new(&out, &sim)?;
     w.stop = Some(Arc::clone(&stop));
@@ -341,6 +343,9 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     r?;
     for s in &sim.stages_done {
         eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
+    }
+    for w in &sim.warnings[n_warn.min(sim.warnings.len())..] {
+        eprintln!("warning: {w}");
     }
     if let Some(n) = sim.cracking.as_ref().map(|c| c.beyond_criterion()).filter(|&n| n > 0) {
         eprintln!("{n} points beyond the failure criterion at the last check that the separation rule did not cut: they carry stress above their strength (no plasticity in the method)");
