@@ -449,3 +449,36 @@ fn paper_plot_refuses_a_folder_without_results() {
     assert!(!dir.join("plots").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The paper's damping, eq. (5), `viscous_eta`: one constant eta for every node. A free body
+/// (no support) pulled by a constant force F reaches the terminal rigid velocity at which the
+/// damping forces balance F: with a constant eta, sum over nodes of eta v = F, so v = F / (n eta)
+/// whatever the nodal masses (here 2 x 1 quads: corner and mid-side nodes of different mass);
+/// with the mass-proportional `viscous` (ours) v = F / (alpha M). Reference: that balance,
+/// exact; tolerance 1e-6 relative after 2000 time constants m_max / eta (and 1 / alpha). A scheme that used
+/// eta / m per node wrongly (or eta m) fails it.
+#[test]
+fn paper_viscous_eta_terminal_velocity_is_f_over_n_eta() {
+    let (eta, alpha, t, h) = (50.0, 5.0, 2.0, 1.0);
+    for (damping, name) in [(format!("{{ type = \"viscous_eta\", eta = {eta} }}"), "viscous_eta"), (format!("{{ type = \"viscous\", alpha = {alpha} }}"), "viscous")] {
+        let text = format!(
+            "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = {h}\nnx = 2\nny = 1\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.25\ndensity = 1.0\n[solver]\ndamping = {damping}\n[[load]]\nname = \"f\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [{t}, 0.0]\n[[stage]]\nlevels = {{ f = 1.0 }}\ndynamic = true\nmax_steps = 200000\n"
+        );
+        let mut sim = paper_sim(&text);
+        let m_max = sim.state.mass.iter().copied().fold(0.0, f64::max);
+        let m_min = sim.state.mass.iter().copied().fold(f64::MAX, f64::min);
+        assert!(m_max > 1.5 * m_min, "the nodal masses must differ: {:?}", sim.state.mass);
+        let total_m: f64 = sim.state.mass.iter().sum();
+        let tau = if name == "viscous_eta" { m_max / eta } else { 1.0 / alpha };
+        let steps = (2000.0 * tau / sim.dt).ceil() as u64;
+        sim.scene.file.stages[0].max_steps = Some(steps);
+        sim.run(&mut flem_core::solver::NoOutput).unwrap();
+        let f = t * h;
+        let n = sim.state.v.len() as f64;
+        let want = if name == "viscous_eta" { f / (n * eta) } else { f / (alpha * total_m) };
+        for v in &sim.state.v {
+            assert!(rel(v[0], want) < 1e-6 && v[1].abs() < 1e-6 * want, "{name}: v = {v:?}, want {want}");
+        }
+        println!("{name}: terminal velocity {:.6e} (want {want:.6e}; {} steps)", sim.state.v[0][0], steps);
+    }
+}

@@ -140,7 +140,8 @@ mod tests {
     fn cap_unsplit_boundary_option() {
         let l = links(&[0.0, 60.0 + 90.0 + 60.0]); // links at 0 and 210 deg
         let mut f = fan_dir(&l, false, 60.0); // line angles 60 and 30 deg -> nearest 210 (30 deg)
-        let mut f75 = fan_dir(&links(&[0.0, 105.0]), false, 60.0); // line angles 60 and 45
+        let l75 = links(&[0.0, 105.0]);
+        let mut f75 = fan_dir(&l75, false, 60.0); // line angles 60 and 45
         let capped = Sigma1Nearest { cap_unsplit_boundary: true };
         let paper = Sigma1Nearest::default();
         // 30 deg: below the cap, cut in every setting
@@ -154,7 +155,8 @@ mod tests {
         f75.never_split = false;
         assert_eq!(ids(paper.propose(&f75, &failed(Tension, &[]))), None, "already split: the paper's cap");
         assert_eq!(ids(capped.propose(&f75, &failed(Tension, &[]))), None);
-        let mut f80 = fan_dir(&links(&[140.0, 320.0 - 180.0 + 5.0]), false, 60.0); // 80 and 85 deg
+        let l80 = links(&[140.0, 145.0]);
+        let mut f80 = fan_dir(&l80, false, 60.0); // line angles 80 and 85 deg
         f80.never_split = true;
         assert_eq!(ids(paper.propose(&f80, &failed(Tension, &[]))), Some(vec![0]), "80 deg: the nearer link");
         assert_eq!(ids(capped.propose(&f80, &failed(Tension, &[]))), None);
