@@ -22,7 +22,8 @@ mod chart;
 mod stability;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
-/// The paper's opening model (issue 8): a notched plate cracking in tension, pictures in plots/.
+/// The paper's opening model as the paper ran it (issues 8, 17): a notched plate pulled from both
+/// sides, cracking in tension at p/(rho g) = 115, pictures in plots/.
 const DEFAULT_SCENE: &str = include_str!("../../configs/paper/opening.toml");
 const DEFAULT_NAME: &str = "configs/paper/opening.toml";
 
