@@ -601,15 +601,24 @@ impl Simulation {
                 self.warnings.push(format!("{file}: solver.dt = {dt:e} is above the critical step {crit:e} (dt/dt_crit = {:.3}); running anyway because solver.allow_unstable_dt = true", dt / crit));
                 Ok(dt)
             }
-            Some(dt) => Err(FlemError::config(
-                file,
-                "solver.dt",
-                format!(
-                    "= {dt:e} is incorrect; it must be <= the critical step {crit:e} of this mesh (dt/dt_crit = {:.3}); remove it to use {} x dt_crit, or set solver.allow_unstable_dt = true",
-                    dt / crit,
-                    s.dt_safety
-                ),
-            )),
+            Some(dt) => {
+                // Say what sets the step: the contact springs when their term dominates.
+                let dc = self.stable.dt_contact;
+                let by = if dc.is_finite() && dc < self.stable.dt_element_bound {
+                    format!(" (set by the contact springs, contact.law normal_stiffness / shear_stiffness: their bound alone is {dc:e})")
+                } else {
+                    String::new()
+                };
+                Err(FlemError::config(
+                    file,
+                    "solver.dt",
+                    format!(
+                        "= {dt:e} is incorrect; it must be <= the critical step {crit:e} of this mesh{by} (dt/dt_crit = {:.3}); remove it to use {} x dt_crit, or set solver.allow_unstable_dt = true",
+                        dt / crit,
+                        s.dt_safety
+                    ),
+                ))
+            }
         }
     }
 
