@@ -250,3 +250,30 @@ fn stable_step_after_splits_is_deferred_below_the_element_bound() {
     assert!(sim.dt <= sim.stable.dt_crit);
     println!("{} checks with splits deferred; dt {:.4e} <= element bound {:.4e}; dt_crit at the end {:.6e} (cold {:.6e})", w.0.len(), sim.dt, w.0[0].2, sim.stable.dt_crit, cold);
 }
+
+/// The paper's rule at points that never split (METHOD 5, issue 17): its first-split rule has no
+/// pi/4 cap, so a point of the plate's bottom side (open fan, one joined edge: the vertical
+/// one, 90 deg from the horizontal crack plane of uniaxial tension) that fails is cut along
+/// that vertical edge; with `cap_unsplit_boundary = true` (ours) such a point is never cut
+/// along the load. Same scene as above (Drucker-Prager, whose first failure is on the bottom
+/// side), at 1.01 sigma_t. Reference: the rule's definition; exact (edge directions).
+#[test]
+fn paper_rule_cuts_a_never_split_boundary_point_whatever_the_angle() {
+    let crit = "type = \"drucker_prager\"\nalpha = 0.1\nk = 0.6773502691896258";
+    for (cap, want_vertical) in [(false, true), (true, false)] {
+        let text = tension_scene(crit).replace("cap_unsplit_boundary = true", &format!("cap_unsplit_boundary = {cap}"));
+        let mut sim = Simulation::new(scene(&text)).unwrap();
+        let mut log = Log::default();
+        sim.run(&mut log).unwrap();
+        let pts = &sim.model.mesh.points;
+        let vertical_at_bottom = log.0.iter().any(|(_, e)| {
+            pts[e.point.idx()][1].abs() < 1e-12
+                && e.edges.iter().any(|ed| {
+                    let p = sim.model.topo.edges[ed.idx()].points;
+                    (pts[p[0].idx()][0] - pts[p[1].idx()][0]).abs() < 1e-12
+                })
+        });
+        assert!(!log.0.is_empty(), "cap = {cap}: no split");
+        assert_eq!(vertical_at_bottom, want_vertical, "cap_unsplit_boundary = {cap}: a bottom point cut its vertical edge: {vertical_at_bottom}");
+    }
+}
