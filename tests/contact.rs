@@ -666,7 +666,7 @@ fn dynamic_crack_with_cohesive_contact_keeps_the_energy_balance() {
 }
 
 /// The paper's direct shear box (tests/data/direct_shear_contact.toml, a copy of
-/// configs/paper/direct_shear.toml: 21 quads + 1 triangle, co-rotational, spring_dashpot on
+/// configs/paper/direct_shear_steps.toml: 21 quads + 1 triangle, co-rotational, spring_dashpot on
 /// crack faces and on the pre-separated bc, shear-only Mohr-Coulomb, q then p = 20 ... 400
 /// rho g, each stage to equilibrium). From p = 180 on, nodes split while their faces are pressed
 /// together and sheared: pairs switch masters at the junctions of cracks, and splits halve the

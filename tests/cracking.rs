@@ -35,7 +35,8 @@ fn tension_scene(criterion: &str) -> String {
 /// Reference: the uniform analytic stress sigma_yy = traction. Run for each criterion whose
 /// uniaxial tensile strength is 1 (Rankine, Mohr-Coulomb with the tension branch, Hoek-Brown
 /// with s sigma_ci / m_b = 1, Drucker-Prager with k / (1/sqrt(3) + alpha) = 1): the same scene
-/// with only the criterion table changed.
+/// with only the criterion table changed. The scene caps open fans at never-split boundary
+/// points too (`cap_unsplit_boundary = true`, ours; see its header).
 #[test]
 fn tension_specimen_cracks_at_sigma_t_perpendicular_to_load() {
     for crit in [
@@ -101,7 +102,9 @@ fn notch_is_separated_from_the_start() {
 /// degrees: the true shear planes lie at 90 +- (45 - phi/2) = 60 and 120 degrees, so
 /// `shear_plane_nearest` cuts the 45-degree diagonals (15 degrees away, against 30 for the
 /// vertical), while the paper's `sigma1_nearest` cuts along sigma1 (vertical, compression
-/// positive).
+/// positive). Both rules with `cap_unsplit_boundary = true` (ours): with the paper's default a
+/// point of the free side, whose joined edges lie at 0 and 45 deg, cuts the diagonal when
+/// sigma1 is vertical (45 deg away, no cap at never-split points, METHOD 5; issue 17).
 #[test]
 fn uniaxial_compression_fails_in_shear_at_ucs() {
     let (c, phi) = (1.0f64, 30f64.to_radians());
@@ -111,7 +114,7 @@ fn uniaxial_compression_fails_in_shear_at_ucs() {
             "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 4.0\nnx = 4\nny = 8\nelement = \"t3\"\n[model]\nplane = \"stress\"\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ntolerance = 1e-7\n\
              [[support]]\nnodes = \"bottom\"\nfix = \"y\"\n[[support]]\nnodes = \"bottom_left\"\nfix = \"xy\"\n\
              [[load]]\nname = \"push\"\ntype = \"traction\"\nedges = \"top\"\nvalue = [0.0, -1.0]\n\
-             [cracking]\nmax_splits_per_check = 1\n[cracking.criterion]\ntype = \"mohr_coulomb\"\ncohesion = {c}\nfriction_angle_deg = 30.0\ntensile_strength = 1.0\ntension = false\n[cracking.separation]\ntype = \"{rule}\"\n\
+             [cracking]\nmax_splits_per_check = 1\n[cracking.criterion]\ntype = \"mohr_coulomb\"\ncohesion = {c}\nfriction_angle_deg = 30.0\ntensile_strength = 1.0\ntension = false\n[cracking.separation]\ntype = \"{rule}\"\ncap_unsplit_boundary = true\n\
              [[stage]]\nname = \"below\"\nlevels = {{ push = {} }}\n[[stage]]\nname = \"above\"\nlevels = {{ push = {} }}\nmax_steps = 3000\n",
             0.97 * ucs,
             1.03 * ucs
@@ -246,4 +249,31 @@ fn stable_step_after_splits_is_deferred_below_the_element_bound() {
     assert!((sim.stable.dt_crit - cold).abs() < 1e-3 * cold, "dt_crit after the stage {} vs cold {}", sim.stable.dt_crit, cold);
     assert!(sim.dt <= sim.stable.dt_crit);
     println!("{} checks with splits deferred; dt {:.4e} <= element bound {:.4e}; dt_crit at the end {:.6e} (cold {:.6e})", w.0.len(), sim.dt, w.0[0].2, sim.stable.dt_crit, cold);
+}
+
+/// The paper's rule at points that never split (METHOD 5, issue 17): its first-split rule has no
+/// pi/4 cap, so a point of the plate's bottom side (open fan, one joined edge: the vertical
+/// one, 90 deg from the horizontal crack plane of uniaxial tension) that fails is cut along
+/// that vertical edge; with `cap_unsplit_boundary = true` (ours) such a point is never cut
+/// along the load. Same scene as above (Drucker-Prager, whose first failure is on the bottom
+/// side), at 1.01 sigma_t. Reference: the rule's definition; exact (edge directions).
+#[test]
+fn paper_rule_cuts_a_never_split_boundary_point_whatever_the_angle() {
+    let crit = "type = \"drucker_prager\"\nalpha = 0.1\nk = 0.6773502691896258";
+    for (cap, want_vertical) in [(false, true), (true, false)] {
+        let text = tension_scene(crit).replace("cap_unsplit_boundary = true", &format!("cap_unsplit_boundary = {cap}"));
+        let mut sim = Simulation::new(scene(&text)).unwrap();
+        let mut log = Log::default();
+        sim.run(&mut log).unwrap();
+        let pts = &sim.model.mesh.points;
+        let vertical_at_bottom = log.0.iter().any(|(_, e)| {
+            pts[e.point.idx()][1].abs() < 1e-12
+                && e.edges.iter().any(|ed| {
+                    let p = sim.model.topo.edges[ed.idx()].points;
+                    (pts[p[0].idx()][0] - pts[p[1].idx()][0]).abs() < 1e-12
+                })
+        });
+        assert!(!log.0.is_empty(), "cap = {cap}: no split");
+        assert_eq!(vertical_at_bottom, want_vertical, "cap_unsplit_boundary = {cap}: a bottom point cut its vertical edge: {vertical_at_bottom}");
+    }
 }

@@ -908,7 +908,7 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
 }
 
 /// Regression (found by the harness above: `cracking.max_splits_per_check` = i64::MAX on
-/// configs/paper/direct_shear.toml): several splits in one failure check, where a later
+/// configs/paper/direct_shear_steps.toml): several splits in one failure check, where a later
 /// candidate's fan holds a cluster created by an earlier cut of the same check. Before the
 /// fix `Cracking::link_geometry` indexed the solver's displacement array (not yet grown) with
 /// the new cluster: index out of bounds. Asserted: some check splits more than one node
@@ -916,7 +916,7 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
 #[test]
 fn several_splits_in_one_check_reach_new_clusters() {
     flem_plugins::link();
-    let path = root().join("configs/paper/direct_shear.toml");
+    let path = root().join("configs/paper/direct_shear_steps.toml");
     let mut scene = Scene::from_file(&path).unwrap();
     scene.file.cracking.as_mut().unwrap().max_splits_per_check = 1000;
     // As the harness ran it (every stage capped at 300 steps), which reaches a check with

@@ -1,8 +1,10 @@
-//! The paper's two scenes (issue 8; Nishimura et al., section 4; METHOD section 9):
-//! configs/paper/opening.toml (side notch, uniaxial tension, tension check only) and
-//! configs/paper/direct_shear.toml (21 quads + 1 triangle, bc pre-separated, q then p, shear
-//! check only), each also on a finer mesh. The measured numbers are printed (`--nocapture`)
-//! and collected in docs/paper.md.
+//! The paper's two scenes as the paper ran them (issues 8, 17; Nishimura et al., section 4;
+//! METHOD sections 7-9): configs/paper/opening.toml (side notch, pulled from both sides, tension
+//! check only; also opening_fine.toml) and configs/paper/direct_shear.toml (21 quads + 1
+//! triangle, bc pre-separated, q then p = 894 and 2235, shear check only), with Table 1's dt,
+//! the paper's constant-eta damping and failure checked during the march; and the quasi-static
+//! stop variant (direct_shear_stop.toml). The measured numbers are printed (`--nocapture`) and
+//! collected in docs/paper.md, with the long studies (check interval x dt) and their commands.
 use flem_core::ids::EdgeId;
 use flem_core::plugin::traits::principal;
 use flem_core::solver::Simulation;
@@ -43,10 +45,22 @@ fn nodal_tension(sim: &Simulation, u: &[[f64; 2]]) -> Vec<f64> {
 /// p_crit / (rho g) of an opening config: the load level at which the elastic nodal stress at
 /// the notch tip reaches sigma_t, from a linear static solve (the faer check solver, METHOD 10)
 /// at unit level, by linearity. Also returns the largest nodal tension anywhere at unit level.
+/// A scene pulled from both sides has no support (its loads are self-equilibrated); the static
+/// solve gets a statically determinate one (bottom_left in y, bottom_right in x and y), whose
+/// reactions are then zero: the stresses are those of the free plate.
 pub fn opening_p_crit(text: &str) -> (f64, f64, f64) {
-    let mut sim = paper_sim(text);
-    let k = sim.loads.loads.iter().position(|l| l.name == "p").unwrap();
-    sim.levels[k] = 1.0;
+    let text = if text.contains("[[support]]") {
+        text.to_string()
+    } else {
+        let a = text.find("[[load]]").unwrap();
+        format!("{}[[support]]\nnodes = \"bottom_left\"\nfix = \"y\"\n\n[[support]]\nnodes = \"bottom_right\"\nfix = \"xy\"\n\n{}", &text[..a], &text[a..])
+    };
+    let mut sim = paper_sim(&text);
+    for (k, l) in sim.loads.loads.iter().enumerate() {
+        if l.name == "p" || l.name == "p_bottom" {
+            sim.levels[k] = 1.0;
+        }
+    }
     let u = flem_plugins::check::static_solve(&sim).unwrap();
     let t = nodal_tension(&sim, &u);
     let tip = sim.model.mesh.node_sets["notch_tip"][0] as usize;
@@ -55,28 +69,19 @@ pub fn opening_p_crit(text: &str) -> (f64, f64, f64) {
     (SIGMA_T / t[tip_c], t[tip_c], tmax)
 }
 
-/// Runs an opening config at 0.95 and 1.05 p_crit; returns (splits at 0.95, splits at 1.05,
-/// first split point, fragments at the end, cut edges).
-fn opening_runs(text: &str, p_crit: f64) -> (usize, usize, usize, usize, Vec<EdgeId>, Simulation) {
-    let st = format!("[[stage]]\nname = \"below\"\nlevels = {{ p = {} }}\n\n[[stage]]\nname = \"above\"\nlevels = {{ p = {} }}\nmax_steps = 20000\n", 0.95 * p_crit, 1.05 * p_crit);
-    let mut sim = paper_sim(&with_stages(text, &st));
-    let mut log = SplitLog::default();
-    sim.run_stage(0, &mut log).unwrap();
-    let below = log.events.len();
-    sim.run_stage(1, &mut log).unwrap();
-    let above = log.events.len() - below;
-    let first = log.events.first().map(|e| e.point.idx()).unwrap_or(usize::MAX);
-    let (_, nfrag) = sim.model.topo.fragments();
-    let path = &log.events[..log.separated_at.unwrap_or(log.events.len())];
-    let edges = path.iter().flat_map(|e| e.edges.clone()).collect();
-    (below, above, first, nfrag, edges, sim)
+/// The stages of an opening config with both loads at `p1` then `p2`.
+fn opening_two_stages(text: &str, p1: f64, p2: f64, max2: u64) -> String {
+    let st = format!(
+        "[[stage]]\nname = \"first\"\nlevels = {{ p = {p1}, p_bottom = {p1} }}\nmax_steps = 4000\n\n[[stage]]\nname = \"second\"\nlevels = {{ p = {p2}, p_bottom = {p2} }}\nmax_steps = {max2}\n"
+    );
+    with_stages(text, &st)
 }
 
 #[derive(Default)]
 struct SplitLog {
     events: Vec<flem_core::cracking::SplitEvent>,
-    /// Number of events when the body first fell in two (after that the freed half is a
-    /// mechanism under load control, and its motion may crack the rest: not the crack path).
+    /// Number of events when the body first fell in two (after that the halves move apart:
+    /// not the crack path).
     separated_at: Option<usize>,
 }
 impl flem_core::solver::Observer for SplitLog {
@@ -89,23 +94,25 @@ impl flem_core::solver::Observer for SplitLog {
     }
 }
 
-fn check_opening(file: &str) -> f64 {
+/// Runs an opening config as written (two stages: below, above) and checks the paper's
+/// statements: no split and equilibrium in the first stage (figure 10); in the second a crack
+/// that starts at the notch tip (figure 11 (b)) and runs along the notch line through the
+/// whole ligament, every ligament edge open at both ends, the last point too (figure 11 (c),
+/// (d)). Exact (topology). Returns the config's two levels.
+fn check_opening_paper(file: &str) -> (f64, f64) {
     let text = config(file);
-    let (p_crit, tip_unit, tmax) = opening_p_crit(&text);
-    println!("{file}: p_crit/(rho g) = {:.2} (tip tension at unit level {:.4} = {:.3} x the nominal rho g; paper: no crack at 110, crack at 115)", p_crit / 1.0, tip_unit, tip_unit / RHO_G);
-    // The notch tip carries the largest nodal tension (reference: the notch concentrates stress).
-    assert!(rel(tip_unit, tmax) < 1e-9, "{file}: the largest nodal tension {tmax} is not at the notch tip ({tip_unit})");
-    let (below, above, first, nfrag, edges, sim) = opening_runs(&text, p_crit);
+    let mut sim = paper_sim(&text);
+    let kp = sim.loads.loads.iter().position(|l| l.name == "p").unwrap();
+    let mut log = SplitLog::default();
+    sim.run_stage(0, &mut log).unwrap();
+    let (p1, below) = (sim.levels[kp], log.events.len());
+    assert_eq!(below, 0, "{file}: a split at p/(rho g) = {p1}");
+    assert!(sim.stages_done[0].converged, "{file}: no equilibrium at p/(rho g) = {p1}");
+    sim.run_stage(1, &mut log).unwrap();
+    let p2 = sim.levels[kp];
     let tip = sim.model.mesh.node_sets["notch_tip"][0] as usize;
-    println!("{file}: splits at 0.95 p_crit: {below}; at 1.05 p_crit: {above} (first at point {first}, tip {tip}), fragments {nfrag}");
-    assert_eq!(below, 0, "{file}: a split below p_crit");
-    assert!(above > 0, "{file}: no crack above p_crit");
-    assert_eq!(first, tip, "{file}: the first split is not at the notch tip");
-    // Through the ligament: every edge of the notch line from the tip to the far side is
-    // separated (at both ends but possibly the far side's last point: once a single point holds
-    // the two halves, the upper one turns about it and never comes to equilibrium; the stall
-    // checks, `cracking.stall_steps`, then usually split it), and every edge cut until the
-    // plate falls in two lies on the notch line y = 3 (the crack runs straight across).
+    let first = log.events.first().map(|e| e.point.idx()).unwrap_or(usize::MAX);
+    assert_eq!(first, tip, "{file}: the first split at p/(rho g) = {p2} is not at the notch tip");
     let topo = &sim.model.topo;
     let pts = &sim.model.mesh.points;
     let lig: Vec<usize> = (0..topo.edges.len())
@@ -116,39 +123,103 @@ fn check_opening(file: &str) -> f64 {
         })
         .collect();
     let states: Vec<u8> = lig.iter().map(|&e| topo.crack_state(EdgeId::new(e))).collect();
-    let open = states.iter().filter(|&&s| s == 2).count();
-    println!("{file}: ligament edges {}: open at both ends {open}, all cracked: {}; fragments {nfrag}", lig.len(), states.iter().all(|&s| s >= 1));
-    assert!(states.iter().all(|&s| s >= 1) && open + 1 >= lig.len(), "{file}: the crack did not run through the ligament: {states:?}");
-    let ymax_dev = edges
-        .iter()
-        .map(|e| {
-            let p = topo.edges[e.idx()].points;
-            let (a, b) = (pts[p[0].idx()], pts[p[1].idx()]);
-            (a[1] - 3.0).abs().max((b[1] - 3.0).abs())
-        })
-        .fold(0.0, f64::max);
-    assert!(ymax_dev < 1e-9, "{file}: the crack left the notch line by {ymax_dev}");
-    p_crit
+    println!("{file}: p/(rho g) = {p1}: no split, in equilibrium; {p2}: {} splits, first at the tip; ligament edge states {states:?}; fragments {}", log.events.len(), topo.fragments().1);
+    assert!(states.iter().all(|&s| s == 2), "{file}: the ligament is not open at both ends of every edge: {states:?}");
+    assert_eq!(topo.fragments().1, 2, "{file}: the plate did not fall in exactly two");
+    let path = &log.events[..log.separated_at.unwrap_or(log.events.len())];
+    for ev in path {
+        for e in &ev.edges {
+            let q = topo.edges[e.idx()].points;
+            let dev = (pts[q[0].idx()][1] - 3.0).abs().max((pts[q[1].idx()][1] - 3.0).abs());
+            assert!(dev < 1e-9, "{file}: the crack left the notch line at point {}", ev.point.0);
+        }
+    }
+    (p1, p2)
 }
 
-/// Opening model, 36 quads (configs/paper/opening.toml). Reference: p_crit from a linear static
-/// solve at unit load (linearity); criterion sigma_t (Table 1). No split at 0.95 p_crit (5 %
-/// margin: FLEM's equilibrium at tolerance 1e-5 agrees with the static solve far closer), a
-/// crack starting at the notch tip and running along the notch line through the ligament at
-/// 1.05 p_crit. The paper: no crack at p/(rho g) = 110, a crack at 115.
+/// The opening model as the paper ran it (configs/paper/opening.toml: 36 quads pulled from both
+/// sides, dt = 1e-4 s, constant eta, checks every 10 steps, stages 110 then 115).
+/// References: (1) the paper: no crack at p/(rho g) = 110 (figure 10), a crack from the tip
+/// through the ligament at 115 (figure 11), checked exactly by `check_opening_paper`;
+/// (2) p_crit from a linear static solve at unit load (the faer check solver, METHOD 10; the
+/// tip's elastic nodal stress reaches sigma_t): inside the paper's bracket (110, 115), and the
+/// notch tip carries the largest nodal tension; (3) the dynamic threshold of the scene (stage
+/// 110, then p; bisected to 1/8) within 1 % of the static p_crit: the load step from 110
+/// excites a small overshoot only (measured 113.25-113.5 against 113.4); a wrong damping law,
+/// a stress 1 % off or checks that see the transient wrongly fail it.
 #[test]
-fn paper_opening_cracks_between_095_and_105_p_crit() {
-    let p = check_opening("opening.toml");
-    // The config's own stages bracket p_crit the same way (0.95 and 1.05, rounded to 0.1).
-    let t = config("opening.toml");
-    let lv: Vec<f64> = t.match_indices("levels = { p = ").map(|(i, _)| t[i + 15..].split(' ').next().unwrap().parse().unwrap()).collect();
-    assert!(lv.len() == 2 && rel(lv[0], 0.95 * p) < 2e-3 && rel(lv[1], 1.05 * p) < 2e-3, "opening.toml stages {lv:?} are not 0.95/1.05 x p_crit = {p}");
+fn paper_opening_no_split_at_110_crack_through_the_ligament_at_115() {
+    let file = "opening.toml";
+    let text = config(file);
+    let (p_crit, tip_unit, tmax) = opening_p_crit(&text);
+    println!("{file}: static p_crit/(rho g) = {p_crit:.2} (paper's bracket 110-115)");
+    assert!(rel(tip_unit, tmax) < 1e-9, "the largest nodal tension {tmax} is not at the notch tip ({tip_unit})");
+    assert!(p_crit > 110.0 && p_crit < 115.0, "static p_crit {p_crit} outside the paper's bracket");
+    assert_eq!(check_opening_paper(file), (110.0, 115.0), "{file}: the paper's levels");
+    let splits_at = |p: f64| {
+        let mut sim = paper_sim(&opening_two_stages(&text, 110.0, p, 600));
+        sim.run(&mut flem_core::solver::NoOutput).unwrap();
+        sim.stages_done[1].splits
+    };
+    let (mut lo, mut hi) = (110.0, 115.0);
+    while hi - lo > 0.125 {
+        let mid = 0.5 * (lo + hi);
+        if splits_at(mid) > 0 {
+            hi = mid
+        } else {
+            lo = mid
+        }
+    }
+    println!("{file}: dynamic threshold (from 110) in ({lo}, {hi}]; static p_crit {p_crit:.2}");
+    assert!(rel(0.5 * (lo + hi), p_crit) < 1e-2, "dynamic threshold ({lo}, {hi}] against static p_crit {p_crit:.2}");
 }
 
-/// Same on the finer mesh (configs/paper/opening_fine.toml, each cell split 2 x 2).
+/// The same on the finer mesh (configs/paper/opening_fine.toml, each cell split 2 x 2; dt =
+/// 5e-5 s, Table 1's scaled with h, since 1e-4 s is above this mesh's dt_crit). Reference: the
+/// static p_crit of this mesh (as above) lies between the config's two levels, 70 and 80 (the
+/// finer mesh sees more of the notch singularity: its p_crit is below the paper's bracket);
+/// below it no split and equilibrium, above it the crack from the tip through the whole
+/// ligament (exact, `check_opening_paper`).
 #[test]
-fn paper_opening_fine_cracks_between_095_and_105_p_crit() {
-    check_opening("opening_fine.toml");
+fn paper_opening_fine_cracks_through_the_ligament_above_p_crit() {
+    let file = "opening_fine.toml";
+    let (p_crit, tip_unit, tmax) = opening_p_crit(&config(file));
+    println!("{file}: static p_crit/(rho g) = {p_crit:.2}");
+    assert!(rel(tip_unit, tmax) < 1e-9, "the largest nodal tension {tmax} is not at the notch tip ({tip_unit})");
+    let (p1, p2) = check_opening_paper(file);
+    assert!(p1 < p_crit && p_crit < p2, "{file}: static p_crit {p_crit:.2} not between the stages {p1} and {p2}");
+}
+
+/// A stage that ends at its step limit without equilibrium, with cracking on and never
+/// checked, gets a warning in the run (Simulation::warnings) and in summary.json; a stage
+/// that was checked (at rest, or during the march) does not. Reference: the stage loop's own
+/// record of checks (StageResult.checks); exact.
+#[test]
+fn paper_unchecked_stage_warns() {
+    let text = config("opening.toml");
+    // Checks at rest (the quasi-static variant) and a second stage too short to come to rest.
+    let at_rest = text.replace("at_equilibrium = false", "at_equilibrium = true").replace("max_steps = 125", "max_steps = 30");
+    let dir = std::env::temp_dir().join(format!("flem_paper_warn_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for (t, warn) in [(at_rest, true), (text.replace("max_steps = 125", "max_steps = 30"), false)] {
+        let mut sim = paper_sim(&t);
+        let mut w = flem_core::output::OutputWriter::new(&dir, &sim).unwrap();
+        sim.run(&mut w).unwrap();
+        w.write_summary(&sim, 0.0).unwrap();
+        let st = &sim.stages_done;
+        assert!(st[0].converged && st[0].checks > 0 && !st[1].converged, "{st:?}");
+        let found: Vec<&String> = sim.warnings.iter().filter(|w| w.contains("never checked")).collect();
+        let summary = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+        if warn {
+            assert_eq!(st[1].checks, 0);
+            assert!(found.len() == 1 && found[0].contains("stage \"p115\""), "{:?}", sim.warnings);
+            assert!(summary.contains("never checked"), "summary.json has no warning");
+        } else {
+            assert!(st[1].checks > 0);
+            assert!(found.is_empty() && !summary.contains("never checked"), "{:?}", sim.warnings);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// One row per p stage of a direct shear run: (p/(rho g), stage in equilibrium, cd edges open at
@@ -203,72 +274,62 @@ fn direct_shear(file: &str, to_the_end: bool) -> (usize, usize, Vec<ShearRow>, f
     (under_q, cd.len(), rows, sim.ledger.relative_residual(), log.events)
 }
 
-/// Direct shear with contact (the paper's spring_dashpot law, Table 1) on the coarse mesh
-/// (configs/paper/direct_shear.toml: 21 quads + 1 triangle) and the fine one, each with the
-/// paper's sigma1-nearest rule and with the coulomb_traction variant.
-/// References (statics of the upper block, bc pre-separated carries nothing, side ab from
-/// (2,4) to (4,8), q = 100 rho g on the top, 8 cm):
-/// (1) under q alone nothing fails: near uniaxial compression q below the uniaxial compressive
-///     strength 2 c cos(phi)/(1 - sin(phi)) = 130.8 rho g (METHOD 4);
-/// (2) cd as a rigid-block slip plane with cohesion: p_lim = 8 (c + q tan(phi)) /
-///     (4 - 2 tan(phi)) = 268.5 rho g; the first split comes below it (elastic stress
-///     concentrations at b and along cd);
-/// (3) cd with friction only (mu = tan(phi), c lost): p_f = 8 q tan(phi) / (4 - 2 tan(phi)) =
-///     162.3 rho g: on the coarse mesh, with contact, the block holds at every stage up to p_f;
-/// (4) energy balance (central differences with the paper's contact law and co-rotational
-///     elements): relative residual below 1e-2 at every stage (measured: at most 1.6e-4 coarse,
-///     8.6e-6 fine, since session 5's slip dissipation; 1.3e-3 / 1.2e-4 in session 4; 0.23-0.98 before its contact fix).
-/// Not asserted, measured (docs/paper.md): the coarse block "holds" to p = 400 = 1.49 p_lim,
-/// beyond the 321.6 of shearing the whole specimen over y = 2, with 28 points beyond the
-/// criterion that no rule splits (open fans whose joined edges lie more than 45 deg from
-/// sigma1): the method has no plasticity, such points carry stress above their strength. The
-/// held row is clamped point by point, so the y = 2 mechanism is not open to the model anyway.
-/// Measured and asserted as measured: the paper's separation along cd (fig. 8) is NOT
-/// reproduced; when equilibrium is lost, cd is not open along its whole length (the points on
-/// cd fail with sigma1 steeper than 45 deg and cut vertical edges; on these structured fans
-/// coulomb_traction picks the same edges as sigma1_nearest). docs/paper.md has the table.
+/// The direct shear model as the paper ran it (configs/paper/direct_shear.toml: q = 100 to
+/// rest, then p = 894 and 2235 held 5000 steps each, dt = 1e-4 s, constant eta, checks every
+/// 10 steps). References:
+/// (1) under q alone nothing fails (near uniaxial compression q below the uniaxial
+///     compressive strength 2 c cos(phi) / (1 - sin(phi)) = 130.8 rho g, METHOD 4) and the
+///     stage comes to rest;
+/// (2) the paper's figure 8 (b): cd separated along its whole length at p = 2235 (every cd
+///     edge open at both ends);
+/// (3) statics: with cd open, carrying friction only (mu = 0.577), the upper block's load
+///     (4 p horizontal, 8 q + 2 p vertical per unit thickness) lies outside the friction cone for
+///     p > 8 mu q / (4 - 2 mu) = 162 rho g: the 2235 stage cannot come to rest (no equilibrium);
+/// (4) energy balance: relative residual below 1e-2 (measured 1.1e-3).
+/// Measured, not asserted (docs/paper.md, with the check interval x dt table): at 894 cd is
+/// cracked at all 4 edges (3 open at both ends) and the specimen fragments elsewhere too.
 #[test]
-fn paper_direct_shear_with_contact_does_not_open_cd() {
-    let tphi = 30f64.to_radians().tan();
-    let (q, c) = (100.0 * RHO_G, COHESION);
-    let p_lim = 8.0 * (c + q * tphi) / (4.0 - 2.0 * tphi) / RHO_G;
-    let p_f = 8.0 * q * tphi / (4.0 - 2.0 * tphi) / RHO_G;
-    let p_y2 = (12.0 * c + 8.0 * q * tphi) / (4.0 - 2.0 * tphi) / RHO_G;
-    assert!((p_lim - 268.5).abs() < 0.1 && (p_f - 162.3).abs() < 0.1 && (p_y2 - 321.6).abs() < 0.1, "{p_lim} {p_f} {p_y2}");
-    for file in ["direct_shear.toml", "direct_shear_coulomb.toml", "direct_shear_fine.toml", "direct_shear_fine_coulomb.toml"] {
-        let (under_q, n_cd, rows, residual, _) = direct_shear(file, false);
-        assert_eq!(under_q, 0, "{file}: splits under q alone");
-        let first = rows.iter().find(|r| r.5 > 0).unwrap_or_else(|| panic!("{file}: nothing failed up to p = {}", rows.last().unwrap().0));
-        let end = rows.last().unwrap();
-        let last_eq = rows.iter().take_while(|r| r.1).last().map_or(0.0, |r| r.0);
-        println!("{file}: first split at p/(rho g) = {} ({:.3} p_lim); last equilibrium {last_eq} ({:.3} p_lim); equilibrium lost at {} ({:.3} p_lim); cd open at both ends {}/{n_cd}, cracked {}; p_lim = {p_lim:.1}, p_f = {p_f:.1}, p_y2 = {p_y2:.1}", first.0, first.0 / p_lim, last_eq / p_lim, end.0, end.0 / p_lim, end.2, end.3);
-        assert!(first.0 < p_lim, "{file}: first split at {} above the limit {p_lim:.1}", first.0);
-        assert!(!end.1, "{file}: the block still holds at p = {}", end.0);
-        println!("{file}: energy residual at the end {residual:.2e}");
-        for r in &rows {
-            assert!(r.6 < 1e-2, "{file}: energy residual {} at p = {}", r.6, r.0);
-            // Statics of the upper block: with |t| <= c + s_n tan(phi) on cd (implied by the
-            // criterion at its points) and friction mu = tan(phi) on bc, its horizontal hold is
-            // at most 8 c + (8 q + 2 p) tan(phi), i.e. p <= p_lim. An equilibrium past p_lim
-            // therefore needs points beyond the criterion (the nodal stress approximates this).
-            if r.1 && r.0 > p_lim {
-                assert!(r.7 > 0, "{file}: in equilibrium at p = {} > p_lim = {p_lim:.1} with every point within the criterion", r.0);
-            }
-        }
-        if !file.contains("fine") {
-            assert!(last_eq >= p_f, "{file}: equilibrium lost at {} below the frictional limit {p_f:.1}", end.0);
-        }
-        assert!(end.2 < n_cd, "{file}: cd is open along its whole length at p = {}: the paper's result is reproduced now, update docs/paper.md", end.0);
+fn paper_direct_shear_as_the_paper_ran_it_separates_cd() {
+    let file = "direct_shear.toml";
+    let mu: f64 = 0.577;
+    let p_cone = 8.0 * mu * 100.0 / (4.0 - 2.0 * mu);
+    assert!((p_cone - 162.3).abs() < 0.5, "{p_cone}");
+    let ucs = 2.0 * COHESION * 30f64.to_radians().cos() / (1.0 - 30f64.to_radians().sin()) / RHO_G;
+    assert!((ucs - 130.8).abs() < 0.1, "{ucs}");
+    let (under_q, n_cd, rows, residual, events) = direct_shear(file, true);
+    assert_eq!(under_q, 0, "{file}: splits under q alone");
+    let at = |p: f64| rows.iter().find(|r| (r.0 - p).abs() < 1e-9).unwrap_or_else(|| panic!("{file}: no stage at p = {p}"));
+    println!(
+        "{file}: at 894: cd open {}/{n_cd}, cracked {}, faces off the plane {}, splits {}; at 2235: cd open {}/{n_cd}, splits {}; energy residual {residual:.2e}",
+        at(894.0).2,
+        at(894.0).3,
+        at(894.0).4,
+        at(894.0).5,
+        at(2235.0).2,
+        at(2235.0).5
+    );
+    assert_eq!(at(2235.0).2, n_cd, "{file}: cd not open along its whole length at p = 2235 (figure 8 (b))");
+    assert!(!at(2235.0).1, "{file}: at rest at p = 2235 with cd open: outside the friction cone (p > {p_cone:.0})");
+    // The lemma (4) in the x-y frame: measured, not asserted here. The rule compares sigma1 with
+    // the CURRENT edge directions, and under p = 894 the fragments have turned: cuts of cd at
+    // its interior points came with sigma1 at 31 to 47 deg from x (docs/paper.md). The stop
+    // variant below, whose block does not turn, asserts it.
+    let sim = paper_sim(&config(file));
+    let cd = sim.model.edge_set("cd", "cd", file).unwrap();
+    for ev in events.iter().filter(|ev| ev.edges.iter().any(|e| cd.contains(e))) {
+        let x = sim.model.mesh.points[ev.point.idx()][0];
+        println!("{file}: cd cut at x = {x} (step {}): sigma1 at {:.1} deg, sxx {:.3e}, syy {:.3e}", ev.step, ev.sigma1_deg, ev.stress[0], ev.stress[1]);
     }
+    assert!(residual < 1e-2, "{file}: energy residual {residual}");
 }
 
 /// Direct shear with a stop at the upper block's right end (configs/paper/direct_shear_stop.toml:
-/// direct_shear.toml plus `upper_right` held in x). The paper's figure 8 shows equilibria at
-/// p/(rho g) = 894 and 2235 with cd separated; without a stop no equilibrium exists above
-/// p_lim = 268.5 (statics, see the test above), so the paper's model must have carried p
-/// elsewhere. References:
-/// (1) statics: with the stop the upper block is held at every stage, including the paper's
-///     894 and 2235 (3.3 and 8.3 p_lim);
+/// the quasi-static direct_shear_steps.toml plus `upper_right` held in x; ours, not the
+/// paper's). With cd fully open the upper block's load lies outside the friction cone (see the
+/// test above), so an equilibrium with cd open at 894 and 2235 needs horizontal support: this
+/// variant gives it one. References:
+/// (1) statics: with the stop the upper block is held at every stage, including 894 and 2235
+///     (3.3 and 8.3 p_lim);
 /// (2) the paper's figure 8 (b): cd open along its whole length at p = 2235;
 /// (3) the separation rule (METHOD 5): a cd edge is cut at a point only when sigma1 there lies
 ///     within 45 deg of cd, i.e. (exact, from tan 2 theta = 2 t / (sxx - syy)) when the
@@ -387,4 +448,37 @@ fn paper_plot_refuses_a_folder_without_results() {
     assert!(e.contains("results.pvd") && e.contains("run folder"), "{e}");
     assert!(!dir.join("plots").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The paper's damping, eq. (5), `viscous_eta`: one constant eta for every node. A free body
+/// (no support) pulled by a constant force F reaches the terminal rigid velocity at which the
+/// damping forces balance F: with a constant eta, sum over nodes of eta v = F, so v = F / (n eta)
+/// whatever the nodal masses (here 2 x 1 quads: corner and mid-side nodes of different mass);
+/// with the mass-proportional `viscous` (ours) v = F / (alpha M). Reference: that balance,
+/// exact; tolerance 1e-6 relative after 2000 time constants m_max / eta (and 1 / alpha). A scheme that used
+/// eta / m per node wrongly (or eta m) fails it.
+#[test]
+fn paper_viscous_eta_terminal_velocity_is_f_over_n_eta() {
+    let (eta, alpha, t, h) = (50.0, 5.0, 2.0, 1.0);
+    for (damping, name) in [(format!("{{ type = \"viscous_eta\", eta = {eta} }}"), "viscous_eta"), (format!("{{ type = \"viscous\", alpha = {alpha} }}"), "viscous")] {
+        let text = format!(
+            "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = {h}\nnx = 2\nny = 1\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.25\ndensity = 1.0\n[solver]\ndamping = {damping}\n[[load]]\nname = \"f\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [{t}, 0.0]\n[[stage]]\nlevels = {{ f = 1.0 }}\ndynamic = true\nmax_steps = 200000\n"
+        );
+        let mut sim = paper_sim(&text);
+        let m_max = sim.state.mass.iter().copied().fold(0.0, f64::max);
+        let m_min = sim.state.mass.iter().copied().fold(f64::MAX, f64::min);
+        assert!(m_max > 1.5 * m_min, "the nodal masses must differ: {:?}", sim.state.mass);
+        let total_m: f64 = sim.state.mass.iter().sum();
+        let tau = if name == "viscous_eta" { m_max / eta } else { 1.0 / alpha };
+        let steps = (2000.0 * tau / sim.dt).ceil() as u64;
+        sim.scene.file.stages[0].max_steps = Some(steps);
+        sim.run(&mut flem_core::solver::NoOutput).unwrap();
+        let f = t * h;
+        let n = sim.state.v.len() as f64;
+        let want = if name == "viscous_eta" { f / (n * eta) } else { f / (alpha * total_m) };
+        for v in &sim.state.v {
+            assert!(rel(v[0], want) < 1e-6 && v[1].abs() < 1e-6 * want, "{name}: v = {v:?}, want {want}");
+        }
+        println!("{name}: terminal velocity {:.6e} (want {want:.6e}; {} steps)", sim.state.v[0][0], steps);
+    }
 }

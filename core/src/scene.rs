@@ -315,7 +315,10 @@ pub struct CrackingCfg {
     pub check_every: u64,
     /// Check failure only once the stage has reached equilibrium (default: damped relaxation
     /// overshoots, and its transient stresses are not the static ones); after splits the
-    /// stage relaxes again and checks again, until a check splits nothing.
+    /// stage relaxes again and checks again, until a check splits nothing. A quasi-static
+    /// variant of ours: the paper checks during the march (`false` with `check_every`, METHOD
+    /// 8). A stage that never comes to rest is then never checked: it ends with a warning
+    /// (`Simulation::warnings`, summary.json, `flem run`).
     #[serde(default = "yes")]
     pub at_equilibrium: bool,
     /// With `at_equilibrium`: also check when the stage has not come to rest, i.e. its best

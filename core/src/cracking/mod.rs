@@ -158,7 +158,15 @@ impl Cracking {
             }
             let (xg, ug) = if u_ext.is_empty() { (x0, u) } else { (&x_ext[..], &u_ext[..]) };
             Self::link_geometry(&model.topo, &fan, xg, ug, &mut links);
-            let view = FanView { point: fan.point, cluster: cid, closed: fan.is_closed(), links: &links, stress: self.nodal[c as usize], principal: self.principal[c as usize] };
+            let view = FanView {
+                point: fan.point,
+                cluster: cid,
+                closed: fan.is_closed(),
+                never_split: model.topo.point_clusters[fan.point.idx()].len() == 1,
+                links: &links,
+                stress: self.nodal[c as usize],
+                principal: self.principal[c as usize],
+            };
             let chk = self.checks[c as usize];
             let Some(prop) = cfg.separation.try_propose(&view, &chk).map_err(crate::FlemError::Other)? else { continue };
             let r = model.topo.cut(cid, &prop.edges, true);

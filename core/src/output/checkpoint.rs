@@ -277,7 +277,7 @@ impl Checkpoint {
         sim.last_ratio = self.last_ratio;
         let s = self.stats;
         sim.stats = StepStats { step: s.0, dt: s.1, omega_max: s.2, kinetic: s.3, u_f_int: s.4, u_m_u: s.5 };
-        sim.coeffs = DampingCoeffs { viscous: self.coeffs.0, local: self.coeffs.1 };
+        sim.coeffs = DampingCoeffs { viscous: self.coeffs.0, local: self.coeffs.1, ..Default::default() };
         let sb = self.stable;
         sim.stable = crate::solver::StableStep { dt_crit: sb.0, dt_element_bound: sb.1, omega_max: sb.2, iterations: sb.3 as usize, dt_contact: self.stable_dt_contact };
         if self.stable_vec.len() != nc {

@@ -1,9 +1,11 @@
 //! Damping: a trait the solver asks once per step for the coefficients of the combined law
 //!
-//! `f_damp = viscous * m * v_mid + local * |F| * sign(v)`,
+//! `f_damp = (viscous * m + eta) * v_mid + local * |F| * sign(v)`,
 //!
 //! integrated implicitly in velocity (METHOD section 7):
-//! `v+ = ((1 - a dt/2) v- + dt (F - local |F| sign(v-)) / m) / (1 + a dt/2)`.
+//! `v+ = ((1 - a dt/2) v- + dt (F - local |F| sign(v-)) / m) / (1 + a dt/2)` with
+//! `a = viscous + eta / m` per node (`eta` the paper's eq. 5 coefficient, the same for every
+//! node, so `a` differs with the node's mass; `viscous` the mass-proportional part).
 use std::fmt::Debug;
 
 use crate::plugin::traits::ParamError;
@@ -15,6 +17,10 @@ pub struct DampingCoeffs {
     pub viscous: f64,
     /// Local (non-viscous) damping ratio, dimensionless in [0, 1).
     pub local: f64,
+    /// Constant viscous coefficient of every node, force per velocity (the paper's eq. 5
+    /// `eta`: a node's damping force is `eta v` whatever its mass). The node update divides it
+    /// by each node's mass; a scheme that leaves it 0 pays nothing for it.
+    pub eta: f64,
 }
 
 /// What the solver measured over the last step (free dofs only).

@@ -172,6 +172,11 @@ pub struct FanView<'a> {
     pub cluster: ClusterId,
     /// A cycle of links (interior point never split) or a path.
     pub closed: bool,
+    /// The point has never split: it has one cluster (no failure cut and no pre-separated
+    /// edge split it into two). An open fan of such a point is a boundary point or the end
+    /// of a pre-cut edge (METHOD 5: the paper's pi/4 cap for open fans is stated only for
+    /// points that have already split). Dynamic plugins (the C ABI) always see `false`.
+    pub never_split: bool,
     /// Joined edges at the point, in increasing edge id.
     pub links: &'a [LinkGeom],
     /// Nodal stress, tension positive `[sxx, syy, sxy]`.

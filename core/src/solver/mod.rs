@@ -164,6 +164,9 @@ pub struct StageResult {
     pub time: f64,
     pub splits: usize,
     pub energy_residual: f64,
+    /// Failure checks made in this stage (0 without `[cracking]`).
+    #[serde(default)]
+    pub checks: u64,
 }
 
 /// What a progress callback sees.
@@ -229,12 +232,15 @@ pub struct StagePos {
     /// Stall detection: the best ratio so far and the stage step it was reached at.
     pub best_ratio: f64,
     pub best_step: u64,
+    /// Failure checks made in this stage so far.
+    #[serde(default)]
+    pub checks: u64,
 }
 
 impl StagePos {
     /// The start of stage `i`.
     pub fn start(i: usize) -> Self {
-        StagePos { stage: i, stage_step: 0, begun: false, splits: 0, ratio: f64::INFINITY, wall_seconds: 0.0, best_ratio: f64::INFINITY, best_step: 0 }
+        StagePos { stage: i, stage_step: 0, begun: false, splits: 0, ratio: f64::INFINITY, wall_seconds: 0.0, best_ratio: f64::INFINITY, best_step: 0, checks: 0 }
     }
 }
 
@@ -302,6 +308,10 @@ struct NodeCtx<'a> {
     c1: f64,
     c2: f64,
     beta: f64,
+    /// The constant-eta term `eta dt / 2` (only read when `DAMP == 3`).
+    eta_hdt: f64,
+    /// The mass-proportional `a dt / 2` (only read when `DAMP == 3`).
+    a_hdt: f64,
 }
 
 /// `max |F_unbal| / mean |F_applied|` from the largest residual, the sum of the applied-force
@@ -328,7 +338,8 @@ impl NodeCtx<'_> {
     /// Central-difference update of the clusters `c0..c0 + u.len()`; returns the ledger sums
     /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]` of the chunk. `CONTACT = false`
     /// compiles the contact force out (a scene without contact pays nothing for it), `DAMP`
-    /// (0 none, 1 viscous, 2 viscous and local) the damping terms. `FULL = false` (a step whose ledger nobody reads) sums
+    /// (0 none, 1 viscous, 2 viscous and local, 3 viscous with a constant eta: per-node
+    /// coefficients `a = a_mass + eta / m`) the damping terms. `FULL = false` (a step whose ledger nobody reads) sums
     /// only what accumulates over steps (work, damping, contact work), plus the half-step
     /// kinetic energy, `u . F_int` and `u . M u` when `STATS` (a damping that reads them);
     /// `FULL` sums everything. The sums run in four independent lanes (node parity x
@@ -372,8 +383,15 @@ impl NodeCtx<'_> {
         // One division per node instead of two per dof (the ledger stays exact to round-off).
         let dt_m = self.dt / m;
         let fix = self.fix[c];
-        let (ux, ax) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 0, fix & 1 == 0, m, dt_m, uc, vc, a);
-        let (uy, ay) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 1, fix & 2 == 0, m, dt_m, uc, vc, b);
+        // A constant eta (the paper's eq. 5) is a different `a` per node: `a = a_mass + eta / m`.
+        let (c1, c2) = if DAMP == 3 {
+            let h = self.a_hdt + self.eta_hdt / m;
+            (1.0 - h, 1.0 / (1.0 + h))
+        } else {
+            (self.c1, self.c2)
+        };
+        let (ux, ax) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 0, fix & 1 == 0, m, dt_m, c1, c2, uc, vc, a);
+        let (uy, ay) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 1, fix & 2 == 0, m, dt_m, c1, c2, uc, vc, b);
         if FULL {
             // The unbalanced-force ratio of this step, fused (the same terms, in the same
             // order per node, as `Simulation::unbalanced_ratio`).
@@ -398,11 +416,13 @@ impl NodeCtx<'_> {
         free: bool,
         m: f64,
         dt_m: f64,
+        c1: f64,
+        c2: f64,
         uc: &mut [f64; 2],
         vc: &mut [f64; 2],
         s: &mut [f64; NSUM],
     ) -> (f64, f64) {
-        let (dt, c1, c2) = (self.dt, self.c1, self.c2);
+        let dt = self.dt;
         let (fe, fi, vm) = (self.f_ext[c][d], self.f_int[c][d], vc[d]);
         let fc = if CONTACT { self.f_con[c][d] } else { 0.0 };
         let ud = uc[d];
@@ -597,15 +617,24 @@ impl Simulation {
                 self.warnings.push(format!("{file}: solver.dt = {dt:e} is above the critical step {crit:e} (dt/dt_crit = {:.3}); running anyway because solver.allow_unstable_dt = true", dt / crit));
                 Ok(dt)
             }
-            Some(dt) => Err(FlemError::config(
-                file,
-                "solver.dt",
-                format!(
-                    "= {dt:e} is incorrect; it must be <= the critical step {crit:e} of this mesh (dt/dt_crit = {:.3}); remove it to use {} x dt_crit, or set solver.allow_unstable_dt = true",
-                    dt / crit,
-                    s.dt_safety
-                ),
-            )),
+            Some(dt) => {
+                // Say what sets the step: the contact springs when their term dominates.
+                let dc = self.stable.dt_contact;
+                let by = if dc.is_finite() && dc < self.stable.dt_element_bound {
+                    format!(" (set by the contact springs, contact.law normal_stiffness / shear_stiffness: their bound alone is {dc:e})")
+                } else {
+                    String::new()
+                };
+                Err(FlemError::config(
+                    file,
+                    "solver.dt",
+                    format!(
+                        "= {dt:e} is incorrect; it must be <= the critical step {crit:e} of this mesh{by} (dt/dt_crit = {:.3}); remove it to use {} x dt_crit, or set solver.allow_unstable_dt = true",
+                        dt / crit,
+                        s.dt_safety
+                    ),
+                ))
+            }
         }
     }
 
@@ -868,17 +897,20 @@ impl Simulation {
         }
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
         let corot_strain = if full && self.model.corotational { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
-        let (a, beta) = (self.coeffs.viscous, self.coeffs.local);
+        let (a, beta, eta) = (self.coeffs.viscous, self.coeffs.local, self.coeffs.eta);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
         // Node update in fixed chunks; the ledger sums are added chunk by chunk in chunk order,
         // so they do not depend on the number of threads.
         let State { u, v, f_int, f_ext, f_con, mass, fix, v_pres, .. } = &mut self.state;
-        let ctx = NodeCtx { mass, fix, f_int, f_ext, f_con, v_pres, dt, inv_dt: 1.0 / dt, c1, c2, beta };
+        let ctx = NodeCtx { mass, fix, f_int, f_ext, f_con, v_pres, dt, inv_dt: 1.0 / dt, c1, c2, beta, eta_hdt: 0.5 * eta * dt, a_hdt: 0.5 * a * dt };
         // One monomorphised node update per combination: a step pays only for what the scene
         // has and for what is read after it.
         let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
-        // Damping: 0 none, 1 viscous only, 2 with the local term.
-        let damp = if beta != 0.0 {
+        // Damping: 0 none, 1 viscous only, 2 with the local term, 3 with a constant eta (the
+        // paper's; with a local term too, the local term is dropped: no scheme asks for both).
+        let damp = if eta != 0.0 {
+            3
+        } else if beta != 0.0 {
             2
         } else if a != 0.0 {
             1
@@ -888,10 +920,12 @@ impl Simulation {
         let update = match (self.contact.is_some(), damp) {
             (false, 0) => pick_update::<false, 0>(full, stats),
             (false, 1) => pick_update::<false, 1>(full, stats),
-            (false, _) => pick_update::<false, 2>(full, stats),
+            (false, 2) => pick_update::<false, 2>(full, stats),
+            (false, _) => pick_update::<false, 3>(full, stats),
             (true, 0) => pick_update::<true, 0>(full, stats),
             (true, 1) => pick_update::<true, 1>(full, stats),
-            (true, _) => pick_update::<true, 2>(full, stats),
+            (true, 2) => pick_update::<true, 2>(full, stats),
+            (true, _) => pick_update::<true, 3>(full, stats),
         };
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
         if self.partials.len() != n_chunks {
@@ -1034,7 +1068,8 @@ impl Simulation {
         let mut converged = false;
         let mut splits = pos.splits;
         let mut ratio = pos.ratio;
-        let here = |k: u64, splits: usize, ratio: f64, best_ratio: f64, best_step: u64| StagePos {
+        let mut checks = pos.checks;
+        let here = |k: u64, splits: usize, ratio: f64, best_ratio: f64, best_step: u64, checks: u64| StagePos {
             stage: i,
             stage_step: k,
             begun: true,
@@ -1043,6 +1078,7 @@ impl Simulation {
             wall_seconds: pos.wall_seconds + t0.elapsed().as_secs_f64(),
             best_ratio,
             best_step,
+            checks,
         };
         while k < max_steps {
             if k > k0 {
@@ -1051,7 +1087,7 @@ impl Simulation {
                 if stop || (ck_every > 0 && self.state.step % ck_every == 0) || obs.checkpoint_due(self) {
                     // A lean step does not run the divergence guard: nothing diverged is saved.
                     self.guard_now()?;
-                    obs.checkpoint(self, &here(k, splits, ratio, best, best_step))?;
+                    obs.checkpoint(self, &here(k, splits, ratio, best, best_step, checks))?;
                 }
                 if stop {
                     obs.snapshot(self, i, "interrupted")?;
@@ -1071,6 +1107,7 @@ impl Simulation {
             k += 1;
             if check_every > 0 && k % check_every == 0 {
                 splits += self.check_failure(obs)?;
+                checks += 1;
             }
             if (k % every == 0 && (full || !st.dynamic)) || k == max_steps {
                 ratio = self.step_unbalanced_ratio();
@@ -1081,11 +1118,13 @@ impl Simulation {
                 if check_at_eq && stall_steps > 0 && !st.dynamic && k - best_step >= stall_steps {
                     // Not coming to rest (a mechanism): check anyway, then watch again.
                     splits += self.check_failure(obs)?;
+                    checks += 1;
                     (best, best_step) = (ratio, k);
                 }
                 if !st.dynamic && ratio < tol && k >= 2 * every {
                     if check_at_eq {
                         let n = self.check_failure(obs)?;
+                        checks += 1;
                         splits += n;
                         if n > 0 {
                             continue;
@@ -1108,11 +1147,19 @@ impl Simulation {
         ratio = self.unbalanced_ratio();
         self.last_ratio = ratio;
         self.refresh_stable_step();
+        let name = if st.name.is_empty() { format!("stage{i}") } else { st.name.clone() };
+        if !st.dynamic && !converged && checks == 0 && self.cracking.is_some() {
+            // Checks at equilibrium never ran: the stage may hold cracks nobody looked for.
+            let file = self.scene.path.display();
+            self.warnings.push(format!(
+                "{file}: stage \"{name}\" ended at its step limit ({k} steps, unbalanced ratio {ratio:.2e}) without equilibrium and failure was never checked in it (cracking.at_equilibrium = true checks only once a stage comes to rest): cracks it would show are hidden; set cracking.at_equilibrium = false with cracking.check_every (the paper's checks during the march), or cracking.stall_steps"
+            ));
+        }
         if st.dynamic {
             converged = true;
         }
         self.stages_done.push(StageResult {
-            name: if st.name.is_empty() { format!("stage{i}") } else { st.name.clone() },
+            name,
             steps: k,
             converged,
             final_ratio: ratio,
@@ -1120,6 +1167,7 @@ impl Simulation {
             time: self.state.time,
             splits,
             energy_residual: self.ledger.relative_residual(),
+            checks,
         });
         obs.history(self, i)?;
         if st.snapshot {

@@ -18,7 +18,8 @@
 //!   (two distinct links; on a structured quad mesh a straight line); no link there: no cut.
 //!   Open fan: cut the link of largest `e` only if `e > 0` (its plane really fails).
 //! - **tension failure**: exactly as `sigma1_nearest` (the paper's rule; eq. (1) gives the
-//!   plane exactly).
+//!   plane exactly), with its `cap_unsplit_boundary` (default `false`, the paper: no pi/4 cap
+//!   at points that never split; `true` is ours).
 //! - Ties: excesses within 1e-9 (relative to the largest |e|) count as equal; then the smaller
 //!   edge id. A check that did not fail proposes nothing; NaN stress proposes nothing.
 //!
@@ -27,13 +28,15 @@
 //! and the plane of largest |t_s| need not be the plane that fails first by Coulomb; this rule
 //! cuts the edge whose own plane is closest to (or furthest beyond) Coulomb's limit.
 //!
-//! Units: `cohesion` stress; `friction_angle_deg` degrees in [0, 90).
+//! Units: `cohesion` stress; `friction_angle_deg` degrees in [0, 90); `cap_unsplit_boundary`
+//! bool (default false).
 //!
 //! ```toml
 //! [cracking.separation]
 //! type = "coulomb_traction"
 //! cohesion = 98066.5          # 0.1 kgf/cm^2 in dyn/cm^2 (paper Table 1)
 //! friction_angle_deg = 30.0
+//! cap_unsplit_boundary = false  # the paper (tension splits: no pi/4 cap at never-split points)
 //! ```
 //!
 //! Relation to the other rules (issue 8): on a closed fan it picks the best link and the best
@@ -59,6 +62,10 @@ pub struct CoulombTraction {
     pub cohesion: f64,
     /// phi, degrees in [0, 90).
     pub friction_angle_deg: f64,
+    /// Ours (not the paper's): for tension splits, the pi/4 open-fan cap also at points that
+    /// never split (see `sigma1_nearest`).
+    #[serde(default)]
+    pub cap_unsplit_boundary: bool,
 }
 
 impl CoulombTraction {
@@ -85,7 +92,7 @@ impl SeparationRule for CoulombTraction {
     }
     fn propose(&self, fan: &FanView, failure: &FailureCheck) -> Option<Proposal> {
         if failure.mode? != FailureMode::Shear {
-            return propose_along(fan, fan.principal.theta1);
+            return propose_along(fan, fan.principal.theta1, self.cap_unsplit_boundary);
         }
         let (first, e) = self.best(fan, |_| true)?;
         if !fan.closed {
@@ -107,7 +114,7 @@ mod tests {
 
     /// c = 0.1, phi = 30 deg (METHOD 4's worked values).
     fn rule() -> CoulombTraction {
-        CoulombTraction { cohesion: 0.1, friction_angle_deg: 30.0 }
+        CoulombTraction { cohesion: 0.1, friction_angle_deg: 30.0, cap_unsplit_boundary: false }
     }
     fn run(f: &FanView, mode: FailureMode) -> Option<Vec<u32>> {
         ids(rule().propose(f, &failed(mode, &[])))
@@ -167,7 +174,7 @@ mod tests {
                     }
                     let f = fan(&l, true, [sxx, syy, sxy]);
                     let a = ids(rule().propose(&f, &failed(Shear, &[]))).unwrap();
-                    let b = ids(Sigma1Nearest {}.propose(&f, &failed(Shear, &[]))).unwrap();
+                    let b = ids(Sigma1Nearest::default().propose(&f, &failed(Shear, &[]))).unwrap();
                     let set = |v: &[u32]| {
                         let mut v = v.to_vec();
                         v.sort();
@@ -213,9 +220,9 @@ mod tests {
         assert_eq!(rule().propose(&fan(&open, false, [1.0, 0.0, 0.0]), &FailureCheck::default()), None);
         let l = links(&[0.0, 90.0, 180.0, 270.0]);
         assert_eq!(run(&fan(&l, true, [f64::NAN, 0.0, 0.0]), Shear), None);
-        let e = CoulombTraction { cohesion: -1.0, friction_angle_deg: 30.0 }.validate().unwrap_err();
+        let e = CoulombTraction { cohesion: -1.0, friction_angle_deg: 30.0, cap_unsplit_boundary: false }.validate().unwrap_err();
         assert_eq!(e.key, "cohesion");
-        let e = CoulombTraction { cohesion: 0.0, friction_angle_deg: 90.0 }.validate().unwrap_err();
+        let e = CoulombTraction { cohesion: 0.0, friction_angle_deg: 90.0, cap_unsplit_boundary: false }.validate().unwrap_err();
         assert_eq!(e.key, "friction_angle_deg");
     }
 }

@@ -8,8 +8,13 @@
 //! - **closed fan** (a cycle): cut the link whose ray is nearest the target ray `d` and, among
 //!   the other links, the one nearest `d + pi`: two distinct links, so the cycle always falls
 //!   into two non-empty parts (on a structured quad mesh: the straight line BB' of figs. 4-5).
-//! - **open fan** (a path): cut the one link nearest `d` as an undirected line (mod pi), only if
-//!   its angle to `d` is strictly below pi/4 (the paper's second split along Aa', section 3.1).
+//! - **open fan** (a path): cut the one link nearest `d` as an undirected line (mod pi). At a
+//!   point that has already split (the paper's a', a''), only if its angle to `d` is strictly
+//!   below pi/4 (the paper's second split along Aa', section 3.1). At a point that never split
+//!   (`FanView::never_split`: a boundary point, a corner, the tip of a pre-cut edge) the paper
+//!   states no cap (its first-split rule, section 2.2): by default the nearest link is cut
+//!   whatever its angle; `cap_unsplit_boundary = true` (ours, our first reading) applies the
+//!   pi/4 cap there too ([`cap_for`]).
 //! - **ties** (distances within [`TIE`] = 1e-9 rad of the smallest): prefer the link that lies
 //!   counter-clockwise from the target, i.e. whose signed offset `angle - target` is in
 //!   (0, pi] for rays, (0, pi/2] for lines; then the smaller edge id. So on a structured fan
@@ -27,7 +32,7 @@ pub mod traction;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 use flem_core::ids::EdgeId;
-use flem_core::plugin::traits::{line_angle, ray_angle, LinkGeom, Proposal};
+use flem_core::plugin::traits::{line_angle, ray_angle, FanView, LinkGeom, Proposal};
 
 /// The registered rule names (typetag `type = "..."`), in documentation order.
 pub const NAMES: &[&str] = &["sigma1_nearest", "shear_plane_nearest", "traction", "coulomb_traction"];
@@ -88,15 +93,22 @@ pub(crate) fn closed_cut(links: &[LinkGeom], d: f64) -> Option<Proposal> {
     closed_from_first(links, first, d)
 }
 
-/// Open fan: the candidate wins if its line angle is strictly below pi/4.
-pub(crate) fn open_from(c: Cand) -> Option<Proposal> {
-    (c.dist < FRAC_PI_4).then(|| Proposal { edges: vec![c.edge] })
+/// Whether the pi/4 cap applies to an open fan: always at a point that has already split (the
+/// paper, section 3.1); at a point that never split only with `cap_unsplit_boundary` (ours;
+/// the paper's default is no cap there, METHOD 5).
+pub(crate) fn cap_for(fan: &FanView, cap_unsplit_boundary: bool) -> bool {
+    !fan.never_split || cap_unsplit_boundary
 }
 
-/// Open fan: the link nearest the line `d`, cut only below pi/4.
-pub(crate) fn open_cut(links: &[LinkGeom], d: f64) -> Option<Proposal> {
+/// Open fan: the candidate wins if `cap` is off or its line angle is strictly below pi/4.
+pub(crate) fn open_from(c: Cand, cap: bool) -> Option<Proposal> {
+    (!cap || c.dist < FRAC_PI_4).then(|| Proposal { edges: vec![c.edge] })
+}
+
+/// Open fan: the link nearest the line `d`, cut only below pi/4 when `cap`.
+pub(crate) fn open_cut(links: &[LinkGeom], d: f64, cap: bool) -> Option<Proposal> {
     let c: Vec<Cand> = (0..links.len()).map(|i| line_cand(links, i, d, 0)).collect();
-    open_from(pick(&c, TIE)?)
+    open_from(pick(&c, TIE)?, cap)
 }
 
 /// Test fixtures: hand-built fans.
@@ -119,7 +131,7 @@ pub(crate) mod fixture {
 
     /// A fan with the given stress (tension positive) and principal values from it.
     pub fn fan(links: &[LinkGeom], closed: bool, stress: [f64; 3]) -> FanView<'_> {
-        FanView { point: PointId(0), cluster: ClusterId(0), closed, links, stress, principal: principal(stress, 0.0) }
+        FanView { point: PointId(0), cluster: ClusterId(0), closed, never_split: false, links, stress, principal: principal(stress, 0.0) }
     }
 
     /// A fan whose sigma1 direction is `theta1_deg` (stress consistent: uniaxial tension

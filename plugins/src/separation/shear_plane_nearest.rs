@@ -8,14 +8,22 @@
 //!   smaller edge id, then the lower plane index).
 //!   - closed fan: cut that link and, among the others, the link whose ray is nearest the
 //!     opposite ray of the plane (the plane oriented towards the first link, plus pi);
-//!   - open fan: cut that link only if its line angle to the plane is < pi/4.
+//!   - open fan: cut that link; at a point that has already split only if its line angle to
+//!     the plane is < pi/4; at a point that never split whatever the angle, unless
+//!     `cap_unsplit_boundary = true` (ours; as in `sigma1_nearest`, METHOD 5).
 //! - Tension failure (or a shear check without planes): exactly as `sigma1_nearest`.
 //!
-//! Angles in radians; no parameters.
+//! Angles in radians. Parameter: `cap_unsplit_boundary` (bool, default `false`).
 //!
 //! ```toml
 //! [cracking.separation]
 //! type = "shear_plane_nearest"
+//! ```
+//!
+//! ```toml
+//! [cracking.separation]
+//! type = "shear_plane_nearest"
+//! cap_unsplit_boundary = true   # ours: the pi/4 cap also at never-split boundary points
 //! ```
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -24,12 +32,16 @@ use serde::{Deserialize, Serialize};
 use flem_core::plugin::traits::{ray_angle, FailureCheck, FailureMode, FanView, Proposal, SeparationRule};
 
 use super::sigma1_nearest::propose_along;
-use super::{closed_from_first, line_cand, open_from, pick, Cand, TIE};
+use super::{cap_for, closed_from_first, line_cand, open_from, pick, Cand, TIE};
 
 /// Cut along the nearest true failure plane (see the module docs).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ShearPlaneNearest {}
+pub struct ShearPlaneNearest {
+    /// Ours (not the paper's): the pi/4 open-fan cap also at points that never split.
+    #[serde(default)]
+    pub cap_unsplit_boundary: bool,
+}
 
 /// The best (plane, link) pair; `slot` is the plane index.
 fn best_pair(fan: &FanView, planes: &[f64]) -> Option<Cand> {
@@ -45,12 +57,12 @@ impl SeparationRule for ShearPlaneNearest {
     fn propose(&self, fan: &FanView, failure: &FailureCheck) -> Option<Proposal> {
         let n = (failure.n_planes as usize).min(2);
         if failure.mode? != FailureMode::Shear || n == 0 {
-            return propose_along(fan, fan.principal.theta1);
+            return propose_along(fan, fan.principal.theta1, self.cap_unsplit_boundary);
         }
         let planes = &failure.planes[..n];
         let best = best_pair(fan, planes)?;
         if !fan.closed {
-            return open_from(best);
+            return open_from(best, cap_for(fan, self.cap_unsplit_boundary));
         }
         let p = planes[best.slot];
         let towards = if ray_angle(fan.links[best.link].angle, p) <= FRAC_PI_2 { p } else { p + PI };
@@ -66,7 +78,7 @@ mod tests {
     use flem_core::plugin::traits::{principal, FailureCriterion};
 
     fn run(f: &FanView, c: &FailureCheck) -> Option<Vec<u32>> {
-        ids(ShearPlaneNearest {}.propose(f, c))
+        ids(ShearPlaneNearest::default().propose(f, c))
     }
 
     /// Uniaxial compression along x with phi = 30 deg: planes at 30 and 150 deg. On a T3 fan

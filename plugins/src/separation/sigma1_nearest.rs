@@ -6,33 +6,47 @@
 //! failure gives that plane exactly):
 //! - closed fan: cut the link whose ray is nearest `d` and, among the others, the one nearest
 //!   `d + pi` (two distinct links; BB' in figs. 3(c), 4(c));
-//! - open fan: cut the link nearest `d` as a line (mod pi), only if that angle is < pi/4.
+//! - open fan: cut the link nearest `d` as a line (mod pi); at a point that has already split
+//!   (the paper's a', a'', section 3.1) only if that angle is < pi/4. At a point that never
+//!   split (a boundary point, a corner, the tip of a pre-cut edge) the paper (section 2.2)
+//!   has no cap: the nearest link is cut whatever the angle, unless `cap_unsplit_boundary =
+//!   true` (ours: our first reading, which applied the cap there too; METHOD 5).
 //!
 //! Ties within 1e-9 rad: the link counter-clockwise from the target (signed offset in (0, pi]
 //! for rays, (0, pi/2] for lines), then the smaller edge id (see [`super`]).
-//! Angles in radians; no parameters.
+//! Angles in radians. Parameter: `cap_unsplit_boundary` (bool, default `false` = the paper).
 //!
 //! ```toml
 //! [cracking.separation]
 //! type = "sigma1_nearest"
 //! ```
+//!
+//! ```toml
+//! [cracking.separation]
+//! type = "sigma1_nearest"
+//! cap_unsplit_boundary = true   # ours: the pi/4 cap also at never-split boundary points
+//! ```
 use serde::{Deserialize, Serialize};
 
 use flem_core::plugin::traits::{FailureCheck, FanView, Proposal, SeparationRule};
 
-use super::{closed_cut, open_cut};
+use super::{cap_for, closed_cut, open_cut};
 
 /// The paper's rule: cut along the sigma1 direction (see the module docs).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Sigma1Nearest {}
+pub struct Sigma1Nearest {
+    /// Ours (not the paper's): the pi/4 open-fan cap also at points that never split.
+    #[serde(default)]
+    pub cap_unsplit_boundary: bool,
+}
 
 /// The sigma1-nearest proposal for a target direction `d` (radians).
-pub(crate) fn propose_along(fan: &FanView, d: f64) -> Option<Proposal> {
+pub(crate) fn propose_along(fan: &FanView, d: f64, cap_unsplit_boundary: bool) -> Option<Proposal> {
     if fan.closed {
         closed_cut(fan.links, d)
     } else {
-        open_cut(fan.links, d)
+        open_cut(fan.links, d, cap_for(fan, cap_unsplit_boundary))
     }
 }
 
@@ -40,7 +54,7 @@ pub(crate) fn propose_along(fan: &FanView, d: f64) -> Option<Proposal> {
 impl SeparationRule for Sigma1Nearest {
     fn propose(&self, fan: &FanView, failure: &FailureCheck) -> Option<Proposal> {
         failure.mode?;
-        propose_along(fan, fan.principal.theta1)
+        propose_along(fan, fan.principal.theta1, self.cap_unsplit_boundary)
     }
 }
 
@@ -51,7 +65,7 @@ mod tests {
     use flem_core::plugin::traits::FailureMode::{Shear, Tension};
 
     fn run(f: &FanView) -> Option<Vec<u32>> {
-        ids(Sigma1Nearest {}.propose(f, &failed(Tension, &[])))
+        ids(Sigma1Nearest::default().propose(f, &failed(Tension, &[])))
     }
 
     /// Structured 4-link closed fan (0, 90, 180, 270 deg) under tension along x: sigma1 is
@@ -62,11 +76,11 @@ mod tests {
         let f = fan(&l, true, [1.0, 0.0, 0.0]);
         assert_eq!(run(&f), Some(vec![1, 3]));
         // shear mode uses the same direction
-        assert_eq!(ids(Sigma1Nearest {}.propose(&f, &failed(Shear, &[60.0, 120.0]))), Some(vec![1, 3]));
+        assert_eq!(ids(Sigma1Nearest::default().propose(&f, &failed(Shear, &[60.0, 120.0]))), Some(vec![1, 3]));
         // compression along x (sigma1 along x): links at 0 and 180
         assert_eq!(run(&fan(&l, true, [-1.0, 0.0, 0.0])), Some(vec![0, 2]));
         // a check that did not fail proposes nothing
-        assert_eq!(Sigma1Nearest {}.propose(&f, &FailureCheck::default()), None);
+        assert_eq!(Sigma1Nearest::default().propose(&f, &FailureCheck::default()), None);
     }
 
     /// Open fan: splits when the link is at 44 deg to d, not at 46 deg (threshold pi/4). Exact.
@@ -116,5 +130,35 @@ mod tests {
         // fewer than two links: nothing to cut in a closed fan; NaN direction: nothing
         assert_eq!(run(&fan_dir(&links(&[0.0]), true, 0.0)), None);
         assert_eq!(run(&fan_dir(&l, true, f64::NAN)), None);
+    }
+
+    /// The cap at a point that never split (METHOD 5): an open fan (a boundary point) with
+    /// its two links at 60 deg to sigma1 (beyond pi/4). The paper (default): cut the nearer
+    /// link whatever the angle; `cap_unsplit_boundary = true`: nothing. At an already split
+    /// point the cap holds in both settings (the paper's section 3.1). Exact.
+    #[test]
+    fn cap_unsplit_boundary_option() {
+        let l = links(&[0.0, 60.0 + 90.0 + 60.0]); // links at 0 and 210 deg
+        let mut f = fan_dir(&l, false, 60.0); // line angles 60 and 30 deg -> nearest 210 (30 deg)
+        let l75 = links(&[0.0, 105.0]);
+        let mut f75 = fan_dir(&l75, false, 60.0); // line angles 60 and 45
+        let capped = Sigma1Nearest { cap_unsplit_boundary: true };
+        let paper = Sigma1Nearest::default();
+        // 30 deg: below the cap, cut in every setting
+        f.never_split = true;
+        assert_eq!(ids(paper.propose(&f, &failed(Tension, &[]))), Some(vec![1]));
+        assert_eq!(ids(capped.propose(&f, &failed(Tension, &[]))), Some(vec![1]));
+        // 45 deg and 60 deg: beyond the cap
+        f75.never_split = true;
+        assert_eq!(ids(paper.propose(&f75, &failed(Tension, &[]))), Some(vec![1]), "never split, paper: cut at 45 deg");
+        assert_eq!(ids(capped.propose(&f75, &failed(Tension, &[]))), None, "never split, capped: no cut");
+        f75.never_split = false;
+        assert_eq!(ids(paper.propose(&f75, &failed(Tension, &[]))), None, "already split: the paper's cap");
+        assert_eq!(ids(capped.propose(&f75, &failed(Tension, &[]))), None);
+        let l80 = links(&[140.0, 145.0]);
+        let mut f80 = fan_dir(&l80, false, 60.0); // line angles 80 and 85 deg
+        f80.never_split = true;
+        assert_eq!(ids(paper.propose(&f80, &failed(Tension, &[]))), Some(vec![0]), "80 deg: the nearer link");
+        assert_eq!(ids(capped.propose(&f80, &failed(Tension, &[]))), None);
     }
 }
