@@ -263,7 +263,7 @@ fn pictures_have_a_key_and_the_curve_follows_the_load_through_every_stage() {
     // flies off) sits at the chart's edge with its value noted.
     assert!(curve.matches("<circle").count() >= 4 && curve.contains("drawn at the edge: stage 2 ends at"), "stage-end markers missing");
     let seq = std::fs::read_to_string(dir.join("plots/crack_sequence.svg")).unwrap();
-    for key in ["crack face, open at both ends", "joined edge", "principal stress, tension", "compression", "stress cross arm"] {
+    for key in ["crack face, open at both ends", "joined edge", "principal stress, tension", "compression", "cross arm"] {
         assert!(seq.contains(key), "the crack sequence has no \"{key}\" in its key");
     }
     let _ = std::fs::remove_dir_all(&dir);

@@ -330,6 +330,11 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     // One run at a time in a folder (held until this function returns, released by the OS if
     // the process dies); then fail on an unwritable folder before any step is computed.
     let _lock = lock_out(&out)?;
+    // Resuming from another folder reads (and prunes) its checkpoints: hold it too.
+    let _lock_from = match &resume {
+        Some(r) if r != &out && r.is_dir() => Some(lock_out(r)?),
+        _ => None,
+    };
     flem_core::output::prepare_dir(&out)?;
     // SIGINT/SIGTERM set a flag the run polls once per step; a second signal while the flag is
     // set ends the process at once (files stay whole: every write is atomic, or one append of

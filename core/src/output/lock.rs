@@ -54,7 +54,8 @@ pub fn lock_dir(dir: &Path, what: &str) -> Result<DirLock> {
                 path.display()
             )));
         }
-        Err(TryLockError::Error(e)) if e.kind() == std::io::ErrorKind::Unsupported => {
+        // No lock support on this file system (Unsupported), or NFS without a lock daemon (ENOLCK).
+        Err(TryLockError::Error(e)) if e.kind() == std::io::ErrorKind::Unsupported || e.raw_os_error() == Some(libc::ENOLCK) => {
             return Ok(DirLock { _file: None, path, note: Some(format!("{}: this file system does not support file locks; nothing stops a second run from writing the same folder", dir.display())) });
         }
         Err(TryLockError::Error(e)) => return Err(out_err(format!("the lock file {LOCK_FILE} cannot be locked: {e}"))),

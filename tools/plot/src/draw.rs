@@ -146,7 +146,11 @@ pub fn frame<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, s: &Snapshot, in
     let text = |area: &DrawingArea<DB, Shift>, t: &str, x: i32, y: i32| area.draw(&Text::new(t.to_string(), (x, y), font.clone())).map_err(err);
     text(&bottom, &info.heading, 12, 4)?;
     let sig = |v: f64| if v != 0.0 && (v.abs() >= 1e4 || v.abs() < 1e-2) { format!("{v:.3e}") } else { fmt_num(v) };
-    let scale = if info.stress_ref > 0.0 { format!("; a stress cross arm of {} (stress units) is {} length units long", sig(info.stress_ref), sig(info.stress_len)) } else { String::new() };
+    let scale = match (info.stress_ref > 0.0, info.compact) {
+        (false, _) => String::new(),
+        (true, false) => format!("; a stress cross arm of {} (stress units) is {} length units long", sig(info.stress_ref), sig(info.stress_len)),
+        (true, true) => format!("; cross arm {} = {} long", sig(info.stress_ref), sig(info.stress_len)),
+    };
     text(&bottom, &format!("{}   displacements x {}{}", info.loads, fmt_num(mag), scale), 12, 4 + fs + 4)?;
     let items: [(&str, RGBColor, u32, bool); 7] = [
         ("initial mesh", GREY, 1, true),

@@ -253,8 +253,13 @@ pub fn scene_plugin_consent() -> bool {
 /// `~/.config/flem/plugins`). A folder is trusted because the user made it, as a macro
 /// folder of an office suite is; a scene file alone never is.
 pub fn trusted_dirs() -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::env::var_os(PLUGIN_PATH_VAR).map(|p| std::env::split_paths(&p).filter(|d| !d.as_os_str().is_empty()).collect()).unwrap_or_default();
-    let config = std::env::var_os("XDG_CONFIG_HOME").filter(|s| !s.is_empty()).map(PathBuf::from).or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")));
+    // Relative entries are ignored (as the XDG spec says of XDG_CONFIG_HOME): trust must not
+    // depend on the folder flem is run from, e.g. inside a downloaded project.
+    let mut v: Vec<PathBuf> = std::env::var_os(PLUGIN_PATH_VAR).map(|p| std::env::split_paths(&p).filter(|d| d.is_absolute()).collect()).unwrap_or_default();
+    let config = std::env::var_os("XDG_CONFIG_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(PathBuf::from).filter(|h| h.is_absolute()).map(|h| h.join(".config")));
     if let Some(c) = config {
         v.push(c.join("flem").join("plugins"));
     }
@@ -299,7 +304,9 @@ pub fn scene_plugin_paths(text: &str, file: &str, base_dir: &Path) -> Result<Vec
 /// ([`set_scene_plugin_consent`], or a trusted folder): without it the scene is refused before
 /// any library is loaded, naming the library and the flag.
 pub fn load_scene_plugins(text: &str, file: &str, base_dir: &Path) -> Result<()> {
-    let libs = scene_plugin_paths(text, file, base_dir)?;
+    // Each library is checked and loaded by its canonical path, so that what was checked is what
+    // is opened (a link swapped in between cannot lead elsewhere).
+    let libs: Vec<(String, String, PathBuf)> = scene_plugin_paths(text, file, base_dir)?.into_iter().map(|(k, s, full)| (k, s, full.canonicalize().unwrap_or(full))).collect();
     {
         if let Some((key, s, full)) = libs.iter().find(|(_, _, full)| !may_load(full)) {
             return Err(FlemError::config(
