@@ -47,6 +47,9 @@ pub trait Block: Send + Sync {
     /// Stress of every copy at its corner (0.9999-scaled natural coordinates), written at the
     /// copy's index `elem_first_copy[elem] + corner`.
     fn corner_stress(&self, u: &[[f64; 2]], elem_first_copy: &[u32], out: &mut [[f64; 3]]);
+    /// Stress at every Gauss point of every element (in `Shape::GAUSS` order), written at
+    /// `first_gp[elem] + g`: the nonlocal failure check's input (`cracking::nonlocal`).
+    fn gauss_stress(&self, u: &[[f64; 2]], first_gp: &[u32], out: &mut [[f64; 3]]);
     /// Stress at natural coordinate `xi` of local element `i`.
     fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3];
     /// Average stress of local element `i` (over its Gauss points).
@@ -230,6 +233,15 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             let base = first[self.elems[i].idx()] as usize;
             for a in 0..N {
                 out[base + a] = self.d.stress(element::strain(&g[a], &ue));
+            }
+        }
+    }
+    fn gauss_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+        for i in 0..self.len() {
+            let ue = self.gather(i, u);
+            let base = first[self.elems[i].idx()] as usize;
+            for (g, &(xi, _)) in S::GAUSS.iter().enumerate() {
+                out[base + g] = element::stress_at::<S, N>(&self.x[i], &ue, &self.d, xi);
             }
         }
     }
