@@ -10,6 +10,7 @@
 //! separation = { type = "sigma1_nearest" }
 //! nonlocal = { radius = 0.5 }
 //! ```
+pub mod initiation;
 pub mod nonlocal;
 pub mod weibull;
 

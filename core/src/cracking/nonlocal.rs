@@ -294,3 +294,124 @@ impl Nonlocal {
         true
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::element::model::MaterialCfg;
+    use crate::element::Plane;
+    use crate::mesh::Rectangle;
+
+    fn model(w: f64, h: f64, nx: usize, ny: usize, kind: CellKind, distort: f64) -> Model {
+        let mut r = Rectangle::new(w, h, nx, ny, kind);
+        r.distort = distort;
+        let mut mesh = r.build().unwrap();
+        mesh.validate(Default::default()).unwrap();
+        let mat = MaterialCfg { region: "all".into(), young_modulus: 1000.0, poisson_ratio: 0.2, density: 1.0, thickness: 1.0, corotational: false };
+        Model::new(mesh, &[mat], Plane::Strain, "test").unwrap()
+    }
+
+    /// Reference: the weighted mean of a constant is that constant. A uniform strain gives the
+    /// same stress at every Gauss point, so every node gets D eps whatever the radius, on
+    /// distorted Q4 and T3 meshes; tolerance 1e-12 relative (rounding only).
+    #[test]
+    fn uniform_stress_is_returned_at_every_node_for_any_radius() {
+        for kind in [CellKind::Q4, CellKind::T3] {
+            let m = model(3.0, 2.0, 6, 4, kind, 0.2);
+            let eps = [1e-3, -4e-4, 6e-4];
+            let u: Vec<[f64; 2]> = m.cluster_x0().iter().map(|x| [eps[0] * x[0] + 0.5 * eps[2] * x[1], eps[1] * x[1] + 0.5 * eps[2] * x[0]]).collect();
+            let d = m.blocks[0].material().dmat();
+            let want = d.stress(eps);
+            for r in [0.45, 0.8, 1.7, 10.0] {
+                let (mut nl, _) = Nonlocal::new(r, &m, "test").unwrap();
+                let mut out = Vec::new();
+                nl.nodal_stress(&m, &u, &mut out);
+                assert_eq!(out.len(), m.topo.n_clusters());
+                for s in &out {
+                    for k in 0..3 {
+                        assert!((s[k] - want[k]).abs() <= 1e-12 * want[0].abs(), "{kind:?} R = {r}: {s:?} vs {want:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Reference: a weighted mean of a linear field is the field at the weighted centroid of
+    /// the points averaged. At an interior node of a uniform grid the points caught are
+    /// symmetric about the node, so the centroid is the node itself (an independent value);
+    /// at a boundary node the centroid is computed from the positions and weights. 1e-12.
+    #[test]
+    fn linear_field_gives_the_value_at_the_weighted_centroid() {
+        let m = model(4.0, 4.0, 8, 8, CellKind::Q4, 0.0);
+        let (nl, _) = Nonlocal::new(0.81, &m, "test").unwrap();
+        let f = |x: [f64; 2]| [2.0 + 3.0 * x[0] - x[1], -1.0 + 0.5 * x[1], 0.25 * x[0]];
+        let field: Vec<[f64; 3]> = nl.gp_x.iter().map(|&x| f(x)).collect();
+        // Interior point (2, 2): index 4 * 9 + 4.
+        let p = 4 * 9 + 4;
+        assert_eq!(m.mesh.points[p], [2.0, 2.0]);
+        let got = nl.average(&m.topo, ClusterId(p as u32), &field);
+        let want = f([2.0, 2.0]);
+        assert!(nl.caught(&m.topo, ClusterId(p as u32)).len() > 4, "the radius reaches beyond the node's own elements");
+        for k in 0..3 {
+            assert!((got[k] - want[k]).abs() < 1e-12, "{got:?} vs {want:?}");
+        }
+        // Corner point (0, 0): the centroid of what it catches.
+        let caught = nl.caught(&m.topo, ClusterId(0));
+        let wsum: f64 = caught.iter().map(|&g| nl.gp_w[g as usize]).sum();
+        let cx = [0, 1].map(|d| caught.iter().map(|&g| nl.gp_w[g as usize] * nl.gp_x[g as usize][d]).sum::<f64>() / wsum);
+        let (got, want) = (nl.average(&m.topo, ClusterId(0), &field), f(cx));
+        for k in 0..3 {
+            assert!((got[k] - want[k]).abs() < 1e-12, "{got:?} vs {want:?}");
+        }
+    }
+
+    /// A constructed crack: the grid line y = 2 separated from x = 0 to x = 4 on an 8 x 4 grid
+    /// (h = 1). The field is +1 above the line and -1 below it. Reference (the visibility rule):
+    /// a node above the crack sees only +1 (exactly 1); the two clusters of a split point on the
+    /// crack see +1 and -1; a node beyond the tip sees both sides symmetrically (0). Without the
+    /// rule the node above the crack would average both sides (checked: it differs).
+    #[test]
+    fn points_across_a_crack_are_left_out() {
+        let mut m = model(8.0, 4.0, 8, 4, CellKind::Q4, 0.0);
+        let id = |i: u32, j: u32| j * 9 + i;
+        let edges: Vec<EdgeId> = (0..4).map(|i| m.topo.edge_between(PointId(id(i, 2)), PointId(id(i + 1, 2))).unwrap()).collect();
+        let r = 1.6;
+        let (mut nl, _) = Nonlocal::new(r, &m, "test").unwrap();
+        let field: Vec<[f64; 3]> = nl.gp_x.iter().map(|x| if x[1] > 2.0 { [1.0; 3] } else { [-1.0; 3] }).collect();
+        let above = ClusterId(id(2, 3));
+        let before = nl.average(&m.topo, above, &field);
+        assert!(before[0] < 0.9, "before the cut the node above sees both sides: {before:?}");
+        let rec = m.topo.separate_edges(&edges);
+        m.apply_record(&rec);
+        nl.sync(&m.topo, &m.mesh.points);
+        assert_eq!(nl.average(&m.topo, above, &field), [1.0; 3]);
+        let below = ClusterId(id(2, 1));
+        assert_eq!(nl.average(&m.topo, below, &field), [-1.0; 3]);
+        // The split point (2, 2): two clusters, one per side.
+        let cs = &m.topo.point_clusters[id(2, 2) as usize];
+        assert_eq!(cs.len(), 2);
+        let mut got: Vec<f64> = cs.iter().map(|&c| nl.average(&m.topo, c, &field)[0]).collect();
+        got.sort_by(f64::total_cmp);
+        assert_eq!(got, vec![-1.0, 1.0]);
+        // Beyond the tip (6, 2): both sides, symmetric.
+        let beyond = nl.average(&m.topo, ClusterId(id(6, 2)), &field);
+        assert!(beyond[0].abs() < 1e-12, "{beyond:?}");
+    }
+
+    /// Bad radii are refused naming the key; a radius that catches no Gauss point names the node.
+    #[test]
+    fn bad_radius_is_refused_naming_key_and_node() {
+        let m = model(2.0, 2.0, 2, 2, CellKind::Q4, 0.0);
+        for r in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let e = Nonlocal::new(r, &m, "scene.toml").err().expect("refused").to_string();
+            assert!(e.contains("scene.toml") && e.contains("cracking.nonlocal.radius"), "{e}");
+        }
+        // Gauss points lie 0.211 h from the corners in each direction (0.30 h away).
+        let e = Nonlocal::new(0.2, &m, "scene.toml").err().expect("refused").to_string();
+        assert!(e.contains("cracking.nonlocal.radius") && e.contains("point 0"), "{e}");
+        let (_, w) = Nonlocal::new(0.5, &m, "scene.toml").unwrap();
+        assert!(w.len() == 1 && w[0].contains("degenerates to the local stress"), "{w:?}");
+        let (_, w) = Nonlocal::new(1.5, &m, "scene.toml").unwrap();
+        assert!(w.is_empty(), "{w:?}");
+    }
+}
