@@ -19,6 +19,7 @@ mod bench;
 mod bench_contact;
 mod bench_dyncall;
 mod chart;
+mod converge;
 mod stability;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
@@ -105,6 +106,9 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Crack-initiation load under mesh refinement (exact, by the check solver; local and
+    /// nonlocal check), checked by explicit runs: converge.json and converge.png/.svg in --out.
+    Converge(converge::Args),
     /// Benchmarks; each prints JSON.
     Bench {
         #[command(subcommand)]
@@ -169,6 +173,7 @@ fn main() -> ExitCode {
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
+        Some(Cmd::Converge(a)) => converge::run(a),
         Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
     };
     match r {
