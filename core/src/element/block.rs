@@ -86,6 +86,8 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     /// Shape-function gradients at each corner's stress point, built at the first failure
     /// check (a scene that never checks does not pay its 8 N^2 doubles per element).
     corner_g: std::sync::OnceLock<Vec<[[[f64; 2]; N]; N]>>,
+    /// Shape-function gradients at each Gauss point, built at the first nonlocal check.
+    gauss_g: std::sync::OnceLock<Vec<[[f64; 2]; N]>>,
     /// `max_omega_bound` (asked again at every new stable-step estimate, after splits).
     omega_bound: std::sync::OnceLock<f64>,
     _s: PhantomData<S>,
@@ -105,6 +107,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             packs: Vec::new(),
             sched: Schedule::default(),
             corner_g: std::sync::OnceLock::new(),
+            gauss_g: std::sync::OnceLock::new(),
             omega_bound: std::sync::OnceLock::new(),
             _s: PhantomData,
         }
@@ -141,6 +144,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         self.elems.push(e);
         self.x.push(x);
         self.corner_g = std::sync::OnceLock::new();
+        self.gauss_g = std::sync::OnceLock::new();
         self.omega_bound = std::sync::OnceLock::new();
         self.conn.push(conn);
     }
@@ -237,11 +241,15 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         }
     }
     fn gauss_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
-        for i in 0..self.len() {
+        // The gradients of `element::stress_at` at the Gauss points (bit for bit), computed once
+        // (only scenes with the nonlocal check call this).
+        let ng = S::GAUSS.len();
+        let gg = self.gauss_g.get_or_init(|| self.x.iter().flat_map(|x| S::GAUSS.iter().map(|&(xi, _)| element::gradients::<S, N>(x, xi).0)).collect());
+        for (i, g) in gg.chunks_exact(ng).enumerate() {
             let ue = self.gather(i, u);
             let base = first[self.elems[i].idx()] as usize;
-            for (g, &(xi, _)) in S::GAUSS.iter().enumerate() {
-                out[base + g] = element::stress_at::<S, N>(&self.x[i], &ue, &self.d, xi);
+            for (k, gk) in g.iter().enumerate() {
+                out[base + k] = self.d.stress(element::strain(gk, &ue));
             }
         }
     }
