@@ -105,3 +105,30 @@ fn doc_snippets_parse_and_validate() {
     }
     assert!(n >= 2, "{n} snippets");
 }
+
+/// The bracketed bisection of `failure_factor` against closed forms. Rankine: lambda =
+/// sigma_t / sigma_max (the largest tensile principal stress); the in-plane tensor (0.3, -0.2,
+/// 0.25) has sigma_max = 0.05 + sqrt(0.25^2 + 0.25^2). Mohr-Coulomb with the tension check off
+/// (c = 0.1, phi = 30 deg, METHOD section 4): uniaxial compression (-1, 0, 0) fails at the UCS
+/// 2 c cos(phi) / (1 - sin(phi)) = 0.34641. A criterion that never fails gives infinity; the
+/// strength factor scales the result. Tolerance 1e-12 relative (bisection width 1e-13).
+#[test]
+fn failure_factor_matches_closed_forms() {
+    use flem_core::cracking::initiation::failure_factor;
+    use flem_core::plugin::traits::FailureCriterion;
+    flem_plugins::link();
+    let rankine: Box<dyn FailureCriterion> = toml::from_str("type = \"rankine\"\ntensile_strength = 2.0").unwrap();
+    let smax = 0.05 + (0.25f64 * 0.25 + 0.25 * 0.25).sqrt();
+    let l = failure_factor(rankine.as_ref(), [0.3, -0.2, 0.25], 0.0, 1.0).unwrap();
+    assert!(rel(l, 2.0 / smax) < 1e-12, "{l} vs {}", 2.0 / smax);
+    let l = failure_factor(rankine.as_ref(), [0.3, -0.2, 0.25], 0.0, 0.5).unwrap();
+    assert!(rel(l, 1.0 / smax) < 1e-12, "{l}");
+    // Far above the strength at factor 1: bracketed by halving.
+    let l = failure_factor(rankine.as_ref(), [300.0, 0.0, 0.0], 0.0, 1.0).unwrap();
+    assert!(rel(l, 2.0 / 300.0) < 1e-12, "{l}");
+    assert_eq!(failure_factor(rankine.as_ref(), [-1.0, -2.0, 0.0], 0.0, 1.0).unwrap(), f64::INFINITY);
+    let mc: Box<dyn FailureCriterion> = toml::from_str("type = \"mohr_coulomb\"\ncohesion = 0.1\nfriction_angle_deg = 30.0\ntensile_strength = 1.0\ntension = false").unwrap();
+    let l = failure_factor(mc.as_ref(), [-1.0, 0.0, 0.0], 0.0, 1.0).unwrap();
+    let ucs = 2.0 * 0.1 * 30f64.to_radians().cos() / (1.0 - 30f64.to_radians().sin());
+    assert!(rel(l, ucs) < 1e-12, "{l} vs {ucs}");
+}
