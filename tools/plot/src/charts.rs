@@ -174,7 +174,7 @@ fn converge_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, l
     let (left, right) = root.split_horizontally(560);
     let ps: Vec<f64> = lv.iter().flat_map(|l| [l.p_local, l.p_nonlocal]).flatten().filter(|p| p.is_finite()).collect();
     let (lo, hi) = ps.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &p| (a.min(p), b.max(p)));
-    let (lo, hi) = if lo.is_finite() { (0.0f64.min(lo), 1.1 * hi) } else { (0.0, 1.0) };
+    let (lo, hi) = if lo.is_finite() { (0.0f64.min(lo), 1.4 * hi) } else { (0.0, 1.0) };
     let hmax = lv.iter().map(|l| l.h).fold(0.0f64, f64::max).max(1e-12);
     let mut c = ChartBuilder::on(&left).caption(title, ("sans-serif", 18)).margin(12).x_label_area_size(45).y_label_area_size(70).build_cartesian_2d(0.0..1.1 * hmax, lo..hi).map_err(err)?;
     c.configure_mesh().x_desc("element size h (mean edge)").y_desc("initiation load factor p_crit").x_label_formatter(&|v| format!("{v:.3}")).label_style(("sans-serif", 14)).draw().map_err(err)?;
