@@ -82,8 +82,7 @@ pub struct Nonlocal {
     cracks: Vec<(EdgeId, [[f64; 2]; 2])>,
     /// Clusters already looked at for new crack edges.
     seen_clusters: usize,
-    /// Largest element edge (for the warning) and the number of points whose average is one
-    /// element's own points only.
+    /// Largest element edge (the warning for a radius below it).
     pub largest_edge: f64,
 }
 
