@@ -10,6 +10,7 @@ mod dynplug;
 mod fuzz;
 mod interop;
 mod layout;
+mod nonlocal;
 mod paper;
 mod parallel;
 mod verification;

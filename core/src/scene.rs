@@ -334,6 +334,20 @@ pub struct CrackingCfg {
     /// Optional Weibull scatter of strengths.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub weibull: Option<WeibullCfg>,
+    /// Ours, not the paper's (issue 18): the stress handed to the criterion at a node is the
+    /// area-weighted mean of the Gauss-point stresses within `radius` of it, never across an
+    /// open crack (`cracking::nonlocal`, docs/nonlocal.md). Absent: the paper's corner mean.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nonlocal: Option<NonlocalCfg>,
+}
+
+/// `[cracking] nonlocal = { radius = R }` (ours; docs/nonlocal.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NonlocalCfg {
+    /// Averaging radius, in the mesh's length unit (Euclidean distance in the reference
+    /// configuration from the node to each Gauss point).
+    pub radius: f64,
 }
 
 fn default_check_every() -> u64 {
@@ -527,6 +541,9 @@ impl Scene {
             }
             if let Some(w) = &c.weibull {
                 range(&n, "cracking.weibull.modulus", w.modulus, 0.5, true, 1000.0, true)?;
+            }
+            if let Some(nl) = &c.nonlocal {
+                range(&n, "cracking.nonlocal.radius", nl.radius, 0.0, false, MAX_MAGNITUDE, true)?;
             }
         }
         if let Some(c) = &f.check {

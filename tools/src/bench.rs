@@ -15,7 +15,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use flem_core::element::model::Model;
 use flem_core::element::Plane;
 use flem_core::mesh::{CellKind, Rectangle, ValidationOptions};
@@ -30,6 +30,8 @@ pub struct StepOpts {
     pub kinds: Vec<CellKind>,
     pub min_time: f64,
     pub step_sizes: Vec<usize>,
+    /// Radius of the nonlocal check's cost, in element sizes.
+    pub nonlocal_radius_h: f64,
 }
 
 /// CPU seconds used so far by every thread of this process (Linux `/proc/self/task/*/schedstat`,
@@ -250,7 +252,43 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
         "stage_over_bare_step": stage / bare,
         "interleaved": il_adaptive, "interleaved_undamped": il_none,
         "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks},
+        "failure_check_nonlocal": nonlocal_case(nx, ny, kind, threads, o)?,
     }))
+}
+
+/// One failure check called directly (`Cracking::check`, nothing splits) with the paper's
+/// corner mean and with the nonlocal average (ours, issue 18) at radius `o.nonlocal_radius_h`
+/// element sizes, at the displacement after 20 steps.
+fn check_cost(nx: usize, ny: usize, kind: CellKind, threads: usize, radius: Option<f64>, o: &StepOpts) -> Result<(f64, f64, f64)> {
+    let mut text = scene_text(nx, ny, kind, threads, 50, Some(1));
+    if let Some(r) = radius {
+        text = text.replace("[cracking]\n", &format!("[cracking]\nnonlocal = {{ radius = {r} }}\n"));
+    }
+    let t0 = Instant::now();
+    let mut s = sim(&text)?;
+    let build = t0.elapsed().as_secs_f64();
+    for _ in 0..20 {
+        s.step()?;
+    }
+    let (u, x0) = (s.state.u.clone(), s.x0.clone());
+    let mut cr = s.cracking.take().context("bench scene has [cracking]")?;
+    let cfg = s.scene.file.cracking.as_ref().context("bench scene has [cracking]")?;
+    let model = &mut s.model;
+    let (t, c) = time_per_call(o.min_time, || {
+        let (rec, _) = cr.check(cfg, model, &u, &x0, 0.0, 0).expect("check");
+        assert!(rec.is_empty(), "the bench strength is never reached");
+    });
+    Ok((t, c, build))
+}
+
+fn nonlocal_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts) -> Result<Value> {
+    let h = 2.0 / nx as f64;
+    let r = o.nonlocal_radius_h * h;
+    let (local, local_cpu, local_build) = check_cost(nx, ny, kind, threads, None, o)?;
+    let (nl, nl_cpu, nl_build) = check_cost(nx, ny, kind, threads, Some(r), o)?;
+    Ok(json!({"radius": r, "radius_over_h": o.nonlocal_radius_h, "us_per_check_local": local * 1e6, "us_per_check_nonlocal": nl * 1e6,
+              "nonlocal_over_local": nl / local, "cpu_nonlocal_over_local": nl_cpu / local_cpu,
+              "scene_build_seconds_local": local_build, "scene_build_seconds_nonlocal": nl_build}))
 }
 
 pub fn step(o: &StepOpts) -> Result<()> {

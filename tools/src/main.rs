@@ -19,6 +19,7 @@ mod bench;
 mod bench_contact;
 mod bench_dyncall;
 mod chart;
+mod converge;
 mod stability;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
@@ -112,6 +113,9 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Crack-initiation load under mesh refinement (exact, by the check solver; local and
+    /// nonlocal check), checked by explicit runs: converge.json and converge.png/.svg in --out.
+    Converge(converge::Args),
     /// Benchmarks; each prints JSON.
     Bench {
         #[command(subcommand)]
@@ -149,6 +153,9 @@ enum BenchWhat {
         /// Seconds spent per timing (median of 5 batches).
         #[arg(long, default_value_t = 1.0)]
         min_time: f64,
+        /// Radius of the nonlocal failure check (ours, issue 18), in element sizes.
+        #[arg(long, default_value_t = 2.0)]
+        nonlocal_radius_h: f64,
     },
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
@@ -177,6 +184,7 @@ fn main() -> ExitCode {
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
+        Some(Cmd::Converge(a)) => converge::run(a),
         Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
     };
     match r {
@@ -192,7 +200,8 @@ fn main() -> ExitCode {
     }
 }
 
-fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_sizes: Vec<usize>, min_time: f64) -> Result<()> {
+fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_sizes: Vec<usize>, min_time: f64, nonlocal_radius_h: f64) -> Result<()> {
+    anyhow::ensure!(nonlocal_radius_h > 0.0 && nonlocal_radius_h.is_finite(), "--nonlocal-radius-h = {nonlocal_radius_h} is incorrect; it must be > 0");
     let kinds = kinds
         .iter()
         .map(|k| match k.as_str() {
@@ -203,7 +212,7 @@ fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_s
         .collect::<Result<Vec<_>>>()?;
     anyhow::ensure!(min_time > 0.0 && min_time.is_finite(), "--min-time = {min_time} is incorrect; it must be > 0");
     anyhow::ensure!(sizes.iter().chain(&step_sizes).all(|&n| (8..=16_000_000).contains(&n)), "--sizes/--step-sizes: each must be in [8, 16000000]");
-    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes })
+    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes, nonlocal_radius_h })
 }
 
 fn plugins(libs: &[PathBuf], scene: Option<&Path>) -> Result<()> {
@@ -461,7 +470,7 @@ fn bench(what: BenchWhat) -> Result<()> {
             let b = flem_plugins::check::bench::bench_implicit(&dofs, repeats)?;
             println!("{}", serde_json::to_string_pretty(&b)?);
         }
-        BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time } => bench_step(sizes, threads, kinds, step_sizes, min_time)?,
+        BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h } => bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h)?,
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
     }

@@ -1,5 +1,17 @@
 //! Cracking (METHOD sections 3-5): nodal stress recovery, failure checks, separation proposals
 //! and the one place where splits are applied, in a deterministic order (score, then id).
+//!
+//! The nodal stress handed to the criterion is the paper's corner mean (METHOD section 3) unless
+//! the scene asks for ours, the nonlocal average over a radius (`nonlocal.rs`, docs/nonlocal.md):
+//!
+//! ```toml
+//! [cracking]
+//! criterion = { type = "rankine", tensile_strength = 1.0 }
+//! separation = { type = "sigma1_nearest" }
+//! nonlocal = { radius = 0.5 }
+//! ```
+pub mod initiation;
+pub mod nonlocal;
 pub mod weibull;
 
 use crate::cracking::weibull::weibull_scale;
@@ -45,16 +57,29 @@ pub struct Cracking {
     /// Every cut applied, in order: (cluster, proposed edges). A checkpoint stores it and a
     /// resumed run replays it through `Topology::cut` (checkpoint.rs).
     pub cuts: Vec<(u32, Vec<u32>)>,
+    /// The nonlocal average (`[cracking] nonlocal`, ours); `None`: the paper's corner mean.
+    pub nonlocal: Option<nonlocal::Nonlocal>,
 }
 
 impl Cracking {
-    pub fn new(cfg: &CrackingCfg, model: &Model) -> Self {
+    /// Builds the cracking state; with `nonlocal` also its neighbour lists (a radius that
+    /// catches no Gauss point at some node is refused, naming the key and the node). The
+    /// warnings (a radius below the largest element size) are appended to `warnings`.
+    pub fn new(cfg: &CrackingCfg, model: &Model, file: &str, warnings: &mut Vec<String>) -> crate::Result<Self> {
         let np = model.topo.n_points;
+        let nonlocal = match &cfg.nonlocal {
+            Some(nl) => {
+                let (n, mut w) = nonlocal::Nonlocal::new(nl.radius, model, file)?;
+                warnings.append(&mut w);
+                Some(n)
+            }
+            None => None,
+        };
         let scale = match &cfg.weibull {
             Some(w) => (0..np as u64).map(|p| weibull_scale(w.modulus, w.seed, p)).collect(),
             None => vec![1.0; np],
         };
-        Cracking {
+        Ok(Cracking {
             scale,
             corner: Vec::new(),
             counts: Vec::new(),
@@ -66,7 +91,8 @@ impl Cracking {
             index: vec![0.0; model.topo.n_clusters()],
             n_splits: 0,
             cuts: Vec::new(),
-        }
+            nonlocal,
+        })
     }
 
     /// Points (clusters) beyond the criterion at the last check that no split relieved: the
@@ -99,7 +125,10 @@ impl Cracking {
     /// A plugin that fails or panics (dynamic plugins) gives an error.
     pub fn check(&mut self, cfg: &CrackingCfg, model: &mut Model, u: &[[f64; 2]], x0: &[[f64; 2]], time: f64, step: u64) -> crate::Result<(SplitRecord, Vec<SplitEvent>)> {
         let mut nodal = std::mem::take(&mut self.nodal);
-        model.nodal_stress_with(u, &mut self.corner, &mut nodal, &mut self.counts);
+        match &mut self.nonlocal {
+            None => model.nodal_stress_with(u, &mut self.corner, &mut nodal, &mut self.counts),
+            Some(nl) => nl.nodal_stress(model, u, &mut nodal),
+        }
         self.nodal = nodal;
         let nc = model.topo.n_clusters();
         self.principal.clear();

@@ -47,6 +47,9 @@ pub trait Block: Send + Sync {
     /// Stress of every copy at its corner (0.9999-scaled natural coordinates), written at the
     /// copy's index `elem_first_copy[elem] + corner`.
     fn corner_stress(&self, u: &[[f64; 2]], elem_first_copy: &[u32], out: &mut [[f64; 3]]);
+    /// Stress at every Gauss point of every element (in `Shape::GAUSS` order), written at
+    /// `first_gp[elem] + g`: the nonlocal failure check's input (`cracking::nonlocal`).
+    fn gauss_stress(&self, u: &[[f64; 2]], first_gp: &[u32], out: &mut [[f64; 3]]);
     /// Stress at natural coordinate `xi` of local element `i`.
     fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3];
     /// Average stress of local element `i` (over its Gauss points).
@@ -83,6 +86,8 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     /// Shape-function gradients at each corner's stress point, built at the first failure
     /// check (a scene that never checks does not pay its 8 N^2 doubles per element).
     corner_g: std::sync::OnceLock<Vec<[[[f64; 2]; N]; N]>>,
+    /// Shape-function gradients at each Gauss point, built at the first nonlocal check.
+    gauss_g: std::sync::OnceLock<Vec<[[f64; 2]; N]>>,
     /// `max_omega_bound` (asked again at every new stable-step estimate, after splits).
     omega_bound: std::sync::OnceLock<f64>,
     _s: PhantomData<S>,
@@ -102,6 +107,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             packs: Vec::new(),
             sched: Schedule::default(),
             corner_g: std::sync::OnceLock::new(),
+            gauss_g: std::sync::OnceLock::new(),
             omega_bound: std::sync::OnceLock::new(),
             _s: PhantomData,
         }
@@ -138,6 +144,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         self.elems.push(e);
         self.x.push(x);
         self.corner_g = std::sync::OnceLock::new();
+        self.gauss_g = std::sync::OnceLock::new();
         self.omega_bound = std::sync::OnceLock::new();
         self.conn.push(conn);
     }
@@ -230,6 +237,19 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             let base = first[self.elems[i].idx()] as usize;
             for a in 0..N {
                 out[base + a] = self.d.stress(element::strain(&g[a], &ue));
+            }
+        }
+    }
+    fn gauss_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+        // The gradients of `element::stress_at` at the Gauss points (bit for bit), computed once
+        // (only scenes with the nonlocal check call this).
+        let ng = S::GAUSS.len();
+        let gg = self.gauss_g.get_or_init(|| self.x.iter().flat_map(|x| S::GAUSS.iter().map(|&(xi, _)| element::gradients::<S, N>(x, xi).0)).collect());
+        for (i, g) in gg.chunks_exact(ng).enumerate() {
+            let ue = self.gather(i, u);
+            let base = first[self.elems[i].idx()] as usize;
+            for (k, gk) in g.iter().enumerate() {
+                out[base + k] = self.d.stress(element::strain(gk, &ue));
             }
         }
     }

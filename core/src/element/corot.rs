@@ -134,6 +134,16 @@ impl<S: Blocked<N>, const N: usize> Block for CorotBlock<S, N> {
             }
         }
     }
+    fn gauss_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+        let b = &self.0;
+        for i in 0..self.len() {
+            let (r, ul) = self.local(i, u);
+            let base = first[b.elems[i].idx()] as usize;
+            for (g, &(xi, _)) in S::GAUSS.iter().enumerate() {
+                out[base + g] = Self::rotate_stress(r, element::stress_at::<S, N>(&b.x[i], &ul, &b.d, xi));
+            }
+        }
+    }
     fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3] {
         let (r, ul) = self.local(i, u);
         Self::rotate_stress(r, element::stress_at::<S, N>(&self.0.x[i], &ul, &self.0.d, xi))

@@ -517,7 +517,7 @@ impl Simulation {
             model.apply_record(&rec);
         }
         let cracking = match &scene.file.cracking {
-            Some(c) => Some(Cracking::new(c, &model)),
+            Some(c) => Some(Cracking::new(c, &model, &file, &mut warnings)?),
             None => None,
         };
         if scene.file.cracking.as_ref().is_some_and(|c| c.at_equilibrium) {

@@ -158,3 +158,59 @@ fn stability_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, d: &Stability
 pub fn stability(stem: &Path, d: &StabilityData) -> Result<Vec<PathBuf>> {
     render(stem, (1200, 560), |r| stability_on(r, d), |r| stability_on(r, d))
 }
+
+/// One mesh level of `flem converge`: element size, initiation factor of each check
+/// (`None`: not computed), crack path of the explicit run (split points).
+#[derive(Clone, Debug, Default)]
+pub struct ConvergeLevel {
+    pub h: f64,
+    pub p_local: Option<f64>,
+    pub p_nonlocal: Option<f64>,
+    pub path: Vec<[f64; 2]>,
+}
+
+fn converge_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, lv: &[ConvergeLevel], bounds: [[f64; 2]; 2]) -> std::result::Result<(), String> {
+    root.fill(&WHITE).map_err(err)?;
+    let (left, right) = root.split_horizontally(560);
+    let ps: Vec<f64> = lv.iter().flat_map(|l| [l.p_local, l.p_nonlocal]).flatten().filter(|p| p.is_finite()).collect();
+    let (lo, hi) = ps.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &p| (a.min(p), b.max(p)));
+    let (lo, hi) = if lo.is_finite() { (0.0f64.min(lo), 1.4 * hi) } else { (0.0, 1.0) };
+    let hmax = lv.iter().map(|l| l.h).fold(0.0f64, f64::max).max(1e-12);
+    let mut c = ChartBuilder::on(&left).caption(title, ("sans-serif", 18)).margin(12).x_label_area_size(45).y_label_area_size(70).build_cartesian_2d(0.0..1.1 * hmax, lo..hi).map_err(err)?;
+    c.configure_mesh().x_desc("element size h (mean edge)").y_desc("initiation load factor p_crit").x_label_formatter(&|v| format!("{v:.3}")).label_style(("sans-serif", 14)).draw().map_err(err)?;
+    for (i, (name, get)) in [("local (paper: corner mean)", 0usize), ("nonlocal (ours)", 1)].into_iter().enumerate() {
+        let col = PALETTE[i];
+        let pts: Vec<(f64, f64)> = lv.iter().filter_map(|l| if get == 0 { l.p_local } else { l.p_nonlocal }.map(|p| (l.h, p))).filter(|p| p.1.is_finite()).collect();
+        if pts.is_empty() {
+            continue;
+        }
+        c.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2))).map_err(err)?.label(name).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
+        c.draw_series(pts.iter().map(|&p| Circle::new(p, 5, col.filled()))).map_err(err)?;
+    }
+    c.configure_series_labels().position(SeriesLabelPosition::UpperRight).background_style(WHITE.mix(0.85)).border_style(BLACK).label_font(("sans-serif", 13)).draw().map_err(err)?;
+    let [[x0, y0], [x1, y1]] = bounds;
+    let mut c = ChartBuilder::on(&right)
+        .caption("crack paths of the explicit runs (split points)", ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(err)?;
+    c.configure_mesh().label_style(("sans-serif", 13)).draw().map_err(err)?;
+    for (i, l) in lv.iter().enumerate() {
+        let col = PALETTE[(i + 2) % PALETTE.len()];
+        let name = format!("h = {:.4}", l.h);
+        c.draw_series(l.path.iter().map(|p| Circle::new((p[0], p[1]), 4 + 2 * (lv.len() - i) as i32, col.stroke_width(2))))
+            .map_err(err)?
+            .label(name)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.stroke_width(2)));
+    }
+    c.configure_series_labels().position(SeriesLabelPosition::UpperRight).background_style(WHITE.mix(0.85)).border_style(BLACK).label_font(("sans-serif", 13)).draw().map_err(err)?;
+    Ok(())
+}
+
+/// The picture of `flem converge` (`stem`.png and `stem`.svg): p_crit against h for the local
+/// and the nonlocal check; the crack paths of all levels overlaid in the body's `bounds`.
+pub fn converge(stem: &Path, title: &str, levels: &[ConvergeLevel], bounds: [[f64; 2]; 2]) -> Result<Vec<PathBuf>> {
+    render(stem, (1120, 560), |r| converge_on(r, title, levels, bounds), |r| converge_on(r, title, levels, bounds))
+}

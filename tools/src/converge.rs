@@ -1,0 +1,270 @@
+//! `flem converge SCENE --levels K`: the crack-initiation load under mesh refinement (issue 18).
+//!
+//! The scene runs on K meshes, each twice as fine as the one before: a `rectangle` mesh gets
+//! `nx`, `ny` doubled (the notch depth, a length, is kept); any other mesh takes its files from
+//! `--meshes a.msh,b.msh,...` (one per level, coarse first). For every level:
+//! - the **exact initiation load**: the elastic solution at the first stage's load levels by the
+//!   implicit check solver (`flem_plugins::check::static_solve`), then the smallest load factor
+//!   at which some node fails (`flem_core::cracking::initiation`), with the paper's corner-mean
+//!   nodal stress (`local`) and, when a radius is given (`--radius` or the scene's
+//!   `cracking.nonlocal.radius`), the nonlocal average (ours): the failing node and its sigma1
+//!   direction;
+//! - unless `--no-explicit`: explicit runs of the first stage at 0.97 and 1.03 of the factor
+//!   (of the scene's own check: nonlocal when it has a radius), which must split nothing and
+//!   something, and at 1.05, whose split points are the crack path;
+//! - elements, dofs, wall time (model build + solve + initiation; the explicit runs apart).
+//!
+//! The load must be proportional to the levels (traction, pressure, point loads; no gravity, no
+//! prescribed velocity or displacement) and the body linear (no co-rotational material, no
+//! contact before the first split): otherwise it is refused. Writes `converge.json` and the
+//! picture `converge.png` / `.svg` (p_crit against h for both checks; crack paths overlaid).
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use flem_core::cracking::initiation::{initiation, Initiation};
+use flem_core::scene::Scene;
+use flem_core::solver::{NoOutput, Simulation};
+use serde::Serialize;
+
+#[derive(clap::Args)]
+pub struct Args {
+    pub scene: PathBuf,
+    /// Number of meshes (each twice as fine as the one before).
+    #[arg(long, default_value_t = 3)]
+    pub levels: usize,
+    /// Mesh files of the levels (coarse first), for scenes whose mesh is not a rectangle.
+    #[arg(long, value_delimiter = ',')]
+    pub meshes: Vec<PathBuf>,
+    /// Nonlocal radius (default: the scene's cracking.nonlocal.radius; none: local check only).
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// Skip the explicit runs at 0.97, 1.03 and 1.05 of the initiation load.
+    #[arg(long)]
+    pub no_explicit: bool,
+    /// Output folder (default: out/<scene name>_converge).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Serialize, Clone, Debug)]
+pub struct Check {
+    pub p_crit: f64,
+    /// Coordinates of the first failing node.
+    pub node: [f64; 2],
+    pub direction_deg: f64,
+    pub wall_seconds: f64,
+}
+
+#[derive(Serialize, Clone, Debug)]
+pub struct Explicit {
+    /// Splits of the explicit run at 0.97 p_crit (0 expected) and 1.03 p_crit (> 0 expected).
+    pub splits_below: usize,
+    pub splits_above: usize,
+    /// Split points of the run at 1.05 p_crit, in order.
+    pub path: Vec<[f64; 2]>,
+    pub wall_seconds: f64,
+}
+
+#[derive(Serialize, Clone, Debug)]
+pub struct Level {
+    /// Mean element edge length.
+    pub h: f64,
+    pub elements: usize,
+    pub dofs: usize,
+    pub mesh: String,
+    /// The scene's check (nonlocal with a radius, else local): factor on the first stage's levels.
+    pub p_crit: f64,
+    pub node: [f64; 2],
+    pub direction_deg: f64,
+    pub wall_seconds: f64,
+    /// The paper's corner-mean check.
+    pub local: Check,
+    /// Ours, with `radius`.
+    pub nonlocal: Option<Check>,
+    pub explicit: Option<Explicit>,
+}
+
+#[derive(Serialize)]
+struct Report<'a> {
+    scene: String,
+    radius: Option<f64>,
+    command: String,
+    levels: &'a [Level],
+}
+
+fn level_table(base: &toml::Table, level: usize, meshes: &[PathBuf], radius: Option<f64>) -> Result<toml::Table> {
+    let mut t = base.clone();
+    let mesh = t.get_mut("mesh").and_then(|m| m.as_table_mut()).context("the scene has no [mesh] table")?;
+    let kind = mesh.get("type").and_then(|v| v.as_str()).unwrap_or("").to_string();
+    if !meshes.is_empty() {
+        let f = &meshes[level];
+        let abs = std::fs::canonicalize(f).with_context(|| format!("--meshes: {} cannot be read", f.display()))?;
+        mesh.insert("file".into(), toml::Value::String(abs.display().to_string()));
+    } else if kind == "rectangle" {
+        for k in ["nx", "ny"] {
+            let n = mesh.get(k).and_then(|v| v.as_integer()).with_context(|| format!("mesh.{k} is missing"))?;
+            mesh.insert(k.into(), toml::Value::Integer(n << level));
+        }
+    } else {
+        bail!("the scene's mesh is of type \"{kind}\": give one mesh file per level with --meshes a.msh,b.msh,...");
+    }
+    let cr = t.get_mut("cracking").and_then(|c| c.as_table_mut()).context("the scene has no [cracking] table: there is no failure to converge")?;
+    match radius {
+        Some(r) => {
+            let mut nl = toml::Table::new();
+            nl.insert("radius".into(), toml::Value::Float(r));
+            cr.insert("nonlocal".into(), toml::Value::Table(nl));
+        }
+        None => {
+            cr.remove("nonlocal");
+        }
+    }
+    Ok(t)
+}
+
+/// The first stage alone, its levels times `factor`, no output.
+fn scaled_first_stage(t: &toml::Table, factor: f64) -> Result<toml::Table> {
+    let mut t = t.clone();
+    let stages = t.get_mut("stage").and_then(|s| s.as_array_mut()).context("the scene has no [[stage]]")?;
+    stages.truncate(1);
+    let st = stages[0].as_table_mut().context("stage[0] is not a table")?;
+    if let Some(lv) = st.get_mut("levels").and_then(|l| l.as_table_mut()) {
+        for (_, v) in lv.iter_mut() {
+            let x = v.as_float().or_else(|| v.as_integer().map(|i| i as f64)).context("a level is not a number")?;
+            *v = toml::Value::Float(x * factor);
+        }
+    }
+    t.remove("output");
+    Ok(t)
+}
+
+fn build(scene: &Scene, t: &toml::Table) -> Result<Simulation> {
+    let text = toml::to_string(t)?;
+    let s = Scene::from_str(&text, &scene.path, &scene.base_dir)?;
+    Ok(Simulation::new(s)?)
+}
+
+fn mean_edge(sim: &Simulation) -> f64 {
+    let m = &sim.model.mesh;
+    let (mut sum, mut n) = (0.0, 0usize);
+    for c in &m.cells {
+        let k = c.kind.nodes();
+        for a in 0..k {
+            let (p, q) = (m.points[c.nodes[a] as usize], m.points[c.nodes[(a + 1) % k] as usize]);
+            sum += ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt();
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+/// Elastic solve at the first stage's levels and the initiation of one check.
+fn exact(scene: &Scene, t: &toml::Table) -> Result<(Initiation, Simulation, f64)> {
+    let t0 = Instant::now();
+    let mut sim = build(scene, t)?;
+    if sim.loads.gravity != [0.0; 2] {
+        bail!("{}: model.gravity is not scaled by the load levels: the initiation load needs a load proportional to them", scene.path.display());
+    }
+    if sim.model.corotational {
+        bail!("{}: a co-rotational material is not linear: the initiation load needs a linear body", scene.path.display());
+    }
+    for (i, l) in sim.scene.file.loads.iter().enumerate() {
+        if matches!(l, flem_core::scene::LoadCfg::Velocity { .. } | flem_core::scene::LoadCfg::Displacement { .. }) {
+            bail!("{}: load[{i}] prescribes a velocity or displacement; the initiation load needs traction, pressure or point loads", scene.path.display());
+        }
+    }
+    sim.set_stage_levels(0);
+    let u1 = flem_plugins::check::static_solve(&sim)?;
+    let crit = &sim.scene.file.cracking.as_ref().context("no [cracking]")?.criterion;
+    let cr = sim.cracking.as_mut().context("no [cracking]")?;
+    let scale = cr.scale.clone();
+    let init = initiation(crit.as_ref(), &scale, &sim.model, &u1, cr.nonlocal.as_mut())?;
+    if !init.factor.is_finite() || init.factor <= 0.0 {
+        bail!("{}: no node fails at any load factor up to 1e30 (or one fails at zero load): there is no initiation load", scene.path.display());
+    }
+    Ok((init, sim, t0.elapsed().as_secs_f64()))
+}
+
+fn explicit(scene: &Scene, t: &toml::Table, p: f64) -> Result<Explicit> {
+    let t0 = Instant::now();
+    let mut splits = [0usize; 2];
+    for (k, f) in [0.97, 1.03].into_iter().enumerate() {
+        let mut sim = build(scene, &scaled_first_stage(t, f * p)?)?;
+        sim.run(&mut NoOutput)?;
+        splits[k] = sim.cracking.as_ref().map_or(0, |c| c.n_splits);
+    }
+    let mut sim = build(scene, &scaled_first_stage(t, 1.05 * p)?)?;
+    sim.run(&mut NoOutput)?;
+    let cr = sim.cracking.as_ref().context("no [cracking]")?;
+    let path = cr.cuts.iter().map(|(c, _)| sim.model.mesh.points[sim.model.topo.cluster_point[*c as usize].idx()]).collect();
+    Ok(Explicit { splits_below: splits[0], splits_above: splits[1], path, wall_seconds: t0.elapsed().as_secs_f64() })
+}
+
+pub fn run(a: Args) -> Result<()> {
+    anyhow::ensure!((1..=8).contains(&a.levels), "--levels = {} is incorrect; it must be in [1, 8]", a.levels);
+    if !a.meshes.is_empty() && a.meshes.len() != a.levels {
+        bail!("--meshes gives {} files for --levels {}: give one per level", a.meshes.len(), a.levels);
+    }
+    if let Some(r) = a.radius {
+        anyhow::ensure!(r.is_finite() && r > 0.0, "--radius = {r} is incorrect; it must be finite and > 0");
+    }
+    let scene = Scene::from_file(&a.scene)?;
+    let text = std::fs::read_to_string(&a.scene)?;
+    let base: toml::Table = toml::from_str(&text).context("the scene is not TOML")?;
+    let radius = a.radius.or(scene.file.cracking.as_ref().and_then(|c| c.nonlocal.map(|n| n.radius)));
+    let stem = a.scene.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "scene".into());
+    let out = a.out.clone().unwrap_or_else(|| Path::new("out").join(format!("{stem}_converge")));
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut levels: Vec<Level> = Vec::new();
+    let mut bounds = [[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]];
+    for lv in 0..a.levels {
+        let tl = level_table(&base, lv, &a.meshes, None)?;
+        let (li, sim, lw) = exact(&scene, &tl)?;
+        for p in &sim.model.mesh.points {
+            for d in 0..2 {
+                bounds[0][d] = bounds[0][d].min(p[d]);
+                bounds[1][d] = bounds[1][d].max(p[d]);
+            }
+        }
+        let local = Check { p_crit: li.factor, node: li.x, direction_deg: li.sigma1_deg, wall_seconds: lw };
+        let (elements, dofs, h) = (sim.model.n_elems(), 2 * sim.model.topo.n_clusters(), mean_edge(&sim));
+        drop(sim);
+        let (nonlocal, tn) = match radius {
+            Some(r) => {
+                let tn = level_table(&base, lv, &a.meshes, Some(r))?;
+                let (ni, _, nw) = exact(&scene, &tn)?;
+                (Some(Check { p_crit: ni.factor, node: ni.x, direction_deg: ni.sigma1_deg, wall_seconds: nw }), tn)
+            }
+            None => (None, tl),
+        };
+        let main = nonlocal.clone().unwrap_or_else(|| local.clone());
+        let ex = if a.no_explicit { None } else { Some(explicit(&scene, &tn, main.p_crit)?) };
+        let mesh = if a.meshes.is_empty() { format!("rectangle x{}", 1 << lv) } else { a.meshes[lv].display().to_string() };
+        eprintln!(
+            "level {lv}: h = {h:.4}, {elements} elements: p_crit local {:.5} at ({:.3}, {:.3}), nonlocal {}{}",
+            local.p_crit,
+            local.node[0],
+            local.node[1],
+            nonlocal.as_ref().map_or("-".into(), |n| format!("{:.5} at ({:.3}, {:.3}) dir {:.1} deg", n.p_crit, n.node[0], n.node[1], n.direction_deg)),
+            ex.as_ref().map_or(String::new(), |e| format!("; explicit splits at 0.97: {}, at 1.03: {}, path of {} splits at 1.05", e.splits_below, e.splits_above, e.path.len()))
+        );
+        levels.push(Level { h, elements, dofs, mesh, p_crit: main.p_crit, node: main.node, direction_deg: main.direction_deg, wall_seconds: main.wall_seconds, local, nonlocal, explicit: ex });
+    }
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let rep = Report { scene: a.scene.display().to_string(), radius, command, levels: &levels };
+    flem_core::output::atomic_write(&out.join("converge.json"), serde_json::to_string_pretty(&rep)?.as_bytes())?;
+    let cl: Vec<flem_plot::charts::ConvergeLevel> = levels
+        .iter()
+        .map(|l| flem_plot::charts::ConvergeLevel {
+            h: l.h,
+            p_local: Some(l.local.p_crit),
+            p_nonlocal: l.nonlocal.as_ref().map(|n| n.p_crit),
+            path: l.explicit.as_ref().map(|e| e.path.clone()).unwrap_or_default(),
+        })
+        .collect();
+    let title = format!("{stem}: crack initiation under refinement{}", radius.map_or(String::new(), |r| format!(" (R = {r})")));
+    flem_plot::charts::converge(&out.join("converge"), &title, &cl, bounds)?;
+    eprintln!("converge.json and converge.png/.svg in {}", out.display());
+    Ok(())
+}
