@@ -82,6 +82,8 @@ enum Class {
     MeshDegenerate,
     MeshInverted,
     MeshGroupMissing,
+    /// A load value replaced by an expression of x, y, t (bad ones and a good one).
+    Expression,
 }
 
 struct Mutant {
@@ -429,6 +431,14 @@ fn scene_mutants(file: &Path, rng: &mut Rng) -> Vec<Mutant> {
             push(Class::Inf, format!("{shown} = {inf}"), with(Value::Float(inf)), names.clone());
             let huge = if is_int { Value::Integer(i64::MAX) } else { Value::Float(1e300) };
             push(Class::Huge, format!("{shown} = {}", if is_int { "i64::MAX" } else { "1e300" }), with(huge), names.clone());
+        }
+        // Load values as expressions (issue 23): every kind of bad expression is refused by key,
+        // a good one runs; none may write a non-finite force.
+        let in_load_value = names.iter().any(|n| n == "value") && path.iter().any(|p| matches!(p, Seg::Key(k) if k == "load"));
+        if in_load_value && num.is_some() {
+            for e in ["1 / (x - x)", "-x^2", "z * 2", "1e300 * 1e300 * (1 + y)", "x +* (", "sqrt(-1 - x^2)", "1e99 * (1 + t)", "0.5 * (1 + y)"] {
+                push(Class::Expression, format!("{shown} = \"{e}\""), with(Value::String(e.into())), names.clone());
+            }
         }
         if let (Value::String(s), Some(Seg::Key(k))) = (&cur, path.iter().rev().find(|p| matches!(p, Seg::Key(_)))) {
             if SET_KEYS.contains(&k.as_str()) && s != "all" {
@@ -902,7 +912,7 @@ fn mutated_scenes_and_meshes_keep_the_bad_input_contract() {
         t0.elapsed().as_secs_f64()
     );
     let _ = std::fs::remove_dir_all(&scratch);
-    assert!(counts.len() == 17, "a mutation class produced no mutant: {:?}", counts.keys().collect::<Vec<_>>());
+    assert!(counts.len() == 18, "a mutation class produced no mutant: {:?}", counts.keys().collect::<Vec<_>>());
     assert!(total.iter().sum::<usize>() > 1000, "too few mutants");
     assert!(breaches.is_empty(), "{} mutants break the bad-input contract:\n{}", breaches.len(), breaches.join("\n"));
 }

@@ -30,6 +30,8 @@ pub struct Load {
     pub name: String,
     /// `load[i]`, for messages.
     key: String,
+    /// The largest |level| any stage gives this load, at least 1 (bounds evaluated values).
+    level: f64,
     kind: Kind,
 }
 
@@ -59,15 +61,17 @@ pub struct Loads {
     file: String,
 }
 
-/// Checks an evaluated load value: finite and within the magnitude bound.
-fn checked(v: f64, f: &Field, key: &str, file: &str, x: [f64; 2], t: f64) -> Result<f64> {
-    if v.is_finite() && v.abs() <= MAX_MAGNITUDE {
+/// Checks an evaluated load value: finite, and within the magnitude bound once multiplied by
+/// the largest level a stage gives the load (`level`, at least 1), as numbers are checked
+/// against the levels when the scene is read.
+fn checked(v: f64, f: &Field, key: &str, file: &str, x: [f64; 2], t: f64, level: f64) -> Result<f64> {
+    if v.is_finite() && v.abs() * level <= MAX_MAGNITUDE {
         Ok(v)
     } else {
         Err(FlemError::config(
             file,
             format!("{key}.value"),
-            format!("= \"{}\" gives {v} at (x, y) = ({}, {}), t = {t}; a load value must be finite and at most 1e100 in magnitude", f.text(), x[0], x[1]),
+            format!("= \"{}\" gives {v} at (x, y) = ({}, {}), t = {t}; a load value must be finite and at most 1e100 in magnitude once scaled by its largest level ({level})", f.text(), x[0], x[1]),
         ))
     }
 }
@@ -75,12 +79,12 @@ fn checked(v: f64, f: &Field, key: &str, file: &str, x: [f64; 2], t: f64) -> Res
 /// The consistent end values of a face's fields at time `t` (reference coordinates `xa`, `xb`):
 /// `F_a = sum_g (1 - s_g) F(x_g)`, `F_b = sum_g s_g F(x_g)` (2-point Gauss, weight 1/2 each on
 /// the unit interval, times 2 so that a constant F gives F_a = F_b = F).
-fn face_ends(fields: [&Field; 3], xa: [f64; 2], xb: [f64; 2], t: f64, key: &str, file: &str) -> Result<[f64; 6]> {
+fn face_ends(fields: [&Field; 3], xa: [f64; 2], xb: [f64; 2], t: f64, key: &str, file: &str, level: f64) -> Result<[f64; 6]> {
     let mut out = [0.0; 6];
     for (k, f) in fields.iter().enumerate() {
         for s in GAUSS_S {
             let x = [xa[0] + s * (xb[0] - xa[0]), xa[1] + s * (xb[1] - xa[1])];
-            let v = checked(f.at(x[0], x[1], t), f, key, file, x, t)?;
+            let v = checked(f.at(x[0], x[1], t), f, key, file, x, t, level)?;
             out[2 * k] += (1.0 - s) * v;
             out[2 * k + 1] += s * v;
         }
@@ -133,7 +137,8 @@ impl Loads {
                 LoadCfg::Velocity { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: false },
                 LoadCfg::Displacement { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: true },
             };
-            let mut load = Load { name: l.name().to_string(), key: format!("load[{i}]"), kind };
+            let level = scene.stages.iter().filter_map(|st| st.levels.get(l.name())).fold(1.0f64, |m, v| m.max(v.abs()));
+            let mut load = Load { name: l.name().to_string(), key: format!("load[{i}]"), level, kind };
             // Expressions without t: evaluated here, once per face or point (and checked).
             let uses_t = load.uses_t();
             let x0 = |p: PointId| model.mesh.points[p.idx()];
@@ -142,7 +147,7 @@ impl Loads {
                     let mut v = Vec::with_capacity(faces.len());
                     for &f in faces.iter() {
                         let (pa, pb) = Self::face_points(model, f);
-                        v.push(face_ends([pressure, &traction[0], &traction[1]], x0(pa), x0(pb), 0.0, &load.key, file)?);
+                        v.push(face_ends([pressure, &traction[0], &traction[1]], x0(pa), x0(pb), 0.0, &load.key, file, load.level)?);
                     }
                     *ends = Some(v);
                 }
@@ -150,7 +155,8 @@ impl Loads {
                     let mut v = Vec::with_capacity(points.len());
                     for &p in points.iter() {
                         let x = x0(p);
-                        v.push([checked(value[0].at(x[0], x[1], 0.0), &value[0], &load.key, file, x, 0.0)?, checked(value[1].at(x[0], x[1], 0.0), &value[1], &load.key, file, x, 0.0)?]);
+                        let at = |f: &Field| checked(f.at(x[0], x[1], 0.0), f, &load.key, file, x, 0.0, load.level);
+                        v.push([at(&value[0])?, at(&value[1])?]);
                     }
                     *at = Some(v);
                 }
@@ -266,7 +272,7 @@ impl Loads {
                             (None, None) if lev == 0.0 => {}
                             (None, None) => {
                                 let (pa, pb) = Self::face_points(model, f);
-                                let e = face_ends([pressure, &Field::Const(0.0), &Field::Const(0.0)], pref(pa), pref(pb), time, &l.key, &self.file)?;
+                                let e = face_ends([pressure, &Field::Const(0.0), &Field::Const(0.0)], pref(pa), pref(pb), time, &l.key, &self.file, l.level)?;
                                 Self::edge_force_ends(model, f, &x, lev, &e, out);
                             }
                         }
@@ -275,15 +281,15 @@ impl Loads {
                 Kind::Edge { faces, pressure, traction, follow: false, .. } if uses_t && lev != 0.0 => {
                     for &f in faces {
                         let (pa, pb) = Self::face_points(model, f);
-                        let e = face_ends([pressure, &traction[0], &traction[1]], pref(pa), pref(pb), time, &l.key, &self.file)?;
+                        let e = face_ends([pressure, &traction[0], &traction[1]], pref(pa), pref(pb), time, &l.key, &self.file, l.level)?;
                         Self::edge_force_ends(model, f, &xr, lev, &e, out);
                     }
                 }
                 Kind::Point { points, value, .. } if uses_t && lev != 0.0 => {
                     for p in points {
                         let xp = pref(*p);
-                        let v0 = checked(value[0].at(xp[0], xp[1], time), &value[0], &l.key, &self.file, xp, time)?;
-                        let v1 = checked(value[1].at(xp[0], xp[1], time), &value[1], &l.key, &self.file, xp, time)?;
+                        let at = |f: &Field| checked(f.at(xp[0], xp[1], time), f, &l.key, &self.file, xp, time, l.level);
+                        let (v0, v1) = (at(&value[0])?, at(&value[1])?);
                         let c = model.topo.point_clusters[p.idx()][0].idx();
                         out[c][0] += lev * v0;
                         out[c][1] += lev * v1;
