@@ -4,7 +4,9 @@
 //! file of configs/ is mutated deterministically (seeded xorshift; no external fuzzer): a key
 //! removed, a value replaced by a wrong type, 0, a negative number, NaN, +-inf or a huge
 //! number, a table duplicated, an unknown key, a node/edge set name misspelt, a stage level
-//! naming an unknown load; mesh files truncated at several offsets, a line garbled, an
+//! naming an unknown load, a load value replaced by expressions of x, y, t (bad ones: a division
+//! by zero, a sign before a power, an unknown variable, overflow, a syntax error, a NaN, and a
+//! load of t and a good one that must run); mesh files truncated at several offsets, a line garbled, an
 //! element referring to a missing node, a degenerate or inverted element, a physical group
 //! removed. Each mutant goes through the library as `flem check` and `flem run` use it
 //! (`Scene::from_str`, `Simulation::new`, the stage loop with `[check]` comparisons when the
@@ -25,7 +27,7 @@
 //! `FLEM_FUZZ_CRACK=1` also forces frequent multi-split failure checks (about 2 min: a deeper
 //! run, not part of the suite's budget).
 //!
-//! About 3800 mutants in all. What the library does so that they get a named refusal:
+//! About 4100 mutants in all. What the library does so that they get a named refusal:
 //! magnitudes (material constants, loads, levels x values, gravity, probe and mesh coordinates)
 //! are bounded by 1e100 (`scene::MAX_MAGNITUDE`, `mesh::MAX_COORD`) so that overflow is refused
 //! by key instead of surfacing as a divergence; a non-finite critical step is refused naming the
