@@ -280,7 +280,16 @@ fn check(scenes: &[PathBuf]) -> Result<()> {
     anyhow::ensure!(!scenes.is_empty(), "give at least one scene file");
     for p in scenes {
         let (scene, notes) = load_for_check(p)?;
-        let sim = Simulation::new(scene)?;
+        let sim = match Simulation::new(scene) {
+            Ok(s) => s,
+            Err(e) => {
+                // What was not loaded may be why (a stand-in criterion or rule).
+                for n in &notes {
+                    eprintln!("note: {n}");
+                }
+                return Err(e.into());
+            }
+        };
         for w in &sim.warnings {
             eprintln!("warning: {w}");
         }

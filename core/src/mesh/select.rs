@@ -84,6 +84,11 @@ impl SetCfg {
                 return Err(FlemError::config(file, key("box"), "must be [[x0, y0], [x1, y1]] with x0 <= x1 and y0 <= y1"));
             }
         }
+        if let Some([a, b]) = &self.segment {
+            if a == b {
+                return Err(FlemError::config(file, key("segment"), "has two equal ends; give two distinct points (or `nearest` for one point)"));
+            }
+        }
         if let Some(t) = self.tolerance {
             if !(t.is_finite() && t >= 0.0 && t <= super::MAX_COORD) {
                 return Err(FlemError::config(file, key("tolerance"), format!("= {t} is incorrect; it must be a finite distance >= 0")));
