@@ -62,6 +62,29 @@ fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
     batches[2]
 }
 
+/// The machine's own memory bandwidth, measured in the same run: the STREAM triad
+/// `a[i] = b[i] + s c[i]` over three arrays of 2^25 f64 (768 MiB in all, far beyond the caches),
+/// split into equal chunks over `threads` threads, counted as STREAM does (24 bytes per index:
+/// two reads and a write, the write-allocate read not counted). Median of 5 batches, GB/s.
+fn triad_gb_per_s(threads: usize, min_time: f64) -> Result<f64> {
+    use rayon::prelude::*;
+    const N: usize = 1 << 25;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build()?;
+    let (mut a, b, c) = (vec![0.0f64; N], vec![1.0f64; N], vec![2.0f64; N]);
+    let chunk = N.div_ceil(threads.max(1));
+    let (t, _) = time_per_call(min_time, || {
+        pool.install(|| {
+            a.par_chunks_mut(chunk).zip(b.par_chunks(chunk)).zip(c.par_chunks(chunk)).for_each(|((a, b), c)| {
+                for i in 0..a.len() {
+                    a[i] = b[i] + 3.0 * c[i];
+                }
+            })
+        })
+    });
+    std::hint::black_box(&a);
+    Ok(24.0 * N as f64 / t / 1e9)
+}
+
 /// `nx x ny` for about `n` elements on a 2 x 1 rectangle (T3: two per cell).
 fn grid_for(n: usize, kind: CellKind) -> (usize, usize) {
     let cells = if kind == CellKind::T3 { n / 2 } else { n } as f64;
@@ -85,7 +108,7 @@ fn model(nx: usize, ny: usize, kind: CellKind) -> Result<Model> {
 }
 
 /// Kernel throughput of one mesh for each thread count.
-fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts) -> Result<Value> {
+fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts, triad: &[(usize, f64)]) -> Result<Value> {
     let mut m = model(nx, ny, kind)?;
     let (ne, nc) = (m.n_elems(), m.topo.n_clusters());
     let mut seed = 0x9E37_79B9_7F4A_7C15u64;
@@ -100,6 +123,10 @@ fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts) -> Result<Val
     let mut f = vec![[0.0; 2]; nc];
     let mut reference: Option<Vec<[f64; 2]>> = None;
     let mut per_thread = Vec::new();
+    // The bytes an element-update must move at the least: its block data (packs, connectivity)
+    // streamed once, and per cluster u read (16 B), f_int read and written (32 B).
+    let block_bytes = m.blocks.iter().map(|b| b.memory_bytes()).sum::<usize>() as f64 / ne as f64;
+    let min_bytes = block_bytes + 48.0 * nc as f64 / ne as f64;
     for &t in &o.threads {
         m.set_threads(t)?;
         let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
@@ -111,7 +138,10 @@ fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts) -> Result<Val
             }
             Some(r) => r.iter().zip(&f).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits()),
         };
-        per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "cpu_ns_per_elem_update": cpu * 1e9 / ne as f64, "bit_identical_to_first": identical}));
+        let eff = min_bytes * ne as f64 / s / 1e9;
+        let tri = triad.iter().find(|(n, _)| *n == m.threads()).map(|x| x.1);
+        per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "cpu_ns_per_elem_update": cpu * 1e9 / ne as f64, "bit_identical_to_first": identical,
+            "bytes_per_elem_update_min": min_bytes, "effective_gb_per_s": eff, "triad_gb_per_s": tri, "fraction_of_triad": tri.map(|t| eff / t)}));
     }
     let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
     // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
@@ -292,11 +322,21 @@ fn nonlocal_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepO
 }
 
 pub fn step(o: &StepOpts) -> Result<()> {
+    // The machine's bandwidth at each thread count, in this run (issue 24: the kernel's
+    // effective bandwidth is quoted as a fraction of it).
+    let mut triad = Vec::new();
+    for &t in &o.threads {
+        let n = if t == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { t };
+        if !triad.iter().any(|(k, _)| *k == n) {
+            triad.push((n, triad_gb_per_s(n, o.min_time)?));
+        }
+    }
+    eprintln!("bench: triad {triad:?} GB/s");
     let mut kernels = Vec::new();
     for &kind in &o.kinds {
         for &n in &o.sizes {
             let (nx, ny) = grid_for(n, kind);
-            kernels.push(kernel_case(nx, ny, kind, o)?);
+            kernels.push(kernel_case(nx, ny, kind, o, &triad)?);
             eprintln!("bench: kernel {} {} elements done", kind_name(kind), kernels.last().unwrap()["elements"]);
         }
     }
@@ -313,6 +353,7 @@ pub fn step(o: &StepOpts) -> Result<()> {
     let out = json!({
         "bench": "step",
         "cpus": std::thread::available_parallelism().map_or(1, |n| n.get()),
+        "triad": triad.iter().map(|(t, g)| json!({"threads": t, "gb_per_s": g})).collect::<Vec<_>>(),
         "kernel": kernels,
         "step": steps,
     });
