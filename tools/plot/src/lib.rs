@@ -259,7 +259,8 @@ fn load_curve(dir: &Path, hist: &History, stages: &[(String, bool, u64)], out: &
     let Some(sc) = hist.col("stage") else { return Ok(Vec::new()) };
     let loads = hist.loads();
     let maxabs = |c: usize| hist.rows.iter().map(|r| r[c]).filter(|v| v.is_finite()).fold(0.0f64, |a, v| a.max(v.abs()));
-    let Some(load) = loads.iter().max_by(|a, b| maxabs(hist.col(&format!("level_{a}")).unwrap()).total_cmp(&maxabs(hist.col(&format!("level_{b}")).unwrap()))) else { return Ok(Vec::new()) };
+    // Ties go to the first load of the scene (max_by keeps the last of equals: walk backwards).
+    let Some(load) = loads.iter().rev().max_by(|a, b| maxabs(hist.col(&format!("level_{a}")).unwrap()).total_cmp(&maxabs(hist.col(&format!("level_{b}")).unwrap()))) else { return Ok(Vec::new()) };
     let lc = hist.col(&format!("level_{load}")).unwrap();
     // Stage ends: the last row of each stage.
     let mut ends: Vec<(usize, usize)> = Vec::new();
