@@ -269,3 +269,26 @@ fn pictures_have_a_key_and_the_curve_follows_the_load_through_every_stage() {
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_file(&scene_path);
 }
+
+/// history.csv has one row per step it reports: a stage that ends at its step limit on a
+/// multiple of `history_every` (tension_crack's cracked stage: 20000 steps, rows every 1000)
+/// wrote that step's row twice, once in the loop and once at the stage end. Reference: the
+/// history's own contract (one row per reported step, steps increasing).
+#[test]
+fn a_stage_ending_on_a_history_row_writes_it_once() {
+    let dir = std::env::temp_dir().join(format!("flem-histrow-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let text = std::fs::read_to_string(root().join("configs/verification/tension_crack.toml")).unwrap().replace("\n[check]\n", "\n[output]\nhistory_every = 1000\n\n[check]\n");
+    assert!(text.contains("history_every = 1000") && text.contains("max_steps = 20000"), "tension_crack.toml changed");
+    let scene_path = dir.with_extension("toml");
+    std::fs::write(&scene_path, text).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", scene_path.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let hist = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    let col = hist.lines().next().unwrap().split(',').position(|h| h == "step").unwrap();
+    let steps: Vec<u64> = hist.lines().skip(1).map(|l| l.split(',').nth(col).unwrap().parse().unwrap()).collect();
+    assert!(steps.len() > 20, "{} rows", steps.len());
+    assert!(steps.windows(2).all(|w| w[0] < w[1]), "a step is reported twice or goes back: {steps:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&scene_path);
+}

@@ -1137,7 +1137,8 @@ impl Simulation {
             if k % 256 == 0 {
                 obs.progress(&Progress { stage: i, n_stages, step: self.state.step, stage_step: k, max_steps, dt: self.dt, ratio, tolerance: tol });
             }
-            if hist_every > 0 && k % hist_every == 0 {
+            // The stage's last step gets its row at the stage end (below), not twice.
+            if hist_every > 0 && k % hist_every == 0 && k < max_steps {
                 obs.history(self, i)?;
             }
             if snap_every > 0 && k % snap_every == 0 {
