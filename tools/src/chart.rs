@@ -136,13 +136,20 @@ fn variant(base: &toml::Table, damping: Option<&str>, safety: Option<f64>, tol: 
         }
     }
     if refine > 1 {
-        let mesh = t.get_mut("mesh").and_then(|m| m.as_table_mut()).context("[mesh] missing")?;
-        for k in ["nx", "ny"] {
-            let n = mesh.get(k).and_then(|v| v.as_integer()).with_context(|| format!("mesh.{k} missing"))?;
-            mesh.insert(k.into(), toml::Value::Integer(n * refine as i64));
-        }
+        refine_rectangle(&mut t, refine as i64)?;
     }
     Ok(toml::to_string(&t)?)
+}
+
+/// Multiplies a `rectangle` mesh's `nx` and `ny` by `factor` (the notch, if any, keeps its
+/// size: it is given in lengths). Shared by `flem chart` and `flem converge`.
+pub(crate) fn refine_rectangle(t: &mut toml::Table, factor: i64) -> Result<()> {
+    let mesh = t.get_mut("mesh").and_then(|m| m.as_table_mut()).context("the scene has no [mesh] table")?;
+    for k in ["nx", "ny"] {
+        let n = mesh.get(k).and_then(|v| v.as_integer()).with_context(|| format!("mesh.{k} is missing"))?;
+        mesh.insert(k.into(), toml::Value::Integer(n * factor));
+    }
+    Ok(())
 }
 
 fn is_rectangle(t: &toml::Table) -> bool {

@@ -102,10 +102,7 @@ fn level_table(base: &toml::Table, level: usize, meshes: &[PathBuf], radius: Opt
         let abs = std::fs::canonicalize(f).with_context(|| format!("--meshes: {} cannot be read", f.display()))?;
         mesh.insert("file".into(), toml::Value::String(abs.display().to_string()));
     } else if kind == "rectangle" {
-        for k in ["nx", "ny"] {
-            let n = mesh.get(k).and_then(|v| v.as_integer()).with_context(|| format!("mesh.{k} is missing"))?;
-            mesh.insert(k.into(), toml::Value::Integer(n << level));
-        }
+        crate::chart::refine_rectangle(&mut t, 1 << level)?;
     } else {
         bail!("the scene's mesh is of type \"{kind}\": give one mesh file per level with --meshes a.msh,b.msh,...");
     }

@@ -494,6 +494,15 @@ impl NodeCtx<'_> {
     }
 }
 
+/// A stage as warnings name it: `"name"`, or `stage[i]` when it has none.
+fn stage_label(i: usize, s: &crate::scene::StageCfg) -> String {
+    if s.name.is_empty() {
+        format!("stage[{i}]")
+    } else {
+        format!("\"{}\"", s.name)
+    }
+}
+
 impl Simulation {
     /// Builds the model, resolves loads, separates the declared edges and computes the step.
     pub fn new(scene: Scene) -> Result<Simulation> {
@@ -522,16 +531,14 @@ impl Simulation {
         };
         if scene.file.cracking.as_ref().is_some_and(|c| c.at_equilibrium) {
             // A dynamic stage never comes to rest, so checks at equilibrium never run in it.
-            let dynamic: Vec<String> =
-                scene.file.stages.iter().enumerate().filter(|(_, s)| s.dynamic).map(|(i, s)| if s.name.is_empty() { format!("stage[{i}]") } else { format!("\"{}\"", s.name) }).collect();
+            let dynamic: Vec<String> = scene.file.stages.iter().enumerate().filter(|(_, s)| s.dynamic).map(|(i, s)| stage_label(i, s)).collect();
             if !dynamic.is_empty() {
                 warnings.push(format!("{file}: cracking.at_equilibrium = true: failure is never checked in the dynamic stage(s) {} (they do not come to rest); set cracking.at_equilibrium = false and cracking.check_every to crack during them", dynamic.join(", ")));
             }
         }
         if loads.has_time {
             // A load of t in a stage marched to equilibrium follows the relaxation's pseudo-time.
-            let quasi: Vec<String> =
-                scene.file.stages.iter().enumerate().filter(|(_, s)| !s.dynamic).map(|(i, s)| if s.name.is_empty() { format!("stage[{i}]") } else { format!("\"{}\"", s.name) }).collect();
+            let quasi: Vec<String> = scene.file.stages.iter().enumerate().filter(|(_, s)| !s.dynamic).map(|(i, s)| stage_label(i, s)).collect();
             let which: Vec<String> = loads.loads.iter().filter(|l| l.uses_t()).map(|l| format!("\"{}\"", l.name)).collect();
             if !quasi.is_empty() {
                 warnings.push(format!(
