@@ -132,3 +132,77 @@ fn failure_factor_matches_closed_forms() {
     let ucs = 2.0 * 0.1 * 30f64.to_radians().cos() / (1.0 - 30f64.to_radians().sin());
     assert!(rel(l, ucs) < 1e-12, "{l} vs {ucs}");
 }
+
+/// configs/converge/opening_nonlocal.toml on an n x n mesh, its stage level times `factor`.
+fn opening_scene(n: usize, factor: f64) -> Scene {
+    flem_plugins::link();
+    let path = root().join("configs/converge/opening_nonlocal.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("nx = 6\nny = 6") && text.contains("levels = { p = 111.0 }"), "the scene changed: update the test");
+    let text = text.replace("nx = 6\nny = 6", &format!("nx = {n}\nny = {n}")).replace("levels = { p = 111.0 }", &format!("levels = {{ p = {} }}", 111.0 * factor));
+    Scene::from_str(&text, &path, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Reference: mesh convergence of a regularised quantity, the issue-18 must-show on the paper's
+/// opening model (Nishimura et al. figures 9-11; the quasi-static roller variant) with our
+/// nonlocal check R = 1.1 cm and crack tracking (exclusion 1.1 cm):
+/// - the exact initiation loads on 6 x 6, 12 x 12 and 24 x 24 lie within 5 % of each other (the
+///   issue's tolerance; measured 0.4 %), while the paper's corner mean on the same meshes falls
+///   by more than 2x (1.053 -> 0.478: the notch-tip singularity, docs/paper.md);
+/// - an explicit run at 1.05 times each mesh's own initiation load splits first at the notch tip
+///   (2, 3) and then, one node per split, along the ligament y = 3 with x increasing, for every
+///   ligament node up to x = 5 (the physics: mode I from a notch under load control is unstable,
+///   the crack runs straight across). Without tracking the 24 x 24 mesh cracked a band of nodes
+///   around (2.5, 2.9) and the 12 x 12 one arrested after one split (docs/nonlocal.md).
+#[test]
+fn opening_model_initiation_and_crack_path_converge_with_tracking() {
+    let mut p = Vec::new();
+    for n in [6usize, 12, 24] {
+        let i = init(opening_scene(n, 1.0));
+        p.push(i.factor);
+        let mut sim = Simulation::new(opening_scene(n, 1.05 * i.factor)).unwrap_or_else(|e| panic!("{e}"));
+        sim.run(&mut flem_core::solver::NoOutput).unwrap_or_else(|e| panic!("{e}"));
+        let cr = sim.cracking.as_ref().unwrap();
+        let path: Vec<[f64; 2]> = cr.cuts.iter().map(|(c, _)| sim.model.mesh.points[sim.model.topo.cluster_point[*c as usize].idx()]).collect();
+        let h = 6.0 / n as f64;
+        let on_ligament = ((5.0 - 2.0) / h).round() as usize + 1;
+        assert!(path.len() >= on_ligament, "{n} x {n}: {} splits, the crack did not cross: {path:?}", path.len());
+        for (k, x) in path[..on_ligament].iter().enumerate() {
+            assert!((x[0] - (2.0 + k as f64 * h)).abs() < 1e-9 && (x[1] - 3.0).abs() < 1e-9, "{n} x {n}: split {k} at {x:?}, not the next ligament node from the tip: {path:?}");
+        }
+    }
+    let (lo, hi) = (p.iter().cloned().fold(f64::INFINITY, f64::min), p.iter().cloned().fold(0.0, f64::max));
+    assert!(hi / lo - 1.0 < 0.05, "nonlocal initiation loads {p:?} spread more than 5 %");
+    let local = |n: usize| {
+        let mut s = opening_scene(n, 1.0);
+        s.file.cracking.as_mut().unwrap().nonlocal = None;
+        init(s).factor
+    };
+    let (l6, l24) = (local(6), local(24));
+    assert!(l6 / l24 > 2.0, "the paper's corner mean falls with h: {l6} -> {l24}");
+}
+
+/// Reference: the truncated quartic ("bell") weight of Bazant and Jirasek (2002, eq. 14)
+/// is `(1 - r^2/R^2)^2` inside R and 0 beyond (exact values at r = 0, R/2, R, beyond). An
+/// exclusion distance <= 0, NaN or inf is refused naming its key and the file; an unknown
+/// weight is refused naming the choices.
+#[test]
+fn bell_weight_and_exclusion_are_checked() {
+    use flem_core::scene::NonlocalWeight;
+    let b = NonlocalWeight::Bell;
+    assert_eq!(b.factor(0.0, 2.0), 1.0);
+    assert!((b.factor(1.0, 2.0) - 0.5625).abs() < 1e-15);
+    assert_eq!(b.factor(4.0, 2.0), 0.0);
+    assert_eq!(b.factor(5.0, 2.0), 0.0);
+    assert_eq!(NonlocalWeight::Uniform.factor(3.0, 2.0), 1.0);
+    let path = root().join("configs/converge/opening_nonlocal.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    for bad in ["-1.0", "0.0", "nan", "inf"] {
+        let t = text.replace("exclusion = 1.1", &format!("exclusion = {bad}"));
+        let e = Scene::from_str(&t, &path, path.parent().unwrap()).err().expect("refused").to_string();
+        assert!(e.contains("cracking.nonlocal.exclusion") && e.contains("opening_nonlocal.toml"), "{e}");
+    }
+    let t = text.replace("exclusion = 1.1", "exclusion = 1.1, weight = \"bel\"");
+    let e = Scene::from_str(&t, &path, path.parent().unwrap()).err().expect("refused").to_string();
+    assert!(e.contains("bell") || e.contains("weight"), "{e}");
+}

@@ -348,6 +348,49 @@ pub struct NonlocalCfg {
     /// Averaging radius, in the mesh's length unit (Euclidean distance in the reference
     /// configuration from the node to each Gauss point).
     pub radius: f64,
+    /// How a Gauss point's area weight falls off with its distance `r` from the node:
+    /// `uniform` (the default: every point within `radius` counts by its area alone) or `bell`
+    /// (ours too: times `(1 - r^2/R^2)^2`, Bazant and Jirasek's truncated quartic).
+    #[serde(default, skip_serializing_if = "NonlocalWeight::is_uniform")]
+    pub weight: NonlocalWeight,
+    /// Crack tracking (ours, after Cervera and Chiumenti's exclusion radius): once a crack
+    /// exists, a point within this distance of a crack edge may split only where it is a crack
+    /// tip (the joined end of an edge separated at its other end). Absent: every point may split.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exclusion: Option<f64>,
+}
+
+/// The distance weight of the nonlocal average (`[cracking] nonlocal.weight`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NonlocalWeight {
+    /// Every Gauss point within the radius counts by the area it stands for.
+    #[default]
+    Uniform,
+    /// The area times `(1 - r^2/R^2)^2` (Bazant and Jirasek 2002, eq. 14: the truncated
+    /// quartic "bell"): points near the node count most, points at the radius not at all.
+    Bell,
+}
+
+impl NonlocalWeight {
+    pub fn is_uniform(&self) -> bool {
+        *self == NonlocalWeight::Uniform
+    }
+    /// The factor on the area weight of a Gauss point at squared distance `r2` (radius `r`).
+    #[inline]
+    pub fn factor(&self, r2: f64, radius: f64) -> f64 {
+        match self {
+            NonlocalWeight::Uniform => 1.0,
+            NonlocalWeight::Bell => {
+                let q = 1.0 - r2 / (radius * radius);
+                if q > 0.0 {
+                    q * q
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
 }
 
 fn default_check_every() -> u64 {
@@ -544,6 +587,9 @@ impl Scene {
             }
             if let Some(nl) = &c.nonlocal {
                 range(&n, "cracking.nonlocal.radius", nl.radius, 0.0, false, MAX_MAGNITUDE, true)?;
+                if let Some(x) = nl.exclusion {
+                    range(&n, "cracking.nonlocal.exclusion", x, 0.0, false, MAX_MAGNITUDE, true)?;
+                }
             }
         }
         if let Some(c) = &f.check {

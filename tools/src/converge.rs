@@ -39,9 +39,27 @@ pub struct Args {
     /// Nonlocal radius (default: the scene's cracking.nonlocal.radius; none: local check only).
     #[arg(long)]
     pub radius: Option<f64>,
+    /// Distance weight of the nonlocal average: uniform or bell (default: the scene's).
+    #[arg(long)]
+    pub weight: Option<String>,
+    /// Crack-tracking exclusion distance of the nonlocal check (default: the scene's; ours).
+    #[arg(long)]
+    pub exclusion: Option<f64>,
     /// Skip the explicit runs at 0.97, 1.03 and 1.05 of the initiation load.
     #[arg(long)]
     pub no_explicit: bool,
+    /// Also run a load ramp from the initiation load up to this multiple of it, in stages of
+    /// `--ramp-step` (each to equilibrium, the scene's settings): the crack path under rising
+    /// load and the peak load (the highest level still in equilibrium).
+    #[arg(long)]
+    pub ramp_to: Option<f64>,
+    /// Increment of the ramp, as a fraction of the initiation load.
+    #[arg(long, default_value_t = 0.025)]
+    pub ramp_step: f64,
+    /// Step limit of each ramp stage (a stage that reaches it has not come to rest: the crack
+    /// runs through, and the ramp stops).
+    #[arg(long, default_value_t = 50_000)]
+    pub ramp_max_steps: u64,
     /// Output folder (default: out/<scene name>_converge).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -67,6 +85,19 @@ pub struct Explicit {
 }
 
 #[derive(Serialize, Clone, Debug)]
+pub struct Ramp {
+    /// Split points in order, and the factor on the first stage's levels at which each split.
+    pub path: Vec<[f64; 2]>,
+    pub path_factor: Vec<f64>,
+    /// The highest ramp level (factor on the first stage's levels) whose stage came to rest.
+    pub peak: f64,
+    /// The first ramp level whose stage did not come to rest within its step limit (the crack
+    /// ran through), if one did not.
+    pub run_through: Option<f64>,
+    pub wall_seconds: f64,
+}
+
+#[derive(Serialize, Clone, Debug)]
 pub struct Level {
     /// Mean element edge length.
     pub h: f64,
@@ -83,6 +114,9 @@ pub struct Level {
     /// Ours, with `radius`.
     pub nonlocal: Option<Check>,
     pub explicit: Option<Explicit>,
+    /// With `--ramp-to`: the crack path and the peak load under a rising load.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ramp: Option<Ramp>,
 }
 
 #[derive(Serialize)]
@@ -93,7 +127,14 @@ struct Report<'a> {
     levels: &'a [Level],
 }
 
-fn level_table(base: &toml::Table, level: usize, meshes: &[PathBuf], radius: Option<f64>) -> Result<toml::Table> {
+/// The nonlocal settings that `flem converge` may override.
+#[derive(Clone, Default)]
+struct NlOpts {
+    weight: Option<String>,
+    exclusion: Option<f64>,
+}
+
+fn level_table(base: &toml::Table, level: usize, meshes: &[PathBuf], radius: Option<f64>, o: &NlOpts) -> Result<toml::Table> {
     let mut t = base.clone();
     let mesh = t.get_mut("mesh").and_then(|m| m.as_table_mut()).context("the scene has no [mesh] table")?;
     let kind = mesh.get("type").and_then(|v| v.as_str()).unwrap_or("").to_string();
@@ -109,8 +150,15 @@ fn level_table(base: &toml::Table, level: usize, meshes: &[PathBuf], radius: Opt
     let cr = t.get_mut("cracking").and_then(|c| c.as_table_mut()).context("the scene has no [cracking] table: there is no failure to converge")?;
     match radius {
         Some(r) => {
-            let mut nl = toml::Table::new();
+            // The scene's own nonlocal settings (weight, exclusion) are kept unless overridden.
+            let mut nl = cr.get("nonlocal").and_then(|v| v.as_table()).cloned().unwrap_or_default();
             nl.insert("radius".into(), toml::Value::Float(r));
+            if let Some(w) = &o.weight {
+                nl.insert("weight".into(), toml::Value::String(w.clone()));
+            }
+            if let Some(x) = o.exclusion {
+                nl.insert("exclusion".into(), toml::Value::Float(x));
+            }
             cr.insert("nonlocal".into(), toml::Value::Table(nl));
         }
         None => {
@@ -183,6 +231,48 @@ fn exact(scene: &Scene, t: &toml::Table) -> Result<(Initiation, Simulation, f64)
     Ok((init, sim, t0.elapsed().as_secs_f64()))
 }
 
+/// The ramp: the first stage's levels times `p f` for f = 1, 1 + step, ..., `to`, one stage
+/// each, run in turn until one does not come to rest.
+fn ramp(scene: &Scene, t: &toml::Table, p: f64, to: f64, step: f64, max_steps: u64) -> Result<Ramp> {
+    let t0 = Instant::now();
+    let mut t = scaled_first_stage(t, p)?;
+    let first = t["stage"].as_array().context("no [[stage]]")?[0].as_table().context("stage[0] is not a table")?.clone();
+    let mut stages = Vec::new();
+    let mut factors = Vec::new();
+    let n = ((to - 1.0) / step + 1e-9).floor().max(0.0) as usize;
+    for k in 0..=n {
+        let f = 1.0 + k as f64 * step;
+        let mut st = first.clone();
+        st.insert("name".into(), toml::Value::String(format!("ramp{k}")));
+        st.insert("max_steps".into(), toml::Value::Integer(max_steps as i64));
+        if let Some(lv) = st.get_mut("levels").and_then(|l| l.as_table_mut()) {
+            for (_, v) in lv.iter_mut() {
+                let x = v.as_float().context("a level is not a number")?;
+                *v = toml::Value::Float(x * f);
+            }
+        }
+        stages.push(toml::Value::Table(st));
+        factors.push(p * f);
+    }
+    t.insert("stage".into(), toml::Value::Array(stages));
+    let mut sim = build(scene, &t)?;
+    let (mut path_factor, mut peak, mut run_through) = (Vec::new(), 0.0, None);
+    for (i, &f) in factors.iter().enumerate() {
+        sim.run_stage(i, &mut NoOutput)?;
+        let n_cuts = sim.cracking.as_ref().map_or(0, |c| c.cuts.len());
+        path_factor.resize(n_cuts, f);
+        if sim.stages_done.last().is_some_and(|s| s.converged) {
+            peak = f;
+        } else {
+            run_through = Some(f);
+            break;
+        }
+    }
+    let cr = sim.cracking.as_ref().context("no [cracking]")?;
+    let path = cr.cuts.iter().map(|(c, _)| sim.model.mesh.points[sim.model.topo.cluster_point[*c as usize].idx()]).collect();
+    Ok(Ramp { path, path_factor, peak, run_through, wall_seconds: t0.elapsed().as_secs_f64() })
+}
+
 fn explicit(scene: &Scene, t: &toml::Table, p: f64) -> Result<Explicit> {
     let t0 = Instant::now();
     let mut splits = [0usize; 2];
@@ -206,6 +296,15 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(r) = a.radius {
         anyhow::ensure!(r.is_finite() && r > 0.0, "--radius = {r} is incorrect; it must be finite and > 0");
     }
+    if let Some(to) = a.ramp_to {
+        anyhow::ensure!(to.is_finite() && (1.0..=100.0).contains(&to), "--ramp-to = {to} is incorrect; it must be in [1, 100]");
+        anyhow::ensure!(
+            a.ramp_step.is_finite() && a.ramp_step > 0.0 && (to - 1.0) / a.ramp_step <= 10_000.0,
+            "--ramp-step = {} is incorrect; it must be > 0 and give at most 10000 stages",
+            a.ramp_step
+        );
+    }
+    let o = NlOpts { weight: a.weight.clone(), exclusion: a.exclusion };
     let scene = Scene::from_file(&a.scene)?;
     let text = std::fs::read_to_string(&a.scene)?;
     let base: toml::Table = toml::from_str(&text).context("the scene is not TOML")?;
@@ -216,7 +315,7 @@ pub fn run(a: Args) -> Result<()> {
     let mut levels: Vec<Level> = Vec::new();
     let mut bounds = [[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]];
     for lv in 0..a.levels {
-        let tl = level_table(&base, lv, &a.meshes, None)?;
+        let tl = level_table(&base, lv, &a.meshes, None, &o)?;
         let (li, sim, lw) = exact(&scene, &tl)?;
         for p in &sim.model.mesh.points {
             for d in 0..2 {
@@ -229,7 +328,7 @@ pub fn run(a: Args) -> Result<()> {
         drop(sim);
         let (nonlocal, tn) = match radius {
             Some(r) => {
-                let tn = level_table(&base, lv, &a.meshes, Some(r))?;
+                let tn = level_table(&base, lv, &a.meshes, Some(r), &o)?;
                 let (ni, _, nw) = exact(&scene, &tn)?;
                 (Some(Check { p_crit: ni.factor, node: ni.x, direction_deg: ni.sigma1_deg, wall_seconds: nw }), tn)
             }
@@ -237,6 +336,10 @@ pub fn run(a: Args) -> Result<()> {
         };
         let main = nonlocal.clone().unwrap_or_else(|| local.clone());
         let ex = if a.no_explicit { None } else { Some(explicit(&scene, &tn, main.p_crit)?) };
+        let rp = match a.ramp_to {
+            Some(to) => Some(ramp(&scene, &tn, main.p_crit, to, a.ramp_step, a.ramp_max_steps)?),
+            None => None,
+        };
         let mesh = if a.meshes.is_empty() { format!("rectangle x{}", 1 << lv) } else { a.meshes[lv].display().to_string() };
         eprintln!(
             "level {lv}: h = {h:.4}, {elements} elements: p_crit local {:.5} at ({:.3}, {:.3}), nonlocal {}{}",
@@ -246,7 +349,29 @@ pub fn run(a: Args) -> Result<()> {
             nonlocal.as_ref().map_or("-".into(), |n| format!("{:.5} at ({:.3}, {:.3}) dir {:.1} deg", n.p_crit, n.node[0], n.node[1], n.direction_deg)),
             ex.as_ref().map_or(String::new(), |e| format!("; explicit splits at 0.97: {}, at 1.03: {}, path of {} splits at 1.05", e.splits_below, e.splits_above, e.path.len()))
         );
-        levels.push(Level { h, elements, dofs, mesh, p_crit: main.p_crit, node: main.node, direction_deg: main.direction_deg, wall_seconds: main.wall_seconds, local, nonlocal, explicit: ex });
+        if let Some(r) = &rp {
+            eprintln!(
+                "  ramp: peak {:.5} ({:.3} p_crit), {} splits{}",
+                r.peak,
+                r.peak / main.p_crit,
+                r.path.len(),
+                r.run_through.map_or(" (did not run through)".into(), |f| format!(", ran through at {f:.5}"))
+            );
+        }
+        levels.push(Level {
+            h,
+            elements,
+            dofs,
+            mesh,
+            p_crit: main.p_crit,
+            node: main.node,
+            direction_deg: main.direction_deg,
+            wall_seconds: main.wall_seconds,
+            local,
+            nonlocal,
+            explicit: ex,
+            ramp: rp,
+        });
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let rep = Report { scene: a.scene.display().to_string(), radius, command, levels: &levels };
@@ -257,7 +382,7 @@ pub fn run(a: Args) -> Result<()> {
             h: l.h,
             p_local: Some(l.local.p_crit),
             p_nonlocal: l.nonlocal.as_ref().map(|n| n.p_crit),
-            path: l.explicit.as_ref().map(|e| e.path.clone()).unwrap_or_default(),
+            path: l.ramp.as_ref().map(|r| r.path.clone()).or_else(|| l.explicit.as_ref().map(|e| e.path.clone())).unwrap_or_default(),
         })
         .collect();
     let title = format!("{stem}: crack initiation under refinement{}", radius.map_or(String::new(), |r| format!(" (R = {r})")));

@@ -69,7 +69,8 @@ impl Cracking {
         let np = model.topo.n_points;
         let nonlocal = match &cfg.nonlocal {
             Some(nl) => {
-                let (n, mut w) = nonlocal::Nonlocal::new(nl.radius, model, file)?;
+                let (mut n, mut w) = nonlocal::Nonlocal::new(nl.radius, nl.weight, model, file)?;
+                n.exclusion = nl.exclusion;
                 warnings.append(&mut w);
                 Some(n)
             }
@@ -180,7 +181,16 @@ impl Cracking {
             if events.len() >= cfg.max_splits_per_check {
                 break;
             }
-            let cid = ClusterId(c);
+            let mut cid = ClusterId(c);
+            if let Some(nl) = &mut self.nonlocal {
+                // Crack tracking: the crack edges cut earlier in this check count too; the
+                // failure of a point near a crack splits the nearest crack tip.
+                nl.sync(&model.topo, &model.mesh.points);
+                match nl.route(&model.topo, cid) {
+                    Some(t) => cid = t,
+                    None => continue,
+                }
+            }
             let fan = model.topo.fan(cid);
             if fan.copies.len() < 2 || fan.links.is_empty() {
                 continue;
@@ -211,7 +221,7 @@ impl Cracking {
                 u_ext.push(u_ext[nc.parent.idx()]);
                 x_ext.push(model.mesh.points[nc.point.idx()]);
             }
-            self.cuts.push((c, prop.edges.iter().map(|e| e.0).collect()));
+            self.cuts.push((cid.0, prop.edges.iter().map(|e| e.0).collect()));
             for nc in &r.new_clusters {
                 self.index.push(idx);
                 events.push(SplitEvent {
