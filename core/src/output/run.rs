@@ -17,8 +17,8 @@ use crate::output::compare::{Comparer, StageComparison};
 use crate::output::OutputWriter;
 use crate::solver::{Observer, Progress, Simulation, StagePos};
 
-/// Two observers as one: every event goes to both; `should_stop` and `checkpoint_due` are
-/// asked of both (either may stop the run); checkpoints go to the first only (the writer).
+/// Two observers as one: every event goes to both; `should_stop` is asked of both (either may
+/// stop the run); `checkpoint_due` and `checkpoint` go to the first only (the writer).
 pub struct Tee<'a> {
     pub first: &'a mut dyn Observer,
     pub second: &'a mut dyn Observer,

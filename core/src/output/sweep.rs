@@ -218,3 +218,36 @@ fn run_task_inner(row: &mut Row, text: &str, path: &Path, base: &Path, params: &
     }
     end.result
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn doc() -> toml::Table {
+        toml::from_str("[cracking.criterion]\ntype = \"rankine\"\ntensile_strength = 1.0\n[[material]]\nyoung_modulus = 1.0\n[[stage]]\nlevels = { p = 1.0 }\n").unwrap()
+    }
+
+    #[test]
+    fn set_key_reaches_tables_and_array_elements_and_creates_missing_tables() {
+        let mut d = doc();
+        set_key(&mut d, "cracking.criterion.tensile_strength", toml::Value::Float(2.0)).unwrap();
+        set_key(&mut d, "material[0].young_modulus", toml::Value::Float(5.0)).unwrap();
+        set_key(&mut d, "stage[0].levels.p", toml::Value::Float(0.5)).unwrap();
+        set_key(&mut d, "cracking.weibull.seed", toml::Value::Integer(7)).unwrap();
+        assert_eq!(d["cracking"]["criterion"]["tensile_strength"].as_float(), Some(2.0));
+        assert_eq!(d["material"][0]["young_modulus"].as_float(), Some(5.0));
+        assert_eq!(d["stage"][0]["levels"]["p"].as_float(), Some(0.5));
+        assert_eq!(d["cracking"]["weibull"]["seed"].as_integer(), Some(7));
+    }
+
+    #[test]
+    fn set_key_names_the_bad_part() {
+        let mut d = doc();
+        let e = |d: &mut toml::Table, k: &str| set_key(d, k, toml::Value::Integer(1)).unwrap_err();
+        assert!(e(&mut d, "material[3].density").contains("the scene has 1 material entries"));
+        assert!(e(&mut d, "cracking.criterion.type.x").contains("\"type\" in \"cracking.criterion.type.x\" is a value, not a table"));
+        assert!(e(&mut d, "support[0].fix").contains("\"support\" in \"support[0].fix\" is not an array"));
+        assert!(e(&mut d, "a..b").contains("is not a key path"));
+        assert!(e(&mut d, "material[x].density").contains("is not a name or name[index]"));
+    }
+}
