@@ -4,9 +4,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use flem_core::output::compare::Comparer;
 use flem_core::output::OutputWriter;
-use flem_core::plugin::check::CheckCfg;
 use flem_core::scene::Scene;
 use flem_core::solver::NoOutput;
 use flem_core::solver::{Simulation, StagePos};
@@ -21,6 +19,7 @@ mod bench_dyncall;
 mod chart;
 mod converge;
 mod stability;
+mod sweep;
 
 /// The scene run by `flem` (and `cargo run --release`) with no arguments.
 /// The paper's opening model as the paper ran it (issues 8, 17): a notched plate pulled from both
@@ -116,6 +115,29 @@ enum Cmd {
     /// Crack-initiation load under mesh refinement (exact, by the check solver; local and
     /// nonlocal check), checked by explicit runs: converge.json and converge.png/.svg in --out.
     Converge(converge::Args),
+    /// A parameter sweep (SWEEP.toml: the scene, a [grid] of key-path values or [[task]]
+    /// tables): each task in its own folder, run by N local worker processes (not Dask; the
+    /// Python package's flem.sweep runs the same tasks on Dask), one row per task in sweep.csv.
+    Sweep {
+        sweep: PathBuf,
+        /// Worker processes (default: one per core).
+        #[arg(long)]
+        workers: Option<usize>,
+    },
+    /// One sweep task (used by `flem sweep`): its row as JSON on stdout.
+    #[command(hide = true)]
+    SweepTask {
+        scene: PathBuf,
+        #[arg(long)]
+        task: usize,
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
+        /// The parameters, a TOML table of key paths.
+        #[arg(long)]
+        params: String,
+    },
     /// Benchmarks; each prints JSON.
     Bench {
         #[command(subcommand)]
@@ -184,6 +206,8 @@ fn main() -> ExitCode {
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
+        Some(Cmd::Sweep { sweep, workers }) => sweep::run(&sweep, workers, cli.allow_plugins),
+        Some(Cmd::SweepTask { scene, task, out, threads, params }) => sweep::task(&scene, task, &out, threads, &params),
         Some(Cmd::Converge(a)) => converge::run(a),
         Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
     };
@@ -364,17 +388,16 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     }
     let t0 = std::time::Instant::now();
     let mut sim = Simulation::new(scene)?;
+    let mut w = OutputWriter::new(&out, &sim)?;
+    w.stop = Some(Arc::clone(&stop));
     let mut pos = StagePos::start(0);
-    let mut resumed = None;
     if let Some(dir) = &resume {
-        let (ck, path, refused) = flem_core::output::checkpoint::load_newest(dir, &sim)?;
+        let (p, path, refused) = flem_core::output::run::resume(&mut sim, &mut w, dir)?;
         for r in &refused {
             eprintln!("warning: {r}");
         }
-        ck.restore(&mut sim).with_context(|| format!("restoring {}", path.display()))?;
-        eprintln!("resuming from {} (step {}, stage {} step {})", path.display(), ck.step, ck.pos.stage + 1, ck.pos.stage_step);
-        pos = ck.pos.clone();
-        resumed = Some((ck, path));
+        eprintln!("resuming from {} (step {}, stage {} step {})", path.display(), sim.state.step, p.stage + 1, p.stage_step);
+        pos = p;
     }
     for w in &sim.warnings {
         eprintln!("warning: {w}");
@@ -382,11 +405,6 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     // Warnings the run adds (a stage that was never checked) are printed after it.
     let n_warn = sim.warnings.len();
     eprintln!("{} elements, {} points; dt = {:.4e} (dt/dt_crit = {:.3}, dt_crit = {:.4e})", sim.model.n_elems(), sim.model.topo.n_points, sim.dt, sim.dt / sim.stable.dt_crit, sim.stable.dt_crit);
-    let mut w = OutputWriter::new(&out, &sim)?;
-    w.stop = Some(Arc::clone(&stop));
-    if let Some((ck, path)) = &resumed {
-        w.resume(ck, path)?;
-    }
     let bar = if quiet || !std::io::IsTerminal::is_terminal(&std::io::stderr()) { ProgressBar::hidden() } else { ProgressBar::new(1) };
     bar.set_style(ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} steps {msg} (left <= {eta})").unwrap().progress_chars("=> "));
     let b2 = bar.clone();
@@ -396,30 +414,24 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
         b2.set_prefix(format!("stage {}/{}", p.stage + 1, p.n_stages));
         b2.set_message(format!("step {} dt {:.2e} ratio {:.2e} (tol {:.0e})", p.step, p.dt, p.ratio, p.tolerance));
     }));
-    let r = if sim.scene.file.check.is_some() {
-        // [check]: the implicit comparison after every stage, compare.json beside the results.
-        let mut c = Comparer::new(&mut w, &out)?;
-        let r = sim.run_from(pos, &mut c);
-        bar.finish_and_clear();
-        eprint!("{}", flem_core::output::compare::table(&c.rows));
-        r
-    } else {
-        sim.run_from(pos, &mut w)
-    };
+    // The run, the [check] comparison after every stage (compare.json beside the results) and
+    // summary.json: shared with `flem sweep` and the Python package (output::run).
+    let end = flem_core::output::run::run_in_folder(&mut sim, &mut w, pos, &mut NoOutput, t0);
     bar.finish_and_clear();
+    if sim.scene.file.check.is_some() {
+        eprint!("{}", flem_core::output::compare::table(&end.compare_rows));
+    }
     let resume_hint = |w: &OutputWriter| match &w.last_checkpoint {
         Some(p) => format!("the last good checkpoint is {}; resume with: {}", p.display(), resume_command(&scene_path, &out)),
         None => String::from("no checkpoint was written"),
     };
-    if let Err(e @ FlemError::Interrupted { .. }) = &r {
-        let _ = w.write_summary(&sim, t0.elapsed().as_secs_f64());
-        return Err(Stopped(format!("flem: {e}: {}\nresume with: {}", w.last_checkpoint.as_ref().map(|p| p.display().to_string()).unwrap_or_default(), resume_command(&scene_path, &out))).into());
+    match end.result {
+        Err(e @ FlemError::Interrupted { .. }) => {
+            return Err(Stopped(format!("flem: {e}: {}\nresume with: {}", w.last_checkpoint.as_ref().map(|p| p.display().to_string()).unwrap_or_default(), resume_command(&scene_path, &out))).into());
+        }
+        Err(e @ FlemError::Output { .. }) => anyhow::bail!("{e}\nthe run stopped; {}", resume_hint(&w)),
+        r => r?,
     }
-    if let Err(e @ FlemError::Output { .. }) = &r {
-        anyhow::bail!("{e}\nthe run stopped; {}", resume_hint(&w));
-    }
-    w.write_summary(&sim, t0.elapsed().as_secs_f64()).with_context(|| "writing summary.json")?;
-    r?;
     for s in &sim.stages_done {
         eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
     }
@@ -447,27 +459,20 @@ fn plot(dir: &Path) -> Result<()> {
 
 /// `flem compare`: the scene's stages with the comparison after each (the scene's `[check]`, or
 /// its defaults when the scene has none). Exit 1 when an implicit solve failed.
-fn compare(mut scene: Scene, out: Option<PathBuf>) -> Result<()> {
+fn compare(scene: Scene, out: Option<PathBuf>) -> Result<()> {
     let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_compare")));
     let _lock = lock_out(&out)?;
-    flem_core::output::prepare_dir(&out)?;
-    if scene.file.check.is_none() {
-        scene.file.check = Some(CheckCfg::with_defaults(&scene.path.display().to_string())?);
-    }
-    let mut sim = Simulation::new(scene)?;
-    for w in &sim.warnings {
+    let on_row: Box<dyn FnMut(&flem_core::output::compare::StageComparison)> =
+        Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit));
+    let (r, rows, warnings) = flem_core::output::run::compare_in_folder(scene, &out, Some(on_row))?;
+    for w in &warnings {
         eprintln!("warning: {w}");
     }
-    let mut quiet = NoOutput;
-    let mut c = Comparer::new(&mut quiet, &out)?;
-    c.on_row =
-        Some(Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit)));
-    let r = sim.run(&mut c);
-    print!("{}", flem_core::output::compare::table(&c.rows));
+    print!("{}", flem_core::output::compare::table(&rows));
     r?;
     println!("results in {}", out.join("compare.json").display());
-    let failed: Vec<&str> = c.rows.iter().filter(|r| r.implicit_error.is_some()).map(|r| r.name.as_str()).collect();
+    let failed: Vec<&str> = rows.iter().filter(|r| r.implicit_error.is_some()).map(|r| r.name.as_str()).collect();
     anyhow::ensure!(failed.is_empty(), "the implicit solve failed at stage(s) {failed:?} (see above and compare.json)");
     Ok(())
 }

@@ -14,10 +14,13 @@
 //!
 //! Beside the writer: `checkpoint.rs` (checkpoints and resume) and `compare.rs` (the
 //! FLEM-vs-implicit comparison). Both the writer and the comparer are `crate::solver::Observer`s.
+pub mod arrays;
 pub mod checkpoint;
 pub mod compare;
 pub mod csvlog;
 pub mod lock;
+pub mod run;
+pub mod sweep;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -26,7 +29,6 @@ use vtkio::model::{Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, U
 
 use crate::cracking::SplitEvent;
 use crate::error::{FlemError, Result};
-use crate::ids::EdgeId;
 use crate::mesh::topology::SplitRecord;
 use crate::mesh::CellKind;
 use crate::output::checkpoint::Checkpoint;
@@ -133,72 +135,49 @@ fn state_is_finite(sim: &Simulation) -> bool {
 
 /// The VTU of the current state: points are clusters (reference coordinates; `displacement`
 /// moves them), cells are the elements on their clusters, then one line cell per crack face
-/// (cell array `crack`: 1 separated at one end, 2 at both ends; 0 on elements).
+/// (cell array `crack`: 1 separated at one end, 2 at both ends; 0 on elements). Built from
+/// [`arrays::result_arrays`] (the arrays the Python package hands out).
 pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
-    let m = &sim.model;
-    let topo = &m.topo;
-    let nc = topo.n_clusters();
-    let mut pts = Vec::with_capacity(3 * nc);
-    for x in &sim.x0 {
+    vtk_of(&arrays::result_arrays(sim))
+}
+
+/// The VTU model of a run's arrays (see [`snapshot_vtk`]).
+pub fn vtk_of(r: &arrays::ResultArrays) -> Vtk {
+    let mut pts = Vec::with_capacity(3 * r.points.len());
+    for x in &r.points {
         pts.extend_from_slice(&[x[0], x[1], 0.0]);
     }
-    let mut conn: Vec<u64> = Vec::new();
-    let mut offs: Vec<u64> = Vec::new();
-    let mut types = Vec::new();
-    let mut region = Vec::new();
-    let mut crack = Vec::new();
-    let mut stress = Vec::new();
-    let mut regions: Vec<&str> = m.blocks.iter().map(|b| b.region()).collect();
-    regions.dedup();
-    for e in 0..topo.n_elems() {
-        for k in topo.elem_copies(crate::ids::ElemId::new(e)) {
-            conn.push(topo.copy_cluster[k].0 as u64);
-        }
-        offs.push(conn.len() as u64);
-        let (b, i) = m.elem_slot[e];
-        let blk = &m.blocks[b as usize];
-        types.push(match blk.kind() {
+    let mut conn: Vec<u64> = r.clusters.iter().map(|&c| c as u64).collect();
+    let mut offs: Vec<u64> = r.copy_offsets[1..].iter().map(|&o| o as u64).collect();
+    let mut types: Vec<CellType> = r
+        .kinds
+        .iter()
+        .map(|k| match k {
             CellKind::Q4 => CellType::Quad,
             CellKind::T3 => CellType::Triangle,
-        });
-        region.push(regions.iter().position(|r| *r == blk.region()).unwrap_or(0) as i32);
-        crack.push(0i32);
-        let s = blk.mean_stress(i as usize, &sim.state.u);
-        stress.extend_from_slice(&s);
-    }
-    for ei in 0..topo.edges.len() {
-        let st = topo.crack_state(EdgeId::new(ei));
-        if st == 0 {
-            continue;
-        }
-        let ed = &topo.edges[ei];
-        for side in ed.sides.iter().flatten() {
-            for p in ed.points {
-                let k = topo.copy_at(side.0, p).unwrap();
-                conn.push(topo.copy_cluster[k.idx()].0 as u64);
-            }
-            offs.push(conn.len() as u64);
-            types.push(CellType::Line);
-            region.push(-1);
-            crack.push(st as i32);
-            stress.extend_from_slice(&[0.0; 3]);
-        }
+        })
+        .collect();
+    let mut region = r.region.clone();
+    let mut crack = vec![0i32; r.kinds.len()];
+    let mut stress: Vec<f64> = r.elem_stress.iter().flat_map(|s| *s).collect();
+    for (f, &st) in r.crack_faces.iter().zip(&r.crack_state) {
+        conn.extend(f.iter().map(|&c| c as u64));
+        offs.push(conn.len() as u64);
+        types.push(CellType::Line);
+        region.push(-1);
+        crack.push(st as i32);
+        stress.extend_from_slice(&[0.0; 3]);
     }
     let vec2 = |v: &[[f64; 2]]| -> Vec<f64> { v.iter().flat_map(|a| [a[0], a[1], 0.0]).collect() };
     let mut point = vec![
-        Attribute::generic("displacement", 3).with_data(vec2(&sim.state.u)),
-        Attribute::generic("velocity", 3).with_data(vec2(&sim.state.v)),
-        Attribute::generic("point_id", 1).with_data(topo.cluster_point.iter().map(|p| p.0 as i64).collect::<Vec<i64>>()),
-        Attribute::generic("mass", 1).with_data(sim.state.mass.clone()),
+        Attribute::generic("displacement", 3).with_data(vec2(&r.displacement)),
+        Attribute::generic("velocity", 3).with_data(vec2(&r.velocity)),
+        Attribute::generic("point_id", 1).with_data(r.point_id.iter().map(|&p| p as i64).collect::<Vec<i64>>()),
+        Attribute::generic("mass", 1).with_data(r.mass.clone()),
+        Attribute::generic("nodal_stress", 3).with_data(r.nodal_stress.iter().flat_map(|s| *s).collect::<Vec<f64>>()),
     ];
-    let mut corner = Vec::new();
-    let mut nodal = Vec::new();
-    m.nodal_stress(&sim.state.u, &mut corner, &mut nodal);
-    point.push(Attribute::generic("nodal_stress", 3).with_data(nodal.iter().flat_map(|s| *s).collect::<Vec<f64>>()));
-    if let Some(cr) = &sim.cracking {
-        let mut idx: Vec<f64> = cr.index.clone();
-        idx.resize(nc, 0.0);
-        point.push(Attribute::generic("failure_index", 1).with_data(idx));
+    if let Some(idx) = &r.failure_index {
+        point.push(Attribute::generic("failure_index", 1).with_data(idx.clone()));
     }
     let cell = vec![Attribute::generic("region", 1).with_data(region), Attribute::generic("crack", 1).with_data(crack), Attribute::generic("stress", 3).with_data(stress)];
     Vtk {
