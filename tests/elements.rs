@@ -1,0 +1,164 @@
+//! Element kinds (issue 20): the patch test of every registered kind on distorted meshes, the
+//! implicit check against the explicit equilibrium with `qm6`, Cook's membrane and the
+//! cantilever of the speed-accuracy chart. References and tolerances at each test.
+use flem_core::element::registry;
+use flem_core::solver::Simulation;
+use flem_plugins::check::ImplicitSolver;
+
+use crate::common::{root, sim};
+
+/// (element, mesh cell type) of every element kind that the test binary links.
+fn kinds() -> Vec<(&'static str, &'static str)> {
+    flem_plugins::link();
+    registry::kinds().iter().map(|k| (k.name, if k.cell == flem_core::mesh::CellKind::Q4 { "q4" } else { "t3" })).collect()
+}
+
+/// The linear field `u = c + A x` of the patch test (constant strain exx, eyy, gxy + a rotation).
+const EPS: [f64; 3] = [1.0e-3, -4.0e-4, 6.0e-4];
+fn u_lin(x: [f64; 2]) -> [f64; 2] {
+    let w = 2.0e-4;
+    [1e-3 + EPS[0] * x[0] + (0.5 * EPS[2] - w) * x[1], -2e-3 + (0.5 * EPS[2] + w) * x[0] + EPS[1] * x[1]]
+}
+
+/// The patch test (Taylor, Beresford & Wilson 1976; Zienkiewicz & Taylor, The Finite Element
+/// Method vol. 1, ch. 10) for every element kind, plane strain and plane stress, on a 6 x 5
+/// rectangle mesh whose interior points are moved by up to 0.25 of a cell (distorted
+/// quadrilaterals; triangles: each quad split in two). Reference: the exact linear field and
+/// its constant stress `D eps`. Tolerance 1e-12 relative for
+/// (A) the internal force at every interior node under the exact nodal values (zero),
+/// (B) the stress at every corner point (0.9999 corners: the nodal-stress rule) and
+/// (C) the interior displacements solved by the implicit solver with the exact field
+///     prescribed on the boundary.
+#[test]
+fn patch_test_of_every_element_kind_on_distorted_meshes() {
+    let ks = kinds();
+    assert!(ks.iter().any(|k| k.0 == "qm6") && ks.iter().any(|k| k.0 == "q4") && ks.iter().any(|k| k.0 == "t3"), "{ks:?}");
+    for (elem, cell) in ks {
+        for plane in ["strain", "stress"] {
+            let text = format!(
+                "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.5\nnx = 6\nny = 5\nelement = \"{cell}\"\ndistort = 0.25\n[model]\nplane = \"{plane}\"\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nthickness = 0.7\nelement = \"{elem}\"\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[stage]]\nlevels = {{}}\n"
+            );
+            let s = sim(&text);
+            let m = &s.model;
+            assert!(m.blocks.iter().all(|b| b.element() == elem), "{elem}: blocks {:?}", m.blocks.iter().map(|b| b.element()).collect::<Vec<_>>());
+            let x0 = m.cluster_x0();
+            let u: Vec<[f64; 2]> = x0.iter().map(|&x| u_lin(x)).collect();
+            let mut boundary = vec![false; x0.len()];
+            for set in ["left", "right", "top", "bottom"] {
+                for p in m.node_set(set, "test", "test").unwrap() {
+                    boundary[p.idx()] = true;
+                }
+            }
+            assert!(boundary.iter().filter(|b| !**b).count() >= 20, "interior nodes");
+            // (A)
+            let mut f = vec![[0.0; 2]; x0.len()];
+            m.internal_forces(&u, &mut f);
+            let fscale = f.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (c, fc) in f.iter().enumerate().filter(|(c, _)| !boundary[*c]) {
+                assert!(fc[0].abs() <= 1e-12 * fscale && fc[1].abs() <= 1e-12 * fscale, "{elem} {plane}: interior force at cluster {c}: {fc:?} (scale {fscale})");
+            }
+            // (B)
+            let want = m.material_of(flem_core::ids::ElemId(0)).dmat().stress(EPS);
+            let sscale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let mut corner = Vec::new();
+            m.corner_stresses(&u, &mut corner);
+            for (k, sk) in corner.iter().enumerate() {
+                for d in 0..3 {
+                    assert!((sk[d] - want[d]).abs() <= 1e-12 * sscale, "{elem} {plane}: copy {k}: {sk:?} vs {want:?}");
+                }
+            }
+            // (C)
+            let fix: Vec<u8> = boundary.iter().map(|&b| if b { 3 } else { 0 }).collect();
+            let zero = vec![[0.0; 2]; x0.len()];
+            let sol = ImplicitSolver::default().solve(m, &fix, &zero, &u).unwrap();
+            let uscale = u.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+            for c in 0..x0.len() {
+                for d in 0..2 {
+                    assert!((sol[c][d] - u[c][d]).abs() <= 1e-12 * uscale, "{elem} {plane}: solved u at cluster {c}: {:?} vs {:?}", sol[c], u[c]);
+                }
+            }
+        }
+    }
+}
+
+/// Tip deflection `u_y(48, 52)` (the middle of the loaded edge) of Cook's membrane (configs/verification/cook.toml, meshes from
+/// configs/meshes/cook.geo) with `element` on `n` x `n` cells, by the implicit solver (the
+/// same element stiffness as the explicit step: `implicit_check_equals_explicit_equilibrium_with_qm6`).
+fn cook_tip(elem: &str, n: usize) -> f64 {
+    let base = std::fs::read_to_string(root().join("configs/verification/cook.toml")).unwrap();
+    let mesh = if elem == "t3" { format!("meshes/cook_{n}_t3.msh") } else { format!("meshes/cook_{n}.msh") };
+    let text = base.replace("../meshes/cook_8.msh", &mesh).replace("element = \"qm6\"", &format!("element = \"{elem}\""));
+    let mut s: Simulation = sim(&text);
+    s.set_stage_levels(0);
+    let f = s.external_force().unwrap();
+    let u = ImplicitSolver::default().solve(&s.model, &s.state.fix, &f, &s.state.u).unwrap();
+    // The point Cook's reference is quoted at: the middle of the loaded edge, (48, 52).
+    let c = s.model.cluster_x0().iter().position(|x| (x[0] - 48.0).abs() < 1e-6 && (x[1] - 52.0).abs() < 1e-6).expect("a node at (48, 52)");
+    u[c][1]
+}
+
+/// Cook's membrane: plane stress, E = 1, nu = 1/3, unit total shear on the right edge.
+/// Reference: the converged deflection 23.96 of the middle of the loaded edge, (48, 52) (Simo &
+/// Rifai 1990; the FinEtools Cook tutorial: 23.97 at `Mid_edge = [48, 52]`). Not the top corner
+/// (48, 60): that converges to about 25.1 (Q4 at 64 x 64: 25.04, our own numpy Q4 which also
+/// gives Q4's published 18.30 / 22.08 / 23.43 at (48, 52) for 4 / 8 / 16). Asserted: `qm6`
+/// within 3 % of 23.96 at 8 x 8 and within 1 % at 16 x 16; Q4 and T3 (quads split in two) lock:
+/// both more than 5 % short at 8 x 8; every element approaches from below as the mesh is refined.
+/// The table is in docs/elements.md.
+#[test]
+fn cooks_membrane_tip_deflection() {
+    const REF: f64 = 23.96;
+    let mut table = String::new();
+    let mut at = std::collections::BTreeMap::new();
+    for elem in ["q4", "t3", "qm6"] {
+        let mut prev = 0.0;
+        for n in [4, 8, 16] {
+            let v = cook_tip(elem, n);
+            table += &format!("{elem} {n}: {v:.3} ({:+.1} %)\n", 100.0 * (v / REF - 1.0));
+            assert!(v > prev && v < REF * 1.005, "{elem} at {n}: {v} (previous {prev})");
+            prev = v;
+            at.insert((elem, n), v);
+        }
+    }
+    eprintln!("{table}");
+    assert!((at[&("qm6", 8)] / REF - 1.0).abs() < 0.03, "{table}");
+    assert!((at[&("qm6", 16)] / REF - 1.0).abs() < 0.01, "{table}");
+    assert!(at[&("q4", 8)] < 0.95 * REF && at[&("t3", 8)] < 0.95 * REF, "{table}");
+}
+
+/// FLEM's damped explicit equilibrium with `qm6` equals the implicit solve of the same model
+/// (configs/verification/cook.toml at 4 x 4, whose [check] runs the implicit solver with the same
+/// element stiffness). Reference: the implicit (faer Cholesky) solution; tolerance: relative L2
+/// of displacements and of nodal stresses (with the enhanced field) below 1e-6.
+#[test]
+fn implicit_check_equals_explicit_equilibrium_with_qm6() {
+    use flem_core::output::compare::Comparer;
+    use flem_core::solver::NoOutput;
+    let base = std::fs::read_to_string(root().join("configs/verification/cook.toml")).unwrap();
+    let text = base.replace("../meshes/cook_8.msh", "meshes/cook_4.msh") + "\n[solver]\ntolerance = 1e-9\nmax_steps = 2000000\n";
+    let dir = std::env::temp_dir().join(format!("flem-test-qm6-check-{}", std::process::id()));
+    let mut s = sim(&text);
+    assert_eq!(s.model.blocks[0].element(), "qm6");
+    let mut quiet = NoOutput;
+    let mut c = Comparer::new(&mut quiet, &dir).unwrap();
+    s.run(&mut c).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(c.rows.len(), 1);
+    let r = &c.rows[0];
+    eprintln!("qm6 check: ratio {:?}, rel_l2 u {:?}, s {:?}", r.unbalanced_ratio, r.rel_l2_displacement, r.rel_l2_nodal_stress);
+    assert!(r.flem_converged && r.implicit_error.is_none(), "{r:?}");
+    assert!(r.rel_l2_displacement.unwrap() < 1e-6 && r.rel_l2_nodal_stress.unwrap() < 1e-6, "{r:?}");
+}
+
+/// An unknown element name is refused naming the key and the nearest kind; a name of another
+/// cell type leaves the cells on their default (the element applies to its own cell type).
+#[test]
+fn element_names_are_checked() {
+    flem_plugins::link();
+    let text =
+        "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 1.0\nnx = 2\nny = 2\n[[material]]\nyoung_modulus = 1.0\npoisson_ratio = 0.3\ndensity = 1.0\nelement = \"qm7\"\n[[stage]]\nlevels = {}\n";
+    let e = Simulation::new(crate::common::scene(text)).err().expect("refused").to_string();
+    assert!(e.contains("material[0].element") && e.contains("did you mean \"qm6\""), "{e}");
+    let s = sim(&text.replace("qm7", "t3"));
+    assert_eq!(s.model.blocks[0].element(), "q4");
+}
