@@ -94,6 +94,10 @@ enum Cmd {
         /// Drop the scene's [cracking] (the elastic problem; pre-separated edges stay).
         #[arg(long)]
         no_cracking: bool,
+        /// Element kinds to sweep too (e.g. q4,qm6), set on every [[material]]; default: the
+        /// scene's own.
+        #[arg(long, value_delimiter = ',')]
+        elements: Vec<String>,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -180,7 +184,7 @@ fn main() -> ExitCode {
         Some(Cmd::Run { scene, out, quiet, resume, plot }) => load(&scene).and_then(|s| run(s, out, quiet, resume, plot)),
         Some(Cmd::Plot { run_dir }) => plot(&run_dir),
         Some(Cmd::Check { scenes }) => check(&scenes),
-        Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking),
+        Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking, elements }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking, &elements),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
