@@ -302,3 +302,21 @@ fn chart_sweeps_element_kinds() {
     let (q4, qm6) = (implicit_x1("q4"), implicit_x1("qm6"));
     assert!(qm6 < 0.01 && q4 > 0.05, "analytic errors: q4 {q4}, qm6 {qm6}");
 }
+
+/// qm6's blocked forces are bit-identical whatever the thread count (the colouring schedule of
+/// `element::kernel`, as for Q4: tests/parallel.rs), on a block large enough to use the pool.
+#[test]
+fn qm6_forces_bit_identical_across_threads() {
+    let text = "[mesh]\ntype = \"rectangle\"\nwidth = 7.0\nheight = 6.0\nnx = 70\nny = 60\ndistort = 0.2\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nelement = \"qm6\"\n[[stage]]\nlevels = {}\n";
+    let mut s = sim(text);
+    assert!(s.model.n_elems() >= 4096 && s.model.blocks[0].element() == "qm6");
+    let x0 = s.model.cluster_x0();
+    let u: Vec<[f64; 2]> = x0.iter().map(|x| [1e-3 * (3.0 * x[0]).sin() * x[1], 1e-3 * (2.0 * x[1]).cos() * x[0]]).collect();
+    let mut f1 = vec![[0.0; 2]; u.len()];
+    s.model.internal_forces(&u, &mut f1);
+    s.model.set_threads(2).unwrap();
+    let mut f2 = vec![[0.0; 2]; u.len()];
+    s.model.internal_forces(&u, &mut f2);
+    assert!(f1.iter().zip(&f2).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits()));
+    assert!(f1.iter().any(|f| f[0] != 0.0));
+}

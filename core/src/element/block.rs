@@ -65,9 +65,13 @@ pub trait Block: Send + Sync {
     fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
         None
     }
-    /// Registered name of the element kind (`element::registry`).
+    /// Registered name of the element kind (`element::registry`; default: the cell type's
+    /// default kind).
     fn element(&self) -> &'static str {
-        crate::element::registry::default_for(self.kind())
+        match self.kind() {
+            CellKind::Q4 => "q4",
+            CellKind::T3 => "t3",
+        }
     }
     /// True when the element stiffness is the plain isoparametric `sum_gp B^T D B w det J t` of
     /// the shape gradients (a solver may then assemble it itself); false for an element with
