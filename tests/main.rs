@@ -7,6 +7,7 @@ mod configs;
 mod contact;
 mod cracking;
 mod dynplug;
+mod elements;
 mod fuzz;
 mod interop;
 mod layout;

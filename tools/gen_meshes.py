@@ -25,7 +25,31 @@ def mesh(geo, outputs):
     gmsh.finalize()
 
 
+def cook():
+    """Cook's membrane (cook.geo) at n = 4, 8, 16 quads per side (cook_N.msh) and the same with
+    every quad split in two triangles (cook_N_t3.msh: the transfinite surface without Recombine)."""
+    import tempfile
+    src = open(os.path.join(HERE, "cook.geo")).read()
+    for n in (4, 8, 16):
+        for tag, recombine in (("", True), ("_t3", False)):
+            text = src.replace("n = 4;", "n = %d;" % n)
+            if not recombine:
+                text = text.replace("Recombine Surface{1};", "")
+            with tempfile.NamedTemporaryFile("w", suffix=".geo", delete=False) as f:
+                f.write(text)
+            gmsh.initialize()
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.open(f.name)
+            gmsh.model.mesh.generate(2)
+            gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+            gmsh.option.setNumber("Mesh.Binary", 0)
+            gmsh.write(os.path.join(HERE, "cook_%d%s.msh" % (n, tag)))
+            gmsh.finalize()
+            os.unlink(f.name)
+
+
 def main():
+    cook()
     mesh("rect_quad.geo", [
         ("rect_quad_v41.msh", 4.1, False),
         ("rect_quad_v41_bin.msh", 4.1, True),

@@ -4,6 +4,7 @@ pub mod check;
 pub mod contact;
 pub mod criteria;
 pub mod damping;
+pub mod elements;
 pub mod import;
 pub mod separation;
 #[doc(hidden)]
@@ -17,6 +18,7 @@ pub fn registry() -> Vec<(&'static str, &'static str)> {
     v.extend(separation::NAMES.iter().map(|n| ("separation", *n)));
     v.extend(contact::NAMES.iter().map(|n| ("contact", *n)));
     v.push(("check", "faer_cholesky"));
+    v.extend(flem_core::element::registry::kinds().iter().map(|k| ("element", k.name)));
     v.extend(["rectangle", "rectangles", "gmsh", "vtk"].iter().map(|n| ("mesh", *n)));
     v
 }

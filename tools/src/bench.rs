@@ -23,11 +23,14 @@ use flem_core::scene::{MaterialCfg, Scene};
 use flem_core::solver::{NoOutput, Simulation};
 use serde_json::{json, Value};
 
+/// A registered element kind (`flem_core::element::registry`).
+pub type Kind = &'static flem_core::element::registry::ElementKind;
+
 /// Options of `flem bench step`.
 pub struct StepOpts {
     pub sizes: Vec<usize>,
     pub threads: Vec<usize>,
-    pub kinds: Vec<CellKind>,
+    pub kinds: Vec<Kind>,
     pub min_time: f64,
     pub step_sizes: Vec<usize>,
     /// Radius of the nonlocal check's cost, in element sizes.
@@ -99,16 +102,16 @@ fn kind_name(k: CellKind) -> &'static str {
     }
 }
 
-fn model(nx: usize, ny: usize, kind: CellKind) -> Result<Model> {
-    let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, kind).build()?;
+fn model(nx: usize, ny: usize, kind: Kind) -> Result<Model> {
+    let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, kind.cell).build()?;
     mesh.validate(ValidationOptions::Reorient)?;
     mesh.derive_node_sets();
-    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false };
+    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, element: Some(kind.name.into()) };
     Ok(Model::new(mesh, &[mat], Plane::Strain, "<bench>")?)
 }
 
 /// Kernel throughput of one mesh for each thread count.
-fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts, triad: &[(usize, f64)]) -> Result<Value> {
+fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, f64)]) -> Result<Value> {
     let mut m = model(nx, ny, kind)?;
     let (ne, nc) = (m.n_elems(), m.topo.n_clusters());
     let mut seed = 0x9E37_79B9_7F4A_7C15u64;
@@ -146,21 +149,19 @@ fn kernel_case(nx: usize, ny: usize, kind: CellKind, o: &StepOpts, triad: &[(usi
     let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
     // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
     let node_bytes = nc * (5 * 16 + 8 + 1);
-    let kernel_bytes = match kind {
-        CellKind::Q4 => <flem_core::element::Q4 as flem_core::element::kernel::Blocked<4>>::BYTES_PER_ELEM,
-        CellKind::T3 => <flem_core::element::T3 as flem_core::element::kernel::Blocked<3>>::BYTES_PER_ELEM,
-    };
+    let kernel_bytes = kind.bytes_per_elem;
     Ok(json!({
-        "kind": kind_name(kind), "nx": nx, "ny": ny, "elements": ne, "clusters": nc,
+        "kind": kind.name, "nx": nx, "ny": ny, "elements": ne, "clusters": nc,
         "kernel": per_thread,
         "memory_bytes_per_element": {"kernel_packs": kernel_bytes, "block_total": block as f64 / ne as f64, "node_state": node_bytes as f64 / ne as f64, "block_plus_node_state": (block + node_bytes) as f64 / ne as f64},
     }))
 }
 
-fn scene_text(nx: usize, ny: usize, kind: CellKind, threads: usize, steps: u64, cracking: Option<u64>) -> String {
+fn scene_text(nx: usize, ny: usize, kind: Kind, threads: usize, steps: u64, cracking: Option<u64>) -> String {
     let mut s = format!(
-        "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = {nx}\nny = {ny}\nelement = \"{}\"\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\n[solver]\nthreads = {threads}\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [1.0, 0.0]\n[[stage]]\nlevels = {{ pull = 1.0 }}\ndynamic = true\nmax_steps = {steps}\nsnapshot = false\n",
-        kind_name(kind)
+        "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = {nx}\nny = {ny}\nelement = \"{}\"\n[[material]]\nyoung_modulus = 100.0\npoisson_ratio = 0.3\ndensity = 1.0\nelement = \"{}\"\n[solver]\nthreads = {threads}\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"pull\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [1.0, 0.0]\n[[stage]]\nlevels = {{ pull = 1.0 }}\ndynamic = true\nmax_steps = {steps}\nsnapshot = false\n",
+        kind_name(kind.cell),
+        kind.name
     );
     if let Some(k) = cracking {
         // A strength never reached: the checks run in full, nothing splits.
@@ -218,7 +219,7 @@ impl Bare {
 }
 
 /// Full step against the bare kernel and a bare step; failure checks every k steps.
-fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts) -> Result<Value> {
+fn step_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> Result<Value> {
     let mut s = sim(&scene_text(nx, ny, kind, threads, 1, None))?;
     let ne = s.model.n_elems() as f64;
     s.run_stage(0, &mut NoOutput)?;
@@ -271,7 +272,7 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
         })
         .collect();
     Ok(json!({
-        "kind": kind_name(kind), "elements": ne, "threads": s.model.threads(), "dt": s.dt, "stage_steps": n_steps,
+        "kind": kind.name, "elements": ne, "threads": s.model.threads(), "dt": s.dt, "stage_steps": n_steps,
         "ns_per_elem": {"kernel": kernel * 1e9 / ne, "bare_step": bare * 1e9 / ne, "step": step * 1e9 / ne, "lean_step": lean * 1e9 / ne, "stage": stage * 1e9 / ne},
         "lean_step_over_bare_step": lean / bare, "cpu_lean_step_over_bare_step": lean_cpu / bare_cpu,
         "cpu_stage_over_bare_step": stage_cpu / bare_cpu,
@@ -289,7 +290,7 @@ fn step_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts)
 /// One failure check called directly (`Cracking::check`, nothing splits) with the paper's
 /// corner mean and with the nonlocal average (ours, issue 18) at radius `o.nonlocal_radius_h`
 /// element sizes, at the displacement after 20 steps.
-fn check_cost(nx: usize, ny: usize, kind: CellKind, threads: usize, radius: Option<f64>, o: &StepOpts) -> Result<(f64, f64, f64)> {
+fn check_cost(nx: usize, ny: usize, kind: Kind, threads: usize, radius: Option<f64>, o: &StepOpts) -> Result<(f64, f64, f64)> {
     let mut text = scene_text(nx, ny, kind, threads, 50, Some(1));
     if let Some(r) = radius {
         text = text.replace("[cracking]\n", &format!("[cracking]\nnonlocal = {{ radius = {r} }}\n"));
@@ -311,7 +312,7 @@ fn check_cost(nx: usize, ny: usize, kind: CellKind, threads: usize, radius: Opti
     Ok((t, c, build))
 }
 
-fn nonlocal_case(nx: usize, ny: usize, kind: CellKind, threads: usize, o: &StepOpts) -> Result<Value> {
+fn nonlocal_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> Result<Value> {
     let h = 2.0 / nx as f64;
     let r = o.nonlocal_radius_h * h;
     let (local, local_cpu, local_build) = check_cost(nx, ny, kind, threads, None, o)?;
@@ -335,18 +336,18 @@ pub fn step(o: &StepOpts) -> Result<()> {
     let mut kernels = Vec::new();
     for &kind in &o.kinds {
         for &n in &o.sizes {
-            let (nx, ny) = grid_for(n, kind);
+            let (nx, ny) = grid_for(n, kind.cell);
             kernels.push(kernel_case(nx, ny, kind, o, &triad)?);
-            eprintln!("bench: kernel {} {} elements done", kind_name(kind), kernels.last().unwrap()["elements"]);
+            eprintln!("bench: kernel {} {} elements done", kind.name, kernels.last().unwrap()["elements"]);
         }
     }
     let mut steps = Vec::new();
     for &kind in &o.kinds {
         for &n in o.step_sizes.iter() {
-            let (nx, ny) = grid_for(n, kind);
+            let (nx, ny) = grid_for(n, kind.cell);
             for &t in &o.threads {
                 steps.push(step_case(nx, ny, kind, t, o)?);
-                eprintln!("bench: step {} {n} elements, {t} threads done", kind_name(kind));
+                eprintln!("bench: step {} {n} elements, {t} threads done", kind.name);
             }
         }
     }

@@ -11,6 +11,9 @@
 //! - `err_analytic`: with `--analytic PROBE:x|y=VALUE`, the relative error of that probe's
 //!   displacement component against the analytic value.
 //!
+//! With `--elements q4,qm6` the whole sweep runs once per element kind (set on every
+//! `[[material]]`; column `element`, series prefixed by the kind).
+//!
 //! The implicit solves appear as their own points (method "implicit"). The Pareto front
 //! (no other point both faster and more accurate) is marked over the chart's error, the first
 //! of analytic, reference, implicit that exists. Written: chart.csv, chart.json (and the
@@ -32,6 +35,8 @@ use serde::Serialize;
 #[derive(Clone, Debug, Serialize)]
 pub struct Point {
     pub method: String,
+    /// Element kind set by `--elements` ("" = the scene's own).
+    pub element: String,
     pub damping: String,
     pub dt_safety: f64,
     pub tolerance: f64,
@@ -113,8 +118,15 @@ fn damping_table(name: &str) -> toml::Table {
 
 /// The scene text with the sweep's settings: damping, dt safety, tolerance (global and every
 /// stage's), and rectangle refinement.
-fn variant(base: &toml::Table, damping: Option<&str>, safety: Option<f64>, tol: Option<f64>, refine: usize) -> Result<String> {
+fn variant(base: &toml::Table, element: Option<&str>, damping: Option<&str>, safety: Option<f64>, tol: Option<f64>, refine: usize) -> Result<String> {
     let mut t = base.clone();
+    if let Some(e) = element {
+        if let Some(toml::Value::Array(mats)) = t.get_mut("material") {
+            for m in mats.iter_mut().filter_map(|m| m.as_table_mut()) {
+                m.insert("element".into(), toml::Value::String(e.into()));
+            }
+        }
+    }
     let solver = t.entry("solver").or_insert(toml::Value::Table(toml::Table::new())).as_table_mut().context("[solver] is not a table")?;
     if let Some(d) = damping {
         solver.insert("damping".into(), toml::Value::Table(damping_table(d)));
@@ -219,7 +231,7 @@ fn load(text: &str, scene: &Scene) -> Result<Scene> {
 }
 
 /// Runs the sweep; progress lines on stderr.
-pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analytic>, stages: Option<usize>, no_cracking: bool) -> Result<Vec<Point>> {
+pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analytic>, stages: Option<usize>, no_cracking: bool, elements: &[String]) -> Result<Vec<Point>> {
     let mut base: toml::Table = toml::from_str(text).context("the scene is not TOML")?;
     if no_cracking {
         // The elastic problem of a cracking scene (pre-separated edges stay separated).
@@ -236,7 +248,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
     let refines: Vec<usize> = if rect { sweep.refines.clone() } else { vec![1] };
     let reference = if rect {
         let finest = refines.iter().max().copied().unwrap_or(1) * 2;
-        let s = load(&variant(&base, None, None, None, finest)?, scene)?;
+        let s = load(&variant(&base, None, None, None, None, finest)?, scene)?;
         let mut sim = Simulation::new(s)?;
         // Static reference: the load levels of the last stage, no explicit steps.
         sim.set_stage_levels(sim.scene.file.stages.len() - 1);
@@ -247,9 +259,11 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
         None
     };
     let mut pts = Vec::new();
-    for &r in &refines {
+    let elems: Vec<Option<&str>> = if elements.is_empty() { vec![None] } else { elements.iter().map(|e| Some(e.as_str())).collect() };
+    for (&el, &r) in elems.iter().flat_map(|e| refines.iter().map(move |r| (e, r))) {
+        let ename = el.unwrap_or_default().to_string();
         // The implicit solve as its own point.
-        let s = load(&variant(&base, None, None, None, r)?, scene)?;
+        let s = load(&variant(&base, el, None, None, None, r)?, scene)?;
         let t0 = Instant::now();
         let mut sim = Simulation::new(s)?;
         sim.set_stage_levels(sim.scene.file.stages.len() - 1);
@@ -264,6 +278,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
         };
         pts.push(Point {
             method: "implicit".into(),
+            element: ename.clone(),
             damping: "-".into(),
             dt_safety: 0.0,
             tolerance: 0.0,
@@ -280,7 +295,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
         for &d in &sweep.dampings {
             for &sf in &sweep.safeties {
                 for &tol in &sweep.tolerances {
-                    let s = load(&variant(&base, Some(d), Some(sf), Some(tol), r)?, scene)?;
+                    let s = load(&variant(&base, el, Some(d), Some(sf), Some(tol), r)?, scene)?;
                     let t0 = Instant::now();
                     let mut sim = Simulation::new(s)?;
                     sim.run(&mut NoOutput)?;
@@ -296,6 +311,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
                     };
                     let p = Point {
                         method: "explicit".into(),
+                        element: ename.clone(),
                         damping: d.into(),
                         dt_safety: sf,
                         tolerance: tol,
@@ -309,7 +325,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
                         err_analytic: err_an,
                         pareto: false,
                     };
-                    eprintln!("x{r} {d:<8} safety {sf:<4} tol {tol:.0e}: {steps:>8} steps {wall:>8.3} s  error {:.3e} ({})", p.error().unwrap_or(f64::NAN), p.error_kind());
+                    eprintln!("{ename} x{r} {d:<8} safety {sf:<4} tol {tol:.0e}: {steps:>8} steps {wall:>8.3} s  error {:.3e} ({})", p.error().unwrap_or(f64::NAN), p.error_kind());
                     pts.push(p);
                 }
             }
@@ -330,10 +346,10 @@ pub fn mark_pareto(pts: &mut [Point]) {
 
 pub fn csv(pts: &[Point]) -> String {
     let f = |x: Option<f64>| x.map(|v| format!("{v:e}")).unwrap_or_default();
-    let mut s = String::from("method,damping,dt_safety,tolerance,refine,elements,steps,converged,wall_seconds,err_implicit,err_reference,err_analytic,pareto\n");
+    let mut s = String::from("method,damping,dt_safety,tolerance,refine,elements,steps,converged,wall_seconds,err_implicit,err_reference,err_analytic,pareto,element\n");
     for p in pts {
         s += &format!(
-            "{},{},{},{:e},{},{},{},{},{:e},{},{},{},{}\n",
+            "{},{},{},{:e},{},{},{},{},{:e},{},{},{},{},{}\n",
             p.method,
             p.damping,
             p.dt_safety,
@@ -346,14 +362,15 @@ pub fn csv(pts: &[Point]) -> String {
             f(p.err_implicit),
             f(p.err_reference),
             f(p.err_analytic),
-            p.pareto
+            p.pareto,
+            p.element
         );
     }
     s
 }
 
 /// `flem chart`: sweep, then chart.csv, chart.json and the pictures into `out`.
-pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Option<Analytic>, stages: Option<usize>, no_cracking: bool) -> Result<()> {
+pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Option<Analytic>, stages: Option<usize>, no_cracking: bool, elements: &[String]) -> Result<()> {
     let text = std::fs::read_to_string(scene_path).with_context(|| format!("{}: cannot be read", scene_path.display()))?;
     let scene = Scene::from_file(scene_path)?;
     if let Some(a) = &analytic {
@@ -366,7 +383,7 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let sw = if quick { Sweep::quick() } else { Sweep::full() };
-    let pts = sweep(&scene, &text, &sw, analytic.as_ref(), stages, no_cracking)?;
+    let pts = sweep(&scene, &text, &sw, analytic.as_ref(), stages, no_cracking, elements)?;
     flem_core::output::atomic_write(&out.join("chart.csv"), csv(&pts).as_bytes())?;
     flem_core::output::atomic_write(&out.join("chart.json"), serde_json::to_string_pretty(&pts)?.as_bytes())?;
     let kind = pts.iter().find(|p| p.method == "explicit").map_or("implicit", |p| p.error_kind());
@@ -378,7 +395,8 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     let cp: Vec<flem_plot::charts::ChartPoint> = pts
         .iter()
         .filter_map(|p| {
-            let series = if p.method == "implicit" { "implicit (faer)".to_string() } else { format!("{} x{}", p.damping, p.refine) };
+            let pre = if p.element.is_empty() { String::new() } else { format!("{} ", p.element) };
+            let series = if p.method == "implicit" { format!("{pre}implicit (faer)") } else { format!("{pre}{} x{}", p.damping, p.refine) };
             p.error().map(|e| flem_plot::charts::ChartPoint { series, wall_seconds: p.wall_seconds, error: e, pareto: p.pareto })
         })
         .collect();
@@ -396,7 +414,12 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     mark_pareto(&mut solver);
     let cp2: Vec<flem_plot::charts::ChartPoint> = solver
         .iter()
-        .map(|p| flem_plot::charts::ChartPoint { series: format!("{} x{}", p.damping, p.refine), wall_seconds: p.wall_seconds, error: p.err_implicit.unwrap_or(f64::NAN), pareto: p.pareto })
+        .map(|p| flem_plot::charts::ChartPoint {
+            series: format!("{}{} x{}", if p.element.is_empty() { String::new() } else { format!("{} ", p.element) }, p.damping, p.refine),
+            wall_seconds: p.wall_seconds,
+            error: p.err_implicit.unwrap_or(f64::NAN),
+            pareto: p.pareto,
+        })
         .collect();
     flem_plot::charts::speed_accuracy(&out.join("chart_solver"), &format!("explicit solver error: {}", scene.file.title), "rel. L2 error vs implicit (same mesh)", &cp2)?;
     eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json, chart.png/svg, chart_solver.png/svg in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());

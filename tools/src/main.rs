@@ -93,6 +93,10 @@ enum Cmd {
         /// Drop the scene's [cracking] (the elastic problem; pre-separated edges stay).
         #[arg(long)]
         no_cracking: bool,
+        /// Element kinds to sweep too (e.g. q4,qm6), set on every [[material]]; default: the
+        /// scene's own.
+        #[arg(long, value_delimiter = ',')]
+        elements: Vec<String>,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -166,7 +170,7 @@ enum BenchWhat {
         /// Thread counts (0: one per core).
         #[arg(long, value_delimiter = ',', default_value = "1,2")]
         threads: Vec<usize>,
-        /// Element kinds: q4, t3.
+        /// Element kinds (registered names: q4, t3, qm6, ...; `flem plugins` lists them).
         #[arg(long, value_delimiter = ',', default_value = "q4,t3")]
         kinds: Vec<String>,
         /// Element counts of the full-step and failure-check runs.
@@ -202,7 +206,7 @@ fn main() -> ExitCode {
         Some(Cmd::Run { scene, out, quiet, resume, plot }) => load(&scene).and_then(|s| run(s, out, quiet, resume, plot)),
         Some(Cmd::Plot { run_dir }) => plot(&run_dir),
         Some(Cmd::Check { scenes }) => check(&scenes),
-        Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking),
+        Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking, elements }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking, &elements),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
@@ -228,10 +232,11 @@ fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_s
     anyhow::ensure!(nonlocal_radius_h > 0.0 && nonlocal_radius_h.is_finite(), "--nonlocal-radius-h = {nonlocal_radius_h} is incorrect; it must be > 0");
     let kinds = kinds
         .iter()
-        .map(|k| match k.as_str() {
-            "q4" => Ok(flem_core::mesh::CellKind::Q4),
-            "t3" => Ok(flem_core::mesh::CellKind::T3),
-            other => anyhow::bail!("--kinds: \"{other}\" is incorrect; it must be q4 or t3"),
+        .map(|k| {
+            flem_core::element::registry::find(k).ok_or_else(|| {
+                let names: Vec<&str> = flem_core::element::registry::kinds().iter().map(|k| k.name).collect();
+                anyhow::anyhow!("--kinds: \"{k}\" is incorrect; it must be one of {names:?}")
+            })
         })
         .collect::<Result<Vec<_>>>()?;
     anyhow::ensure!(min_time > 0.0 && min_time.is_finite(), "--min-time = {min_time} is incorrect; it must be > 0");

@@ -65,6 +65,20 @@ pub trait Block: Send + Sync {
     fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
         None
     }
+    /// Registered name of the element kind (`element::registry`; default: the cell type's
+    /// default kind).
+    fn element(&self) -> &'static str {
+        match self.kind() {
+            CellKind::Q4 => "q4",
+            CellKind::T3 => "t3",
+        }
+    }
+    /// True when the element stiffness is the plain isoparametric `sum_gp B^T D B w det J t` of
+    /// the shape gradients (a solver may then assemble it itself); false for an element with
+    /// internal fields, whose stiffness only `stiffness` gives.
+    fn isoparametric(&self) -> bool {
+        true
+    }
 }
 
 /// Blocks smaller than this run on the calling thread (waking the pool costs more than it
@@ -90,6 +104,9 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     gauss_g: std::sync::OnceLock<Vec<[[f64; 2]; N]>>,
     /// `max_omega_bound` (asked again at every new stable-step estimate, after splits).
     omega_bound: std::sync::OnceLock<f64>,
+    /// `Blocked::recovery` of every element (`S::RECOVERY_LEN` f64 each; empty for an
+    /// isoparametric kind), built at the first stress request.
+    recovery: std::sync::OnceLock<Vec<f64>>,
     _s: PhantomData<S>,
 }
 
@@ -109,6 +126,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             corner_g: std::sync::OnceLock::new(),
             gauss_g: std::sync::OnceLock::new(),
             omega_bound: std::sync::OnceLock::new(),
+            recovery: std::sync::OnceLock::new(),
             _s: PhantomData,
         }
     }
@@ -146,12 +164,34 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         self.corner_g = std::sync::OnceLock::new();
         self.gauss_g = std::sync::OnceLock::new();
         self.omega_bound = std::sync::OnceLock::new();
+        self.recovery = std::sync::OnceLock::new();
         self.conn.push(conn);
     }
     #[inline(always)]
     fn gather(&self, i: usize, u: &[[f64; 2]]) -> [[f64; 2]; N] {
         let c = &self.conn[i];
         std::array::from_fn(|a| u[c[a] as usize])
+    }
+    /// The stress-recovery data of local element `i` (`Blocked::recovery`; empty for an
+    /// isoparametric kind).
+    pub fn recovery(&self, i: usize) -> &[f64] {
+        let r = S::RECOVERY_LEN;
+        if r == 0 {
+            return &[];
+        }
+        let all = self.recovery.get_or_init(|| {
+            let mut v = vec![0.0; r * self.len()];
+            for (x, out) in self.x.iter().zip(v.chunks_exact_mut(r)) {
+                S::recovery(x, &self.d, self.mat.thickness, out);
+            }
+            v
+        });
+        &all[i * r..(i + 1) * r]
+    }
+    /// Stress of local element `i` at `xi` for element displacements `ue` (`Blocked::stress`).
+    #[inline]
+    pub fn stress_local(&self, i: usize, ue: &[[f64; 2]; N], xi: [f64; 2]) -> [f64; 3] {
+        S::stress(&self.x[i], ue, &self.d, xi, self.recovery(i))
     }
 }
 
@@ -197,7 +237,8 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         }
     }
     fn prepare(&mut self, n_clusters: usize) {
-        self.packs = self.x.chunks(LANES).map(S::pack).collect();
+        let (d, t) = (self.d, self.mat.thickness);
+        self.packs = self.x.chunks(LANES).map(|x| S::pack(x, &d, t)).collect();
         self.sched = Schedule::build(&self.conn, n_clusters);
     }
     fn memory_bytes(&self) -> usize {
@@ -212,7 +253,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         let t = self.mat.thickness;
         for i in range {
             let ue = self.gather(i, u);
-            let fe = element::internal_force::<S, N>(&self.x[i], &ue, &self.d, t);
+            let fe = S::force_ref(&self.x[i], &ue, &self.d, t);
             let c = &self.conn[i];
             for a in 0..N {
                 let fa = &mut f[c[a] as usize];
@@ -230,6 +271,17 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         }
     }
     fn corner_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+        if S::RECOVERY_LEN > 0 {
+            // An element with internal fields: its own stress at the corner points.
+            for i in 0..self.len() {
+                let ue = self.gather(i, u);
+                let base = first[self.elems[i].idx()] as usize;
+                for a in 0..N {
+                    out[base + a] = self.stress_local(i, &ue, element::corner_xi::<S, N>(a));
+                }
+            }
+            return;
+        }
         // The same gradients as `element::stress_at` at `corner_xi` (bit for bit), computed once.
         let cg = self.corner_g.get_or_init(|| self.x.iter().map(|x| std::array::from_fn(|a| element::gradients::<S, N>(x, element::corner_xi::<S, N>(a)).0)).collect());
         for (i, g) in cg.iter().enumerate() {
@@ -244,6 +296,16 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         // The gradients of `element::stress_at` at the Gauss points (bit for bit), computed once
         // (only scenes with the nonlocal check call this).
         let ng = S::GAUSS.len();
+        if S::RECOVERY_LEN > 0 {
+            for i in 0..self.len() {
+                let ue = self.gather(i, u);
+                let base = first[self.elems[i].idx()] as usize;
+                for (k, &(xi, _)) in S::GAUSS.iter().enumerate() {
+                    out[base + k] = self.stress_local(i, &ue, xi);
+                }
+            }
+            return;
+        }
         let gg = self.gauss_g.get_or_init(|| self.x.iter().flat_map(|x| S::GAUSS.iter().map(|&(xi, _)| element::gradients::<S, N>(x, xi).0)).collect());
         for (i, g) in gg.chunks_exact(ng).enumerate() {
             let ue = self.gather(i, u);
@@ -254,14 +316,14 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         }
     }
     fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3] {
-        element::stress_at::<S, N>(&self.x[i], &self.gather(i, u), &self.d, xi)
+        self.stress_local(i, &self.gather(i, u), xi)
     }
     fn mean_stress(&self, i: usize, u: &[[f64; 2]]) -> [f64; 3] {
         let ue = self.gather(i, u);
         let mut s = [0.0; 3];
         let (mut wsum, mut acc) = (0.0, [0.0; 3]);
         for &(xi, w) in S::GAUSS {
-            let si = element::stress_at::<S, N>(&self.x[i], &ue, &self.d, xi);
+            let si = self.stress_local(i, &ue, xi);
             for k in 0..3 {
                 acc[k] += w * si[k];
             }
@@ -273,13 +335,19 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         s
     }
     fn stiffness(&self, i: usize, k: &mut [f64]) {
-        element::stiffness::<S, N>(&self.x[i], &self.d, self.mat.thickness, k)
+        S::stiffness(&self.x[i], &self.d, self.mat.thickness, k)
     }
     fn coords(&self, i: usize) -> &[[f64; 2]] {
         &self.x[i]
     }
     fn max_omega_bound(&self) -> f64 {
         *self.omega_bound.get_or_init(|| self.compute_omega_bound())
+    }
+    fn element(&self) -> &'static str {
+        S::NAME
+    }
+    fn isoparametric(&self) -> bool {
+        S::RECOVERY_LEN == 0
     }
 }
 
@@ -288,7 +356,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         let mut kbuf = vec![0.0; 4 * N * N];
         let mut best: f64 = 0.0;
         for i in 0..self.len() {
-            element::stiffness::<S, N>(&self.x[i], &self.d, self.mat.thickness, &mut kbuf);
+            S::stiffness(&self.x[i], &self.d, self.mat.thickness, &mut kbuf);
             let m = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);
             let n2 = 2 * N;
             for r in 0..n2 {

@@ -112,7 +112,7 @@ impl<S: Blocked<N>, const N: usize> Block for CorotBlock<S, N> {
         let t = b.mat.thickness;
         for i in range {
             let (r, ul) = self.local(i, u);
-            let fl = element::internal_force::<S, N>(&b.x[i], &ul, &b.d, t);
+            let fl = S::force_ref(&b.x[i], &ul, &b.d, t);
             let c = &b.conn[i];
             for a in 0..N {
                 let fa = &mut f[c[a] as usize];
@@ -130,7 +130,7 @@ impl<S: Blocked<N>, const N: usize> Block for CorotBlock<S, N> {
             let (r, ul) = self.local(i, u);
             let base = first[b.elems[i].idx()] as usize;
             for a in 0..N {
-                out[base + a] = Self::rotate_stress(r, element::stress_at::<S, N>(&b.x[i], &ul, &b.d, element::corner_xi::<S, N>(a)));
+                out[base + a] = Self::rotate_stress(r, b.stress_local(i, &ul, element::corner_xi::<S, N>(a)));
             }
         }
     }
@@ -140,19 +140,19 @@ impl<S: Blocked<N>, const N: usize> Block for CorotBlock<S, N> {
             let (r, ul) = self.local(i, u);
             let base = first[b.elems[i].idx()] as usize;
             for (g, &(xi, _)) in S::GAUSS.iter().enumerate() {
-                out[base + g] = Self::rotate_stress(r, element::stress_at::<S, N>(&b.x[i], &ul, &b.d, xi));
+                out[base + g] = Self::rotate_stress(r, b.stress_local(i, &ul, xi));
             }
         }
     }
     fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3] {
         let (r, ul) = self.local(i, u);
-        Self::rotate_stress(r, element::stress_at::<S, N>(&self.0.x[i], &ul, &self.0.d, xi))
+        Self::rotate_stress(r, self.0.stress_local(i, &ul, xi))
     }
     fn mean_stress(&self, i: usize, u: &[[f64; 2]]) -> [f64; 3] {
         let (r, ul) = self.local(i, u);
         let (mut wsum, mut acc) = (0.0, [0.0; 3]);
         for &(xi, w) in S::GAUSS {
-            let si = element::stress_at::<S, N>(&self.0.x[i], &ul, &self.0.d, xi);
+            let si = self.0.stress_local(i, &ul, xi);
             for k in 0..3 {
                 acc[k] += w * si[k];
             }
@@ -169,12 +169,18 @@ impl<S: Blocked<N>, const N: usize> Block for CorotBlock<S, N> {
     fn max_omega_bound(&self) -> f64 {
         self.0.max_omega_bound()
     }
+    fn element(&self) -> &'static str {
+        self.0.element()
+    }
+    fn isoparametric(&self) -> bool {
+        self.0.isoparametric()
+    }
     fn strain_energy(&self, u: &[[f64; 2]]) -> Option<f64> {
         let b = &self.0;
         let mut e = 0.0;
         for i in 0..self.len() {
             let (_, ul) = self.local(i, u);
-            let fl = element::internal_force::<S, N>(&b.x[i], &ul, &b.d, b.mat.thickness);
+            let fl = S::force_ref(&b.x[i], &ul, &b.d, b.mat.thickness);
             for a in 0..N {
                 e += 0.5 * (ul[a][0] * fl[a][0] + ul[a][1] * fl[a][1]);
             }

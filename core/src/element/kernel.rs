@@ -35,18 +35,49 @@ use crate::element::{Dmat, Shape, Q4, T3};
 /// Elements per pack (the width of the vectorised loop: two AVX2 or one AVX-512 register).
 pub const LANES: usize = 8;
 
-/// A shape with a blocked kernel.
+/// The element-kind trait: everything the core needs of an element kind (docs/elements.md).
+///
+/// From [`Shape`]: nodes (`N`, the cell type `KIND`, whose edges are the fans' and the splits'),
+/// shape functions and their natural corners (the nodal-stress rule, `element::corner_xi`), Gauss
+/// points (lumped mass, nonlocal input). Here: the internal force in the blocked pack form
+/// (`pack`, `forces`; the hot loop, monomorphised per block), and with defaults that are the plain
+/// isoparametric element: the reference force, the element stiffness (implicit check, stable-step
+/// bound) and the stress at a natural point. An element with internal (condensed) fields, such as
+/// the incompatible-mode quadrilateral `qm6` (plugins/src/elements/qm6.rs), overrides the three
+/// and keeps `RECOVERY_LEN` f64 per element for its stress recovery.
 pub trait Blocked<const N: usize>: Shape<N> {
+    /// Registered name (`[[material]] element = "..."`).
+    const NAME: &'static str;
     /// Precomputed geometry of `LANES` elements.
     type Pack: Copy + Send + Sync + 'static;
     /// Bytes of kernel data per element.
     const BYTES_PER_ELEM: usize = std::mem::size_of::<Self::Pack>() / LANES;
-    /// Packs the geometry of up to `LANES` elements (missing lanes give zero force).
-    fn pack(x: &[[[f64; 2]; N]]) -> Self::Pack;
-    /// The D matrix with thickness and Gauss weight folded in.
+    /// f64 per element that `stress` needs beyond the geometry (built once by `recovery`);
+    /// 0 for an isoparametric element, whose stress comes from the shape gradients alone.
+    const RECOVERY_LEN: usize = 0;
+    /// Packs the data of up to `LANES` elements (missing lanes give zero force). `d` and `t`
+    /// are the block's elasticity and thickness (an element may fold them into the pack).
+    fn pack(x: &[[[f64; 2]; N]], d: &Dmat, t: f64) -> Self::Pack;
+    /// The D matrix with thickness and Gauss weight folded in (passed back to `forces`).
     fn scaled_d(d: &Dmat, t: f64) -> [f64; 3];
     /// Forces of the pack's elements, `f[a][dim][lane]`, from gathered `u[a][dim][lane]`.
     fn forces(p: &Self::Pack, d: &[f64; 3], u: &[[[f64; LANES]; 2]; N], f: &mut [[[f64; LANES]; 2]; N]);
+    /// Internal force of one element, the reference the blocked kernel is tested against.
+    #[inline(always)]
+    fn force_ref(x: &[[f64; 2]; N], u: &[[f64; 2]; N], d: &Dmat, t: f64) -> [[f64; 2]; N] {
+        crate::element::internal_force::<Self, N>(x, u, d, t)
+    }
+    /// Element stiffness, row-major (2N)^2, dofs x0 y0 x1 y1 ... (the implicit check and the
+    /// stable-step bound); equal to the Jacobian of `forces`.
+    fn stiffness(x: &[[f64; 2]; N], d: &Dmat, t: f64, k: &mut [f64]) {
+        crate::element::stiffness::<Self, N>(x, d, t, k)
+    }
+    /// Fills `out` (`RECOVERY_LEN` values) with the element's stress-recovery data.
+    fn recovery(_x: &[[f64; 2]; N], _d: &Dmat, _t: f64, _out: &mut [f64]) {}
+    /// Stress `[sxx, syy, sxy]` at natural coordinate `xi`; `rec` is the element's `recovery`.
+    fn stress(x: &[[f64; 2]; N], u: &[[f64; 2]; N], d: &Dmat, xi: [f64; 2], _rec: &[f64]) -> [f64; 3] {
+        crate::element::stress_at::<Self, N>(x, u, d, xi)
+    }
 }
 
 #[derive(Copy, Clone, Debug)]
@@ -87,8 +118,9 @@ fn parent_stress(j: [f64; 4], inv: f64, du: [f64; 4], d: &[f64; 3]) -> (f64, f64
 }
 
 impl Blocked<4> for Q4 {
+    const NAME: &'static str = "q4";
     type Pack = Q4Pack;
-    fn pack(x: &[[[f64; 2]; 4]]) -> Q4Pack {
+    fn pack(x: &[[[f64; 2]; 4]], _d: &Dmat, _t: f64) -> Q4Pack {
         let z = [0.0; LANES];
         let mut p = Q4Pack { ax: z, bx: z, hx: z, ay: z, by: z, hy: z, inv: [z; 4] };
         for (l, e) in x.iter().enumerate().take(LANES) {
@@ -151,8 +183,9 @@ pub struct T3Pack {
 }
 
 impl Blocked<3> for T3 {
+    const NAME: &'static str = "t3";
     type Pack = T3Pack;
-    fn pack(x: &[[[f64; 2]; 3]]) -> T3Pack {
+    fn pack(x: &[[[f64; 2]; 3]], _d: &Dmat, _t: f64) -> T3Pack {
         let z = [0.0; LANES];
         let mut p = T3Pack { j11: z, j12: z, j21: z, j22: z, inv: z };
         for (l, e) in x.iter().enumerate().take(LANES) {
@@ -298,7 +331,7 @@ impl SharedForces {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::element::{internal_force, Material, Plane};
+    use crate::element::{Material, Plane};
 
     fn lcg(s: &mut u64) -> f64 {
         *s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -316,7 +349,7 @@ mod tests {
             for n in [LANES, 3] {
                 let xs: Vec<[[f64; 2]; N]> = (0..n).map(|_| std::array::from_fn(|a| [1e3 + base[a][0] + 0.2 * lcg(&mut s), -5.0 + base[a][1] + 0.2 * lcg(&mut s)])).collect();
                 let us: Vec<[[f64; 2]; N]> = (0..n).map(|_| std::array::from_fn(|_| [1e-3 * lcg(&mut s), 1e-3 * lcg(&mut s)])).collect();
-                let p = S::pack(&xs);
+                let p = S::pack(&xs, &d, mat.thickness);
                 let mut ug = [[[0.0; LANES]; 2]; N];
                 for (l, ue) in us.iter().enumerate() {
                     for a in 0..N {
@@ -331,7 +364,7 @@ mod tests {
                         assert!((0..N).all(|a| fg[a][0][l] == 0.0 && fg[a][1][l] == 0.0), "empty lane gives zero force");
                         continue;
                     }
-                    let r = internal_force::<S, N>(&xs[l], &us[l], &d, mat.thickness);
+                    let r = S::force_ref(&xs[l], &us[l], &d, mat.thickness);
                     let scale = r.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
                     for a in 0..N {
                         for k in 0..2 {

@@ -11,6 +11,7 @@ pub mod block;
 pub mod corot;
 pub mod kernel;
 pub mod model;
+pub mod registry;
 
 use serde::{Deserialize, Serialize};
 

@@ -1,8 +1,9 @@
 //! The model: mesh groups, the topology of copies and clusters, and the element blocks.
 use serde::{Deserialize, Serialize};
 
-use crate::element::block::{Block, ElementBlock};
-use crate::element::{Material, Plane, Q4, T3};
+use crate::element::block::Block;
+use crate::element::registry;
+use crate::element::{Material, Plane};
 use crate::error::{FlemError, Result};
 use crate::ids::{EdgeId, ElemId, PointId};
 use crate::mesh::topology::{SplitRecord, Topology};
@@ -23,6 +24,11 @@ pub struct MaterialCfg {
     /// Co-rotational kinematics (crate::element::corot): rigid rotations carry no stress.
     #[serde(default)]
     pub corotational: bool,
+    /// Element kind of this region's cells of that kind's cell type (`element::registry`,
+    /// docs/elements.md): "q4", "t3", "qm6" (ours: incompatible modes, no bending locking).
+    /// Default by cell type: quadrilaterals "q4", triangles "t3" (the paper's elements).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub element: Option<String>,
 }
 
 fn all() -> String {
@@ -62,34 +68,40 @@ impl Model {
             let m = materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all"))?;
             Some(Material { young: m.young_modulus, poisson: m.poisson_ratio, density: m.density, thickness: m.thickness, plane })
         };
-        let corot_of = |region: &str| materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all")).is_some_and(|m| m.corotational);
+        let cfg_of = |region: &str| materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all"));
+        let corot_of = |region: &str| cfg_of(region).is_some_and(|m| m.corotational);
+        // The element kind of each material that names one (checked before anything is built).
+        for (i, m) in materials.iter().enumerate() {
+            if let Some(name) = &m.element {
+                if registry::find(name).is_none() {
+                    let names: Vec<&str> = registry::kinds().iter().map(|k| k.name).collect();
+                    let hint = crate::error::nearest(name, names.iter().copied()).map(|h| format!(" (did you mean \"{h}\"?)")).unwrap_or_default();
+                    return Err(FlemError::config(scene_file, format!("material[{i}].element"), format!("= \"{name}\" is no element kind{hint}; element kinds are {names:?}")));
+                }
+            }
+        }
+        let kind_of = |region: &str, cell: CellKind| -> &'static registry::ElementKind {
+            let named = cfg_of(region).and_then(|m| m.element.as_deref()).and_then(registry::find).filter(|k| k.cell == cell);
+            named.or_else(|| registry::find(registry::default_for(cell))).expect("the default element kinds are registered in core")
+        };
         let mut blocks: Vec<Box<dyn Block>> = Vec::new();
         let mut elem_slot = vec![(0u32, 0u32); mesh.cells.len()];
         for region in &regions {
             let mat = mat_of(region)
                 .ok_or_else(|| FlemError::config(scene_file, "material", format!("gives no material for element region \"{region}\" (add [[material]] region = \"{region}\" or region = \"all\")")))?;
-            let mut q4 = ElementBlock::<Q4, 4>::new(region.to_string(), mat);
-            let mut t3 = ElementBlock::<T3, 3>::new(region.to_string(), mat);
-            for (e, c) in mesh.cells.iter().enumerate() {
-                if mesh.cell_region[e] != *region {
-                    continue;
-                }
-                let x = |a: usize| mesh.points[c.nodes[a] as usize];
-                match c.kind {
-                    CellKind::Q4 => {
-                        q4.push(ElemId::new(e), [x(0), x(1), x(2), x(3)], [c.nodes[0], c.nodes[1], c.nodes[2], c.nodes[3]]);
+            // One block per cell type, quadrilaterals first (the order the model always had).
+            for cell in [CellKind::Q4, CellKind::T3] {
+                let mut b = kind_of(region, cell).builder(region.to_string(), mat);
+                for (e, c) in mesh.cells.iter().enumerate() {
+                    if mesh.cell_region[e] != *region || c.kind != cell {
+                        continue;
                     }
-                    CellKind::T3 => {
-                        t3.push(ElemId::new(e), [x(0), x(1), x(2)], [c.nodes[0], c.nodes[1], c.nodes[2]]);
-                    }
+                    let x: [[f64; 2]; 4] = std::array::from_fn(|a| c.corners().get(a).map_or([0.0; 2], |&p| mesh.points[p as usize]));
+                    b.push(ElemId::new(e), &x[..c.corners().len()], c.corners());
                 }
-            }
-            let corot = corot_of(region);
-            if !q4.is_empty() {
-                blocks.push(if corot { Box::new(crate::element::corot::CorotBlock(q4)) } else { Box::new(q4) });
-            }
-            if !t3.is_empty() {
-                blocks.push(if corot { Box::new(crate::element::corot::CorotBlock(t3)) } else { Box::new(t3) });
+                if !b.is_empty() {
+                    blocks.push(b.finish(corot_of(region)));
+                }
             }
         }
         for blk in blocks.iter_mut() {

@@ -12,7 +12,8 @@
 //!
 //! Element stiffness: `K_e = sum_gp B^T D B w det J t` written out per Gauss point from the
 //! shape gradients (`element::gradients`), one generic kernel per block (monomorphised for Q4
-//! and T3). `Block::stiffness` builds the same matrix column by column from the force kernel
+//! and T3). A block that is not isoparametric (`Block::isoparametric`: an element with condensed
+//! internal fields such as `qm6`) gives its own `Block::stiffness`. `Block::stiffness` of Q4/T3 builds the same matrix column by column from the force kernel
 //! (eight force evaluations for a Q4), about four times slower; the unit test below checks that
 //! both agree to round-off.
 use std::hash::{DefaultHasher, Hash, Hasher};
@@ -31,6 +32,7 @@ pub(crate) fn fingerprint(model: &Model, fix: &[u8]) -> u64 {
     fix.hash(&mut h);
     for blk in &model.blocks {
         blk.len().hash(&mut h);
+        blk.element().hash(&mut h);
         let m = blk.material();
         [m.young, m.poisson, m.thickness].map(f64::to_bits).hash(&mut h);
         (m.plane == Plane::Strain).hash(&mut h);
@@ -193,8 +195,15 @@ fn scatter<S: Shape<N>, const N: usize>(blk: &dyn Block, eq: &[usize], cp: &[usi
     let mut g = [0usize; 8];
     let mut e = [0usize; 8];
     let mut free = [0usize; 8];
+    let iso = blk.isoparametric();
     for i in 0..blk.len() {
-        elem_stiffness::<S, N>(blk.coords(i), &d, t, &mut k);
+        if iso {
+            elem_stiffness::<S, N>(blk.coords(i), &d, t, &mut k);
+        } else {
+            // An element with condensed internal fields (e.g. `qm6`): its own stiffness, the
+            // Jacobian of the explicit step's force.
+            blk.stiffness(i, &mut k[..nd * nd]);
+        }
         let conn = blk.conn(i);
         let (mut nf, mut prescribed) = (0, false);
         for r in 0..nd {

@@ -1,0 +1,151 @@
+//! Unit tests of the element plugins (the mesh-level patch tests, Cook's membrane and the
+//! cantilever are in tests/elements.rs).
+use flem_core::element::kernel::{Blocked, LANES};
+use flem_core::element::{Dmat, Material, Plane, Q4};
+
+use super::Qm6;
+
+fn lcg(s: &mut u64) -> f64 {
+    *s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    (*s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+}
+
+fn mat(plane: Plane) -> Material {
+    Material { young: 210e9, poisson: 0.3, density: 1.0, thickness: 0.7, plane }
+}
+
+const DISTORTED: [[f64; 2]; 4] = [[0.0, 0.0], [1.0, 0.1], [1.3, 0.9], [-0.2, 1.1]];
+
+/// The blocked kernel equals the one-element reference (`force_ref`) to 1e-12 relative on
+/// distorted elements with random displacements, including a partly filled pack.
+#[test]
+fn blocked_qm6_matches_reference() {
+    let mut s = 3u64;
+    for plane in [Plane::Strain, Plane::Stress] {
+        let m = mat(plane);
+        let d = m.dmat();
+        for n in [LANES, 5] {
+            let xs: Vec<[[f64; 2]; 4]> = (0..n).map(|_| std::array::from_fn(|a| [1e3 + DISTORTED[a][0] + 0.2 * lcg(&mut s), -5.0 + DISTORTED[a][1] + 0.2 * lcg(&mut s)])).collect();
+            let us: Vec<[[f64; 2]; 4]> = (0..n).map(|_| std::array::from_fn(|_| [1e-3 * lcg(&mut s), 1e-3 * lcg(&mut s)])).collect();
+            let p = Qm6::pack(&xs, &d, m.thickness);
+            let mut ug = [[[0.0; LANES]; 2]; 4];
+            for (l, ue) in us.iter().enumerate() {
+                for a in 0..4 {
+                    ug[a][0][l] = ue[a][0];
+                    ug[a][1][l] = ue[a][1];
+                }
+            }
+            let mut fg = [[[f64::NAN; LANES]; 2]; 4];
+            Qm6::forces(&p, &Qm6::scaled_d(&d, m.thickness), &ug, &mut fg);
+            for l in 0..LANES {
+                if l >= n {
+                    assert!((0..4).all(|a| fg[a][0][l] == 0.0 && fg[a][1][l] == 0.0), "empty lane gives zero force");
+                    continue;
+                }
+                let r = Qm6::force_ref(&xs[l], &us[l], &d, m.thickness);
+                let scale = r.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+                for a in 0..4 {
+                    for k in 0..2 {
+                        assert!((fg[a][k][l] - r[a][k]).abs() <= 1e-12 * scale, "corner {a} dim {k}: {} vs {}", fg[a][k][l], r[a][k]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The condensed stiffness is symmetric, free of force under the three rigid-body modes
+/// (reference: exact zero; tolerance 1e-12 of the largest entry times the displacement), and
+/// softer than Q4's (condensing internal modes can only lower the energy of every nodal
+/// displacement: u^T (K_q4 - K_qm6) u >= 0, Rayleigh).
+#[test]
+fn qm6_stiffness_is_symmetric_rigid_free_and_softer_than_q4() {
+    let m = mat(Plane::Strain);
+    let d = m.dmat();
+    let mut k = [0.0; 64];
+    let mut kq = [0.0; 64];
+    <Qm6 as Blocked<4>>::stiffness(&DISTORTED, &d, m.thickness, &mut k);
+    <Q4 as Blocked<4>>::stiffness(&DISTORTED, &d, m.thickness, &mut kq);
+    let kmax = k.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    for i in 0..8 {
+        for j in 0..8 {
+            assert_eq!(k[i * 8 + j], k[j * 8 + i]);
+        }
+    }
+    let rigid = |mode: usize| -> [f64; 8] {
+        std::array::from_fn(|j| match mode {
+            0 => [1.0, 0.0][j % 2],
+            1 => [0.0, 1.0][j % 2],
+            _ => {
+                let x = DISTORTED[j / 2];
+                [-x[1], x[0]][j % 2]
+            }
+        })
+    };
+    for mode in 0..3 {
+        let u = rigid(mode);
+        for i in 0..8 {
+            let f: f64 = (0..8).map(|j| k[i * 8 + j] * u[j]).sum();
+            assert!(f.abs() <= 1e-12 * kmax * 2.0, "rigid mode {mode}: f[{i}] = {f}");
+        }
+    }
+    let mut s = 11u64;
+    for _ in 0..50 {
+        let u: [f64; 8] = std::array::from_fn(|_| lcg(&mut s));
+        let e = |k: &[f64; 64]| -> f64 { (0..8).map(|i| u[i] * (0..8).map(|j| k[i * 8 + j] * u[j]).sum::<f64>()).sum() };
+        assert!(e(&kq) - e(&k) >= -1e-12 * e(&kq), "{} < {}", e(&kq), e(&k));
+    }
+}
+
+/// Constant strain on a distorted element (the single-element form of the patch test,
+/// Taylor et al. 1976): the internal parameters stay zero and the stress at every corner point
+/// and Gauss point is `D eps` exactly. Reference: `D eps`; tolerance 1e-12 relative.
+#[test]
+fn qm6_reproduces_constant_strain_on_a_distorted_element() {
+    for plane in [Plane::Strain, Plane::Stress] {
+        let m = mat(plane);
+        let d = m.dmat();
+        let eps = [1e-3, -4e-4, 7e-4];
+        let u: [[f64; 2]; 4] = std::array::from_fn(|a| {
+            let [x, y] = DISTORTED[a];
+            [eps[0] * x + 0.5 * eps[2] * y + 0.3, 0.5 * eps[2] * x + eps[1] * y - 0.1]
+        });
+        let mut h = [0.0; 32];
+        Qm6::recovery(&DISTORTED, &d, m.thickness, &mut h);
+        let want = d.stress(eps);
+        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for xi in [[0.9999, 0.9999], [-0.9999, 0.9999], [0.577, -0.577], [0.0, 0.0], [0.3, 0.8]] {
+            let s = Qm6::stress(&DISTORTED, &u, &d, xi, &h);
+            for k in 0..3 {
+                assert!((s[k] - want[k]).abs() <= 1e-12 * scale, "{plane:?} at {xi:?}: {s:?} vs {want:?}");
+            }
+        }
+    }
+}
+
+/// Pure bending of a rectangular element (plane stress): with the nodal values of the exact
+/// field `u_x = k x y`, `u_y = -k (x^2 + nu y^2) / 2` the element's stress is the exact
+/// `sxx = E k y`, `syy = sxy = 0` everywhere (Wilson et al. 1973: the incompatible modes make
+/// the rectangle exact in pure bending), where Q4 shows the spurious shear `sxy = G k x` that
+/// makes it lock. Reference: the beam solution; tolerance 1e-9 of E k h.
+#[test]
+fn qm6_rectangle_is_exact_in_pure_bending_and_q4_is_not() {
+    let m = Material { young: 1000.0, poisson: 0.25, density: 1.0, thickness: 1.0, plane: Plane::Stress };
+    let d: Dmat = m.dmat();
+    let (a, b, k) = (2.0, 0.5, 1e-3);
+    let x: [[f64; 2]; 4] = [[-a, -b], [a, -b], [a, b], [-a, b]];
+    let u: [[f64; 2]; 4] = std::array::from_fn(|i| {
+        let [x, y] = x[i];
+        [k * x * y, -0.5 * k * (x * x + 0.25 * y * y)]
+    });
+    let mut h = [0.0; 32];
+    Qm6::recovery(&x, &d, 1.0, &mut h);
+    let tol = 1e-9 * 1000.0 * k * b;
+    for xi in [[0.577, 0.577], [-0.577, 0.577], [0.9999, -0.9999], [0.2, 0.4]] {
+        let s = Qm6::stress(&x, &u, &d, xi, &h);
+        let y = b * xi[1];
+        assert!((s[0] - 1000.0 * k * y).abs() < tol && s[1].abs() < tol && s[2].abs() < tol, "qm6 at {xi:?}: {s:?}");
+    }
+    let sq = <Q4 as Blocked<4>>::stress(&x, &u, &d, [0.577, 0.577], &[]);
+    assert!(sq[2].abs() > 0.1 * 1000.0 * k * b, "Q4 shows the parasitic shear: {sq:?}");
+}
