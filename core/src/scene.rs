@@ -109,6 +109,10 @@ pub struct SolverCfg {
     /// Results are bit-identical whatever the number (deterministic scatter, see `kernel`).
     #[serde(default = "one_usize")]
     pub threads: usize,
+    /// Updated Lagrangian kinematics with the Jaumann rate for every law
+    /// (`crate::element::stateful`); default false: small strain.
+    #[serde(default)]
+    pub large_strain: bool,
 }
 
 fn default_safety() -> f64 {
@@ -145,6 +149,7 @@ impl Default for SolverCfg {
             max_steps: default_max_steps(),
             ratio_every: default_ratio_every(),
             threads: 1,
+            large_strain: false,
         }
     }
 }

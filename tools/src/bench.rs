@@ -103,7 +103,7 @@ fn model(nx: usize, ny: usize, kind: CellKind) -> Result<Model> {
     let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, kind).build()?;
     mesh.validate(ValidationOptions::Reorient)?;
     mesh.derive_node_sets();
-    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false };
+    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, law: None, bbar: None };
     Ok(Model::new(mesh, &[mat], Plane::Strain, "<bench>")?)
 }
 

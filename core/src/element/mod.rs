@@ -10,7 +10,9 @@
 pub mod block;
 pub mod corot;
 pub mod kernel;
+pub mod law;
 pub mod model;
+pub mod stateful;
 
 use serde::{Deserialize, Serialize};
 

@@ -2,6 +2,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::element::block::{Block, ElementBlock};
+use crate::element::law::{LawCfg, RegionElems, StatefulOpts};
 use crate::element::{Material, Plane, Q4, T3};
 use crate::error::{FlemError, Result};
 use crate::ids::{EdgeId, ElemId, PointId};
@@ -23,6 +24,13 @@ pub struct MaterialCfg {
     /// Co-rotational kinematics (crate::element::corot): rigid rotations carry no stress.
     #[serde(default)]
     pub corotational: bool,
+    /// Material law (`crate::element::law`; built-ins in `flem-plugins/src/material/`).
+    /// Absent: linear elastic on the stateless blocked kernel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<Box<dyn LawCfg>>,
+    /// Mean-dilatation B-bar on Q4 for stateful blocks (`element::stateful`; default true).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bbar: Option<bool>,
 }
 
 fn all() -> String {
@@ -44,11 +52,25 @@ pub struct Model {
     pub pool: Option<std::sync::Arc<rayon::ThreadPool>>,
     /// Some block is co-rotational (its forces are not linear in u).
     pub corotational: bool,
+    /// Some block is stateful (a law with history, or large strain: `element::stateful`).
+    pub stateful: bool,
+}
+
+/// Model-wide options from the scene.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ModelOpts {
+    /// `[solver] large_strain`: every block is stateful, updated Lagrangian.
+    pub large_strain: bool,
 }
 
 impl Model {
     /// Builds blocks (one per region and element kind) from a validated mesh.
     pub fn new(mesh: RawMesh, materials: &[MaterialCfg], plane: Plane, scene_file: &str) -> Result<Model> {
+        Self::new_with(mesh, materials, plane, ModelOpts::default(), scene_file)
+    }
+
+    /// [`Self::new`] with model-wide options (large strain).
+    pub fn new_with(mesh: RawMesh, materials: &[MaterialCfg], plane: Plane, opts: ModelOpts, scene_file: &str) -> Result<Model> {
         let topo = Topology::new(&mesh);
         let mut regions: Vec<&str> = mesh.cell_region.iter().map(String::as_str).collect();
         regions.sort_unstable();
@@ -62,7 +84,22 @@ impl Model {
             let m = materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all"))?;
             Some(Material { young: m.young_modulus, poisson: m.poisson_ratio, density: m.density, thickness: m.thickness, plane })
         };
-        let corot_of = |region: &str| materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all")).is_some_and(|m| m.corotational);
+        let cfg_of = |region: &str| materials.iter().enumerate().find(|(_, m)| m.region == region).or_else(|| materials.iter().enumerate().find(|(_, m)| m.region == "all"));
+        let corot_of = |region: &str| cfg_of(region).is_some_and(|(_, m)| m.corotational);
+        for (i, m) in materials.iter().enumerate() {
+            if let Some(law) = &m.law {
+                let mat = Material { young: m.young_modulus, poisson: m.poisson_ratio, density: m.density, thickness: m.thickness, plane };
+                law.validate(&mat).map_err(|(k, msg)| FlemError::config(scene_file, format!("material[{i}].law.{k}"), msg))?;
+                if m.corotational && !law.is_linear_elastic() {
+                    return Err(FlemError::config(
+                        scene_file,
+                        format!("material[{i}].corotational"),
+                        "= true works with the linear elastic law only; for large rotations of another law use [solver] large_strain = true",
+                    ));
+                }
+            }
+        }
+        let mut stateful = false;
         let mut blocks: Vec<Box<dyn Block>> = Vec::new();
         let mut elem_slot = vec![(0u32, 0u32); mesh.cells.len()];
         for region in &regions {
@@ -85,6 +122,28 @@ impl Model {
                 }
             }
             let corot = corot_of(region);
+            let (mi, mcfg) = cfg_of(region).expect("mat_of found it");
+            let law_linear = mcfg.law.as_ref().is_none_or(|l| l.is_linear_elastic());
+            if !law_linear || opts.large_strain {
+                if corot {
+                    return Err(FlemError::config(
+                        scene_file,
+                        format!("material[{mi}].corotational"),
+                        "= true cannot be combined with [solver] large_strain = true (large strain already rotates the stress with the body)",
+                    ));
+                }
+                let elems = RegionElems {
+                    q4: q4.elems.iter().zip(&q4.x).zip(&q4.conn).map(|((e, x), c)| (*e, *x, *c)).collect(),
+                    t3: t3.elems.iter().zip(&t3.x).zip(&t3.conn).map(|((e, x), c)| (*e, *x, *c)).collect(),
+                };
+                let so = StatefulOpts { bbar: mcfg.bbar.unwrap_or(true), large_strain: opts.large_strain };
+                match &mcfg.law {
+                    Some(l) => blocks.extend(l.build(region, mat, so, &elems)),
+                    None => blocks.extend(crate::element::law::build_stateful(crate::element::law::LinearElastic::new(&mat), region, mat, so, &elems)),
+                }
+                stateful = true;
+                continue;
+            }
             if !q4.is_empty() {
                 blocks.push(if corot { Box::new(crate::element::corot::CorotBlock(q4)) } else { Box::new(q4) });
             }
@@ -101,7 +160,7 @@ impl Model {
             }
         }
         let corotational = materials.iter().any(|m| m.corotational);
-        Ok(Model { mesh, topo, blocks, elem_slot, plane, pool: None, corotational })
+        Ok(Model { mesh, topo, blocks, elem_slot, plane, pool: None, corotational, stateful })
     }
 
     /// Points of a named node set; the error names the set and the groups that exist.
@@ -158,6 +217,16 @@ impl Model {
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
         for b in &self.blocks {
             b.add_internal_forces_pool(u, f, self.pool.as_deref());
+        }
+    }
+
+    /// Internal forces of the step into `f` (zeroed first): stateful blocks update their
+    /// stress and history here (`Block::update_internal_forces`); call it once per step.
+    pub fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        f.iter_mut().for_each(|x| *x = [0.0; 2]);
+        let pool = self.pool.clone();
+        for b in self.blocks.iter_mut() {
+            b.update_internal_forces(u, f, pool.as_deref());
         }
     }
 

@@ -517,7 +517,8 @@ impl Simulation {
         for (i, set) in scene.file.sets.iter().enumerate() {
             mesh.add_selection(set, &format!("set[{i}]"), &file)?;
         }
-        let mut model = Model::new(mesh, &scene.file.materials, scene.file.model.plane, &file)?;
+        let opts = crate::element::model::ModelOpts { large_strain: scene.file.solver.large_strain };
+        let mut model = Model::new_with(mesh, &scene.file.materials, scene.file.model.plane, opts, &file)?;
         let loads = Loads::new(&model, &scene.file, &file)?;
         // Pre-separated edges.
         for (i, g) in scene.file.model.separated.iter().enumerate() {
@@ -892,7 +893,7 @@ impl Simulation {
     /// the stage's last step). Displacements and velocities are the same either way.
     pub fn step_as(&mut self, full: bool) -> Result<()> {
         let dt = self.dt;
-        self.model.internal_forces(&self.state.u, &mut self.state.f_int);
+        self.model.update_internal_forces(&self.state.u, &mut self.state.f_int);
         if self.loads.has_follower || self.loads.has_time {
             self.state.f_ext.copy_from_slice(&self.f_const);
             self.loads.add_step_force(&self.model, &self.levels, &self.x0, &self.state.u, self.state.time, &mut self.state.f_ext)?;
@@ -903,7 +904,7 @@ impl Simulation {
             self.ledger.contact_dissipated += diss;
         }
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
-        let corot_strain = if full && self.model.corotational { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
+        let corot_strain = if full && (self.model.corotational || self.model.stateful) { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
         let (a, beta, eta) = (self.coeffs.viscous, self.coeffs.local, self.coeffs.eta);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
         // Node update in fixed chunks; the ledger sums are added chunk by chunk in chunk order,
