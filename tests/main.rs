@@ -13,4 +13,5 @@ mod layout;
 mod nonlocal;
 mod paper;
 mod parallel;
+mod plasticity;
 mod verification;

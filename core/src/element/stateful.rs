@@ -482,6 +482,9 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         true
     }
     fn plastic(&self, i: usize) -> Option<(f64, u8)> {
+        if L::STATE == 0 {
+            return None;
+        }
         let ng = S::GAUSS.len();
         let (mut gamma, mut wsum, mut flag) = (0.0, 0.0, 0u8);
         for (k, &(_, w)) in S::GAUSS.iter().enumerate() {

@@ -148,6 +148,9 @@ pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
     let mut region = Vec::new();
     let mut crack = Vec::new();
     let mut stress = Vec::new();
+    // Plastic shear strain and state (0 never, 1 now, 2 in the past; -1 crack cells), only
+    // written when some block has a plastic law.
+    let (mut plastic_g, mut plastic_f) = (Vec::new(), Vec::new());
     let mut regions: Vec<&str> = m.blocks.iter().map(|b| b.region()).collect();
     regions.dedup();
     for e in 0..topo.n_elems() {
@@ -165,6 +168,13 @@ pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
         crack.push(0i32);
         let s = blk.mean_stress(i as usize, &sim.state.u);
         stress.extend_from_slice(&s);
+        if let Some((g, f)) = blk.plastic(i as usize) {
+            plastic_g.push(g);
+            plastic_f.push(f as i32);
+        } else {
+            plastic_g.push(0.0);
+            plastic_f.push(0);
+        }
     }
     for ei in 0..topo.edges.len() {
         let st = topo.crack_state(EdgeId::new(ei));
@@ -182,6 +192,8 @@ pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
             region.push(-1);
             crack.push(st as i32);
             stress.extend_from_slice(&[0.0; 3]);
+            plastic_g.push(0.0);
+            plastic_f.push(-1);
         }
     }
     let vec2 = |v: &[[f64; 2]]| -> Vec<f64> { v.iter().flat_map(|a| [a[0], a[1], 0.0]).collect() };
@@ -200,7 +212,11 @@ pub fn snapshot_vtk(sim: &Simulation) -> Vtk {
         idx.resize(nc, 0.0);
         point.push(Attribute::generic("failure_index", 1).with_data(idx));
     }
-    let cell = vec![Attribute::generic("region", 1).with_data(region), Attribute::generic("crack", 1).with_data(crack), Attribute::generic("stress", 3).with_data(stress)];
+    let mut cell = vec![Attribute::generic("region", 1).with_data(region), Attribute::generic("crack", 1).with_data(crack), Attribute::generic("stress", 3).with_data(stress)];
+    if m.blocks.iter().any(|b| !b.is_empty() && b.plastic(0).is_some()) {
+        cell.push(Attribute::generic("plastic_shear_strain", 1).with_data(plastic_g));
+        cell.push(Attribute::generic("plastic_state", 1).with_data(plastic_f));
+    }
     Vtk {
         version: Version::new_xml(1, 0),
         title: String::from("FLEM snapshot"),
@@ -234,6 +250,8 @@ pub struct OutputWriter {
     row: String,
     compress: bool,
     probes: Vec<(String, usize)>,
+    /// `[output] reactions`: the points of each set.
+    reactions: Vec<Vec<crate::ids::PointId>>,
     pub quiet: bool,
     pub on_progress: Option<Box<dyn FnMut(&Progress)>>,
     /// Set (e.g. by a SIGINT handler) to stop the run after the current step.
@@ -261,7 +279,14 @@ impl OutputWriter {
         for (n, _) in &probes {
             let _ = write!(history, ",{n}_ux,{n}_uy");
         }
-        history.push_str(",external_work,kinetic,strain,damping,energy_residual,unbalanced_ratio\n");
+        history.push_str(",external_work,kinetic,strain,damping,energy_residual,unbalanced_ratio");
+        let mut reactions = Vec::new();
+        let file = sim.scene.path.display().to_string();
+        for (i, n) in sim.scene.file.output.reactions.iter().enumerate() {
+            reactions.push(sim.model.node_set(n, &format!("output.reactions[{i}]"), &file)?);
+            let _ = write!(history, ",reaction_{n}_x,reaction_{n}_y");
+        }
+        history.push('\n');
         // A new run in a folder holding an older run's checkpoints numbers its own after them,
         // so that they are the newest (and the old ones get pruned); `resume` renumbers.
         let ck_seq = crate::output::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
@@ -275,6 +300,7 @@ impl OutputWriter {
             row: String::new(),
             compress: sim.scene.file.output.compress,
             probes,
+            reactions,
             quiet: false,
             on_progress: None,
             stop: None,
@@ -357,7 +383,8 @@ impl Observer for OutputWriter {
         push_num(r, sim.state.time);
         let _ = write!(r, ",{stage}");
         let probes = self.probes.iter().flat_map(|(_, p)| sim.state.u[sim.model.topo.point_clusters[*p][0].idx()]);
-        for v in sim.levels.iter().copied().chain(probes).chain([l.external(), l.kinetic, l.strain, l.dissipated(), l.residual(), sim.last_ratio]) {
+        let reactions = self.reactions.iter().flat_map(|p| sim.reaction(p));
+        for v in sim.levels.iter().copied().chain(probes).chain([l.external(), l.kinetic, l.strain, l.dissipated(), l.residual(), sim.last_ratio]).chain(reactions) {
             r.push(',');
             push_num(r, v);
         }

@@ -1025,6 +1025,25 @@ impl Simulation {
         ratio_of(num.sqrt(), sum, cnt as f64)
     }
 
+    /// Reaction on the points `pts` (every cluster of each): the sum over prescribed dofs of
+    /// `f_int - f_ext - f_con`, the force the supports or the prescribed motion apply to the
+    /// body (`m a = f_ext + f_con - f_int + R`, so `R = f_int - f_ext - f_con` at rest).
+    pub fn reaction(&self, pts: &[crate::ids::PointId]) -> [f64; 2] {
+        let st = &self.state;
+        let mut r = [0.0; 2];
+        for p in pts {
+            for c in &self.model.topo.point_clusters[p.idx()] {
+                let c = c.idx();
+                for (d, rd) in r.iter_mut().enumerate() {
+                    if st.fix[c] & (1 << d) != 0 {
+                        *rd += st.f_int[c][d] - st.f_ext[c][d] - st.f_con[c][d];
+                    }
+                }
+            }
+        }
+        r
+    }
+
     /// [`Self::unbalanced_ratio`] of the last step: computed with it when that step was full.
     fn step_unbalanced_ratio(&self) -> f64 {
         self.step_ratio.unwrap_or_else(|| self.unbalanced_ratio())
