@@ -114,3 +114,51 @@ fn bad_law_is_refused_naming_the_key() {
     let e = Simulation::new(sc).err().expect("refused").to_string();
     assert!(e.contains("material[0].law.dilation_angle_deg"), "{e}");
 }
+
+/// `[solver] large_strain = true`: a 2 x 1 body (8 x 4 Q4) first stretched along x by 1e-3
+/// (elastic, stress sxx = s0), then turned rigidly by 90 degrees in 200 increments, carries
+/// the same stress turned with it: syy = s0, sxx = sxy = 0 (Jaumann rate, Hughes-Winget
+/// increments; a rigid rotation adds no strain), and an unstressed body turned the same way
+/// stays unstressed. Small strain would see a strain of order 1. Reference: the rotated
+/// tensor R sigma R^T of each element's stress before the turn; tolerance 1e-9 of s0.
+#[test]
+fn large_strain_rigid_rotation_by_90_degrees_turns_the_stress_and_adds_none() {
+    let text = "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = 8\nny = 4\n\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n\n[solver]\nlarge_strain = true\n\n[[stage]]\n";
+    for stretch in [1e-3, 0.0] {
+        let mut s = sim(text);
+        assert!(s.model.stateful);
+        let x0 = s.x0.clone();
+        let n = x0.len();
+        let mut f = vec![[0.0; 2]; n];
+        // Uniaxial stress along x: exx = e, eyy = -nu' e (plane strain nu' = nu / (1 - nu)).
+        let nu_p = 0.3 / 0.7;
+        let stretched: Vec<[f64; 2]> = x0.iter().map(|p| [p[0] * (1.0 + stretch), p[1] * (1.0 - nu_p * stretch)]).collect();
+        let u1: Vec<[f64; 2]> = (0..n).map(|c| [stretched[c][0] - x0[c][0], stretched[c][1] - x0[c][1]]).collect();
+        s.model.update_internal_forces(&u1, &mut f);
+        let f1 = f.clone();
+        let s0 = 1000.0 / (1.0 - 0.09) * stretch;
+        // The large-strain measure of one increment (mid-point gradients) is e / (1 + e / 2):
+        // the stretch gives s0 to O(e).
+        let before: Vec<[f64; 3]> = (0..s.model.blocks[0].len()).map(|i| s.model.blocks[0].mean_stress(i, &u1)).collect();
+        assert!((before[0][0] - s0).abs() < 2e-3 * s0.max(1.0) && before[0][1].abs() < 2e-3 * s0.max(1.0), "{:?} vs {s0}", before[0]);
+        let steps = 200;
+        let mut u = u1.clone();
+        for k in 1..=steps {
+            let th = std::f64::consts::FRAC_PI_2 * k as f64 / steps as f64;
+            let (c, sn) = (th.cos(), th.sin());
+            u = (0..n).map(|i| [c * stretched[i][0] - sn * stretched[i][1] - x0[i][0], sn * stretched[i][0] + c * stretched[i][1] - x0[i][1]]).collect();
+            s.model.update_internal_forces(&u, &mut f);
+        }
+        for (i, _) in s.model.blocks[0].elems().iter().enumerate() {
+            let st = s.model.blocks[0].mean_stress(i, &u);
+            let (b, tol) = (before[i], 1e-9 * s0.max(1.0));
+            assert!((st[0] - b[1]).abs() < tol && (st[1] - b[0]).abs() < tol && (st[2] + b[2]).abs() < tol, "element {i}: {st:?}, want [{}, {}, {}]", b[1], b[0], -b[2]);
+        }
+        // The nodal forces are those of the stretched body turned by 90 degrees: f = R f1.
+        let scale = f1.iter().map(|v| v[0].hypot(v[1])).fold(0.0, f64::max);
+        for c in 0..n {
+            let want = [-f1[c][1], f1[c][0]];
+            assert!((f[c][0] - want[0]).abs() <= 1e-9 * scale + 1e-12 && (f[c][1] - want[1]).abs() <= 1e-9 * scale + 1e-12, "node {c}: {:?} vs {want:?}", f[c]);
+        }
+    }
+}
