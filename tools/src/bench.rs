@@ -43,7 +43,7 @@ fn cpu_seconds() -> f64 {
 }
 
 /// Median (wall, CPU) seconds per call of `f`: 5 batches of at least `min_time / 5` each.
-fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
+pub(crate) fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
     f();
     let t0 = Instant::now();
     f();
