@@ -100,8 +100,7 @@ fn reactions_in_history_and_bad_set_named() {
     let last: f64 = h.lines().last().unwrap().split(',').nth(k).unwrap().parse().unwrap();
     assert!(last < 0.0, "the footing pushes down on the soil: {last}");
     let bad = text.replace("reactions = [\"footing\"]", "reactions = [\"footin\"]");
-    let s = sim(&bad);
-    let e = flem_core::output::OutputWriter::new(&dir.join("b"), &s).err().expect("refused").to_string();
+    let e = Simulation::new(scene(&bad)).err().expect("refused").to_string();
     assert!(e.contains("output.reactions[0]") && e.contains("did you mean \"footing\""), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -220,4 +219,43 @@ fn cantilever_elastica_large_strain() {
     assert!(rel(u, ue) < 0.02 && rel(v, ve) < 0.02, "large strain u/L {u} v/L {v} vs elastica {ue} {ve}");
     let (us, vs) = tip(&text.replace("large_strain = true", "large_strain = false"));
     assert!(us.abs() < 1e-9 && rel(vs, ve) > 0.25, "small strain u/L {us} v/L {vs}");
+}
+
+/// Every ```toml block of docs/materials.md parses: its `[[material]]` laws validate, its
+/// `[cracking.criterion]` deserializes and validates, its `[solver]` keys are the solver's.
+/// Reference: the docs; exact.
+#[test]
+fn materials_doc_snippets_parse() {
+    flem_plugins::link();
+    let md = std::fs::read_to_string(root().join("docs/materials.md")).unwrap();
+    let mut blocks = Vec::new();
+    let mut cur: Option<String> = None;
+    for line in md.lines() {
+        match (&mut cur, line.trim()) {
+            (None, "```toml") => cur = Some(String::new()),
+            (Some(_), "```") => blocks.extend(cur.take()),
+            (Some(s), _) => {
+                s.push_str(line);
+                s.push('\n');
+            }
+            _ => {}
+        }
+    }
+    assert!(blocks.len() >= 3);
+    for b in &blocks {
+        let t: toml::Table = toml::from_str(b).unwrap_or_else(|e| panic!("{e}\n{b}"));
+        for m in t.get("material").and_then(|m| m.as_array()).into_iter().flatten() {
+            let cfg: flem_core::scene::MaterialCfg = m.clone().try_into().unwrap_or_else(|e| panic!("{e}\n{b}"));
+            let mat = flem_core::element::Material { young: cfg.young_modulus, poisson: cfg.poisson_ratio, density: cfg.density, thickness: cfg.thickness, plane: flem_core::element::Plane::Strain };
+            cfg.law.as_ref().expect("a law").validate(&mat).unwrap_or_else(|e| panic!("{e:?}\n{b}"));
+        }
+        if let Some(c) = t.get("cracking").and_then(|c| c.get("criterion")) {
+            let crit: Box<dyn flem_core::plugin::traits::FailureCriterion> = c.clone().try_into().unwrap_or_else(|e| panic!("{e}\n{b}"));
+            crit.validate().unwrap_or_else(|e| panic!("{e}\n{b}"));
+        }
+        if let Some(s) = t.get("solver") {
+            let text = format!("[solver]\n{}", toml::to_string(s).unwrap());
+            let _: flem_core::scene::SolverCfg = toml::from_str::<toml::Table>(&text).unwrap()["solver"].clone().try_into().unwrap_or_else(|e| panic!("{e}\n{b}"));
+        }
+    }
 }

@@ -549,6 +549,10 @@ impl Simulation {
                 ));
             }
         }
+        // `[output] reactions` name node sets: refused here, so that `flem check` sees it.
+        for (i, n) in scene.file.output.reactions.iter().enumerate() {
+            model.node_set(n, &format!("output.reactions[{i}]"), &file)?;
+        }
         let contact = match &scene.file.contact {
             Some(c) => Some(crate::contact::Contact::new(c, &model, &file)?),
             None => None,
