@@ -139,7 +139,7 @@ impl Model {
                 let so = StatefulOpts { bbar: mcfg.bbar.unwrap_or(true), large_strain: opts.large_strain };
                 match &mcfg.law {
                     Some(l) => blocks.extend(l.build(region, mat, so, &elems)),
-                    None => blocks.extend(crate::element::law::build_stateful(crate::element::law::LinearElastic::new(&mat), region, mat, so, &elems)),
+                    None => blocks.extend(crate::element::stateful::build_stateful(crate::element::law::LinearElastic::new(&mat), region, mat, so, &elems)),
                 }
                 stateful = true;
                 continue;

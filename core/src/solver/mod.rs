@@ -549,6 +549,15 @@ impl Simulation {
                 ));
             }
         }
+        // The implicit check solves a linear elastic small-strain body: it has nothing to say
+        // about a law with history or large strain.
+        if scene.file.check.is_some() && model.stateful {
+            return Err(FlemError::config(
+                &file,
+                "check",
+                "compares with a linear elastic small-strain solve; it cannot check a material law other than linear_elastic or [solver] large_strain = true: remove [check]",
+            ));
+        }
         // `[output] reactions` name node sets: refused here, so that `flem check` sees it.
         for (i, n) in scene.file.output.reactions.iter().enumerate() {
             model.node_set(n, &format!("output.reactions[{i}]"), &file)?;

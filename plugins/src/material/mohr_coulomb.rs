@@ -51,7 +51,8 @@
 use serde::{Deserialize, Serialize};
 
 use flem_core::element::block::Block;
-use flem_core::element::law::{build_stateful, LawCfg, MaterialLaw, RegionElems, StatefulOpts};
+use flem_core::element::law::{LawCfg, MaterialLaw, RegionElems, StatefulOpts};
+use flem_core::element::stateful::build_stateful;
 use flem_core::element::{Dmat, Material, Plane};
 
 /// `law = { type = "mohr_coulomb", ... }` (see the module docs).
