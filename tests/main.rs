@@ -14,4 +14,5 @@ mod layout;
 mod nonlocal;
 mod paper;
 mod parallel;
+mod plasticity;
 mod verification;

@@ -109,6 +109,10 @@ pub struct SolverCfg {
     /// Results are bit-identical whatever the number (deterministic scatter, see `kernel`).
     #[serde(default = "one_usize")]
     pub threads: usize,
+    /// Updated Lagrangian kinematics with the Jaumann rate for every law
+    /// (`crate::element::stateful`); default false: small strain.
+    #[serde(default)]
+    pub large_strain: bool,
 }
 
 fn default_safety() -> f64 {
@@ -145,6 +149,7 @@ impl Default for SolverCfg {
             max_steps: default_max_steps(),
             ratio_every: default_ratio_every(),
             threads: 1,
+            large_strain: false,
         }
     }
 }
@@ -252,6 +257,11 @@ pub struct OutputCfg {
     pub snapshot_every: u64,
     #[serde(default)]
     pub probes: Vec<ProbeCfg>,
+    /// Node sets whose reaction (the sum over their prescribed dofs of `f_int - f_ext -
+    /// f_con`, the force the supports or prescribed motion apply to the body) goes into
+    /// history.csv as `reaction_<set>_x`, `reaction_<set>_y` (the last columns).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub reactions: Vec<String>,
     /// zlib-compress VTU arrays.
     #[serde(default)]
     pub compress: bool,
@@ -291,6 +301,7 @@ impl Default for OutputCfg {
             history_every: default_hist(),
             snapshot_every: 0,
             probes: Vec::new(),
+            reactions: Vec::new(),
             compress: false,
             checkpoint_every: 0,
             checkpoint_seconds: default_ck_seconds(),

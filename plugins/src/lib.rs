@@ -6,6 +6,7 @@ pub mod criteria;
 pub mod damping;
 pub mod elements;
 pub mod import;
+pub mod material;
 pub mod separation;
 #[doc(hidden)]
 pub mod snippets;
@@ -17,6 +18,7 @@ pub fn registry() -> Vec<(&'static str, &'static str)> {
     v.extend(criteria::NAMES.iter().map(|n| ("criterion", *n)));
     v.extend(separation::NAMES.iter().map(|n| ("separation", *n)));
     v.extend(contact::NAMES.iter().map(|n| ("contact", *n)));
+    v.extend(material::NAMES.iter().map(|n| ("material", *n)));
     v.push(("check", "faer_cholesky"));
     v.extend(flem_core::element::registry::kinds().iter().map(|k| ("element", k.name)));
     v.extend(["rectangle", "rectangles", "gmsh", "vtk"].iter().map(|n| ("mesh", *n)));

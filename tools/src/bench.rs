@@ -46,7 +46,7 @@ fn cpu_seconds() -> f64 {
 }
 
 /// Median (wall, CPU) seconds per call of `f`: 5 batches of at least `min_time / 5` each.
-fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
+pub(crate) fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
     f();
     let t0 = Instant::now();
     f();
@@ -106,7 +106,7 @@ fn model(nx: usize, ny: usize, kind: Kind) -> Result<Model> {
     let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, kind.cell).build()?;
     mesh.validate(ValidationOptions::Reorient)?;
     mesh.derive_node_sets();
-    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, element: Some(kind.name.into()) };
+    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, element: Some(kind.name.into()), law: None, bbar: None };
     Ok(Model::new(mesh, &[mat], Plane::Strain, "<bench>")?)
 }
 

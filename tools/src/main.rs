@@ -16,6 +16,7 @@ use std::sync::Arc;
 mod bench;
 mod bench_contact;
 mod bench_dyncall;
+mod bench_laws;
 mod chart;
 mod converge;
 mod stability;
@@ -186,6 +187,16 @@ enum BenchWhat {
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
     Dyncall(bench_dyncall::Args),
+    /// ns per element-update of the material laws (mohr_coulomb, large strain) against the
+    /// linear elastic kernel (issue 21).
+    Laws {
+        /// Element count (Q4).
+        #[arg(long, default_value_t = 100000)]
+        elements: usize,
+        /// Seconds spent per timing (median of 5 batches).
+        #[arg(long, default_value_t = 1.0)]
+        min_time: f64,
+    },
     /// Contact search cost against the number of surface nodes, with the growth exponent.
     Contact {
         /// Surface-node counts to measure.
@@ -491,6 +502,7 @@ fn bench(what: BenchWhat) -> Result<()> {
         }
         BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h } => bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h)?,
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
+        BenchWhat::Laws { elements, min_time } => bench_laws::run(elements, min_time)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
     }
     Ok(())

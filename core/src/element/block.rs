@@ -79,6 +79,30 @@ pub trait Block: Send + Sync {
     fn isoparametric(&self) -> bool {
         true
     }
+    /// Stress update + internal forces for the step (stateful laws commit their
+    /// integration-point state here). Default: the stateless linear path.
+    fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
+        self.add_internal_forces_pool(u, f, pool)
+    }
+    /// f64 of history the block keeps (stateful blocks, `element::stateful`); 0 when stateless.
+    fn state_len(&self) -> usize {
+        0
+    }
+    /// Appends the block's history (`state_len` values) for a checkpoint.
+    fn save_state(&self, _out: &mut Vec<f64>) {}
+    /// Restores the history written by `save_state`; false when the length does not match.
+    fn load_state(&mut self, s: &[f64]) -> bool {
+        s.is_empty()
+    }
+    /// `(plastic shear strain, plastic state)` of local element `i` (mean over its points;
+    /// state 0 never, 1 now, 2 in the past), `None` for blocks without a plastic law.
+    fn plastic(&self, _i: usize) -> Option<(f64, u8)> {
+        None
+    }
+    /// The stress `[sxx, syy, sxy, szz]` of every Gauss point, for blocks that keep it.
+    fn point_stress(&self) -> Option<&[[f64; 4]]> {
+        None
+    }
 }
 
 /// Blocks smaller than this run on the calling thread (waking the pool costs more than it

@@ -10,8 +10,10 @@
 pub mod block;
 pub mod corot;
 pub mod kernel;
+pub mod law;
 pub mod model;
 pub mod registry;
+pub mod stateful;
 
 use serde::{Deserialize, Serialize};
 

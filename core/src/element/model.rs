@@ -2,6 +2,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::element::block::Block;
+use crate::element::law::{LawCfg, RegionElems, StatefulOpts};
 use crate::element::registry;
 use crate::element::{Material, Plane};
 use crate::error::{FlemError, Result};
@@ -29,6 +30,13 @@ pub struct MaterialCfg {
     /// Default by cell type: quadrilaterals "q4", triangles "t3" (the paper's elements).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub element: Option<String>,
+    /// Material law (`crate::element::law`; built-ins in `flem-plugins/src/material/`).
+    /// Absent: linear elastic on the stateless blocked kernel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<Box<dyn LawCfg>>,
+    /// Mean-dilatation B-bar on Q4 for stateful blocks (`element::stateful`; default true).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bbar: Option<bool>,
 }
 
 fn all() -> String {
@@ -50,11 +58,25 @@ pub struct Model {
     pub pool: Option<std::sync::Arc<rayon::ThreadPool>>,
     /// Some block is co-rotational (its forces are not linear in u).
     pub corotational: bool,
+    /// Some block is stateful (a law with history, or large strain: `element::stateful`).
+    pub stateful: bool,
+}
+
+/// Model-wide options from the scene.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ModelOpts {
+    /// `[solver] large_strain`: every block is stateful, updated Lagrangian.
+    pub large_strain: bool,
 }
 
 impl Model {
     /// Builds blocks (one per region and element kind) from a validated mesh.
     pub fn new(mesh: RawMesh, materials: &[MaterialCfg], plane: Plane, scene_file: &str) -> Result<Model> {
+        Self::new_with(mesh, materials, plane, ModelOpts::default(), scene_file)
+    }
+
+    /// [`Self::new`] with model-wide options (large strain).
+    pub fn new_with(mesh: RawMesh, materials: &[MaterialCfg], plane: Plane, opts: ModelOpts, scene_file: &str) -> Result<Model> {
         let topo = Topology::new(&mesh);
         let mut regions: Vec<&str> = mesh.cell_region.iter().map(String::as_str).collect();
         regions.sort_unstable();
@@ -68,8 +90,8 @@ impl Model {
             let m = materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all"))?;
             Some(Material { young: m.young_modulus, poisson: m.poisson_ratio, density: m.density, thickness: m.thickness, plane })
         };
-        let cfg_of = |region: &str| materials.iter().find(|m| m.region == region).or_else(|| materials.iter().find(|m| m.region == "all"));
-        let corot_of = |region: &str| cfg_of(region).is_some_and(|m| m.corotational);
+        let cfg_of = |region: &str| materials.iter().enumerate().find(|(_, m)| m.region == region).or_else(|| materials.iter().enumerate().find(|(_, m)| m.region == "all"));
+        let corot_of = |region: &str| cfg_of(region).is_some_and(|(_, m)| m.corotational);
         // The element kind of each material that names one (checked before anything is built).
         for (i, m) in materials.iter().enumerate() {
             if let Some(name) = &m.element {
@@ -79,16 +101,67 @@ impl Model {
                     return Err(FlemError::config(scene_file, format!("material[{i}].element"), format!("= \"{name}\" is no element kind{hint}; element kinds are {names:?}")));
                 }
             }
+            if let Some(law) = &m.law {
+                let mat = Material { young: m.young_modulus, poisson: m.poisson_ratio, density: m.density, thickness: m.thickness, plane };
+                law.validate(&mat).map_err(|(k, msg)| FlemError::config(scene_file, format!("material[{i}].law.{k}"), msg))?;
+                if m.corotational && !law.is_linear_elastic() {
+                    return Err(FlemError::config(
+                        scene_file,
+                        format!("material[{i}].corotational"),
+                        "= true works with the linear elastic law only; for large rotations of another law use [solver] large_strain = true",
+                    ));
+                }
+            }
         }
         let kind_of = |region: &str, cell: CellKind| -> &'static registry::ElementKind {
-            let named = cfg_of(region).and_then(|m| m.element.as_deref()).and_then(registry::find).filter(|k| k.cell == cell);
+            let named = cfg_of(region).and_then(|(_, m)| m.element.as_deref()).and_then(registry::find).filter(|k| k.cell == cell);
             named.or_else(|| registry::find(registry::default_for(cell))).expect("the default element kinds are registered in core")
         };
+        let mut stateful = false;
         let mut blocks: Vec<Box<dyn Block>> = Vec::new();
         let mut elem_slot = vec![(0u32, 0u32); mesh.cells.len()];
         for region in &regions {
             let mat = mat_of(region)
                 .ok_or_else(|| FlemError::config(scene_file, "material", format!("gives no material for element region \"{region}\" (add [[material]] region = \"{region}\" or region = \"all\")")))?;
+            let corot = corot_of(region);
+            let (mi, mcfg) = cfg_of(region).expect("mat_of found it");
+            let law_linear = mcfg.law.as_ref().is_none_or(|l| l.is_linear_elastic());
+            if !law_linear || opts.large_strain {
+                // A material law with state, or large strain: the stateful block
+                // (`element::stateful`, Q4 with B-bar and T3; issue 21).
+                if corot {
+                    return Err(FlemError::config(
+                        scene_file,
+                        format!("material[{mi}].corotational"),
+                        "= true cannot be combined with [solver] large_strain = true (large strain already rotates the stress with the body)",
+                    ));
+                }
+                if let Some(name) = mcfg.element.as_deref().filter(|n| !matches!(*n, "q4" | "t3")) {
+                    return Err(FlemError::config(
+                        scene_file,
+                        format!("material[{mi}].element"),
+                        format!("= \"{name}\" has no stateful kernel: a material law other than linear elastic, or [solver] large_strain, runs on \"q4\" (with B-bar) and \"t3\" only"),
+                    ));
+                }
+                let mut elems = RegionElems { q4: Vec::new(), t3: Vec::new() };
+                for (e, c) in mesh.cells.iter().enumerate() {
+                    if mesh.cell_region[e] != *region {
+                        continue;
+                    }
+                    let x = |a: usize| mesh.points[c.nodes[a] as usize];
+                    match c.kind {
+                        CellKind::Q4 => elems.q4.push((ElemId::new(e), [x(0), x(1), x(2), x(3)], [c.nodes[0], c.nodes[1], c.nodes[2], c.nodes[3]])),
+                        CellKind::T3 => elems.t3.push((ElemId::new(e), [x(0), x(1), x(2)], [c.nodes[0], c.nodes[1], c.nodes[2]])),
+                    }
+                }
+                let so = StatefulOpts { bbar: mcfg.bbar.unwrap_or(true), large_strain: opts.large_strain };
+                match &mcfg.law {
+                    Some(l) => blocks.extend(l.build(region, mat, so, &elems)),
+                    None => blocks.extend(crate::element::stateful::build_stateful(crate::element::law::LinearElastic::new(&mat), region, mat, so, &elems)),
+                }
+                stateful = true;
+                continue;
+            }
             // One block per cell type, quadrilaterals first (the order the model always had).
             for cell in [CellKind::Q4, CellKind::T3] {
                 let mut b = kind_of(region, cell).builder(region.to_string(), mat);
@@ -100,7 +173,7 @@ impl Model {
                     b.push(ElemId::new(e), &x[..c.corners().len()], c.corners());
                 }
                 if !b.is_empty() {
-                    blocks.push(b.finish(corot_of(region)));
+                    blocks.push(b.finish(corot));
                 }
             }
         }
@@ -113,7 +186,7 @@ impl Model {
             }
         }
         let corotational = materials.iter().any(|m| m.corotational);
-        Ok(Model { mesh, topo, blocks, elem_slot, plane, pool: None, corotational })
+        Ok(Model { mesh, topo, blocks, elem_slot, plane, pool: None, corotational, stateful })
     }
 
     /// Points of a named node set; the error names the set and the groups that exist.
@@ -170,6 +243,16 @@ impl Model {
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
         for b in &self.blocks {
             b.add_internal_forces_pool(u, f, self.pool.as_deref());
+        }
+    }
+
+    /// Internal forces of the step into `f` (zeroed first): stateful blocks update their
+    /// stress and history here (`Block::update_internal_forces`); call it once per step.
+    pub fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        f.iter_mut().for_each(|x| *x = [0.0; 2]);
+        let pool = self.pool.clone();
+        for b in self.blocks.iter_mut() {
+            b.update_internal_forces(u, f, pool.as_deref());
         }
     }
 

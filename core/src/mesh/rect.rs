@@ -48,6 +48,58 @@ pub struct Rectangle {
     /// their edges form the edge set "cut" (declare it in `model.separated`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cuts: Vec<f64>,
+    /// Graded grid along x: zones `[[length, cells, ratio], ...]` from the left, each with
+    /// `cells` cells growing by a constant factor so that its last cell is `ratio` times its
+    /// first (1: uniform). The lengths must add up to `width`, the cells to `nx`. Absent:
+    /// uniform. Not with a notch or cuts.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub grading_x: Vec<[f64; 3]>,
+    /// The same along y, zones from the bottom (lengths add up to `height`, cells to `ny`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub grading_y: Vec<[f64; 3]>,
+}
+
+/// Grid lines `0..=n` over `[o, o + len]` with last/first cell ratio `g`.
+fn graded(o: f64, len: f64, n: usize, g: f64) -> Vec<f64> {
+    if g == 1.0 || n == 1 {
+        let h = len / n as f64;
+        return (0..=n).map(|i| o + i as f64 * h).collect();
+    }
+    let q = g.powf(1.0 / (n - 1) as f64);
+    let mut x = Vec::with_capacity(n + 1);
+    let (mut acc, mut h) = (0.0, 1.0);
+    x.push(0.0);
+    for _ in 0..n {
+        acc += h;
+        x.push(acc);
+        h *= q;
+    }
+    let total = acc;
+    x.iter().enumerate().map(|(i, v)| if i == n { o + len } else { o + len * v / total }).collect()
+}
+
+/// Grid lines of one direction: uniform, or the zones of `grading` (checked against `len`, `n`).
+fn lines(o: f64, len: f64, n: usize, zones: &[[f64; 3]], key: &str) -> std::result::Result<Vec<f64>, (String, String)> {
+    if zones.is_empty() {
+        return Ok(graded(o, len, n, 1.0));
+    }
+    let mut out = vec![o];
+    let (mut at, mut cells) = (o, 0usize);
+    for (k, z) in zones.iter().enumerate() {
+        let [l, c, r] = *z;
+        if !(l > 0.0 && l.is_finite() && c >= 1.0 && c <= 4096.0 && c.fract() == 0.0 && (0.01..=100.0).contains(&r)) {
+            return Err((format!("{key}[{k}]"), format!("= {z:?} is incorrect; it must be [length > 0, cells (a whole number in [1, 4096]), ratio in [0.01, 100]]")));
+        }
+        let g = graded(at, l, c as usize, r);
+        out.extend_from_slice(&g[1..]);
+        at += l;
+        cells += c as usize;
+    }
+    if cells != n || ((at - o) - len).abs() > 1e-9 * len {
+        return Err((key.to_string(), format!("zones give {cells} cells over {}; they must give exactly the cells (n = {n}) and the length ({len}) of the rectangle", at - o)));
+    }
+    *out.last_mut().expect("non-empty") = o + len;
+    Ok(out)
 }
 
 fn default_q4() -> CellKind {
@@ -58,7 +110,7 @@ const SRC: &str = "mesh (rectangle)";
 
 impl Rectangle {
     pub fn new(width: f64, height: f64, nx: usize, ny: usize, element: CellKind) -> Self {
-        Rectangle { width, height, nx, ny, element, origin: [0.0, 0.0], notch: None, distort: 0.0, cuts: Vec::new() }
+        Rectangle { width, height, nx, ny, element, origin: [0.0, 0.0], notch: None, distort: 0.0, cuts: Vec::new(), grading_x: Vec::new(), grading_y: Vec::new() }
     }
 
     pub fn build(&self) -> Result<RawMesh> {
@@ -83,14 +135,19 @@ impl Rectangle {
         if !(0.0..0.3).contains(&self.distort) {
             return Err(bad("distort", format!("= {} is incorrect; it must be in [0, 0.3)", self.distort)));
         }
+        if !(self.grading_x.is_empty() && self.grading_y.is_empty()) && (self.notch.is_some() || !self.cuts.is_empty()) {
+            return Err(bad("grading_x", "and grading_y cannot be combined with a notch or cuts (their lines are placed on a uniform grid)".into()));
+        }
         let (nx, ny) = (self.nx, self.ny);
+        let gx = lines(self.origin[0], self.width, nx, &self.grading_x, "grading_x").map_err(|(k, m)| bad(&k, m))?;
+        let gy = lines(self.origin[1], self.height, ny, &self.grading_y, "grading_y").map_err(|(k, m)| bad(&k, m))?;
         let (hx, hy) = (self.width / nx as f64, self.height / ny as f64);
         let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
         let mut points = Vec::with_capacity((nx + 1) * (ny + 1));
         let mut seed: u64 = 0x2545_F491_4F6C_DD1D;
         for j in 0..=ny {
             for i in 0..=nx {
-                let mut x = [self.origin[0] + i as f64 * hx, self.origin[1] + j as f64 * hy];
+                let mut x = [gx[i], gy[j]];
                 if self.distort > 0.0 && i > 0 && i < nx && j > 0 && j < ny {
                     for (d, h) in [hx, hy].into_iter().enumerate() {
                         seed ^= seed << 13;

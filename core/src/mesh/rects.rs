@@ -66,7 +66,19 @@ impl Rectangles {
             if p.name.is_empty() || p.name == "all" || self.parts[..k].iter().any(|q| q.name == p.name) {
                 return Err(FlemError::config(SRC, format!("mesh.parts[{k}].name"), format!("= \"{}\" is incorrect; part names must be non-empty, unique and not \"all\"", p.name)));
             }
-            let r = Rectangle { width: p.width, height: p.height, nx: p.nx, ny: p.ny, element: p.element, origin: p.origin, notch: None, distort: 0.0, cuts: Vec::new() };
+            let r = Rectangle {
+                width: p.width,
+                height: p.height,
+                nx: p.nx,
+                ny: p.ny,
+                element: p.element,
+                origin: p.origin,
+                notch: None,
+                distort: 0.0,
+                cuts: Vec::new(),
+                grading_x: Vec::new(),
+                grading_y: Vec::new(),
+            };
             let m = r.build().map_err(|e| FlemError::config(SRC, format!("mesh.parts[{k}]"), format!("(\"{}\"): {e}", p.name)))?;
             let off = out.points.len() as u32;
             out.points.extend(m.points);

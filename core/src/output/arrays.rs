@@ -38,6 +38,9 @@ pub struct ResultArrays {
     pub nodal_stress: Vec<[f64; 3]>,
     /// Failure index of each cluster at the last check (with `[cracking]`).
     pub failure_index: Option<Vec<f64>>,
+    /// Per element: plastic shear strain and plastic state (0 never, 1 now, 2 in the past;
+    /// issue 21), when some block has a plastic law.
+    pub plastic: Option<(Vec<f64>, Vec<i32>)>,
 }
 
 /// The arrays of the current state of `sim`.
@@ -59,6 +62,16 @@ pub fn result_arrays(sim: &Simulation) -> ResultArrays {
         r.kinds.push(blk.kind());
         r.region.push(regions.iter().position(|x| *x == blk.region()).unwrap_or(0) as i32);
         r.elem_stress.push(blk.mean_stress(i as usize, &sim.state.u));
+    }
+    if m.blocks.iter().any(|b| !b.is_empty() && b.plastic(0).is_some()) {
+        let (mut g, mut f) = (Vec::with_capacity(topo.n_elems()), Vec::with_capacity(topo.n_elems()));
+        for e in 0..topo.n_elems() {
+            let (b, i) = m.elem_slot[e];
+            let (pg, pf) = m.blocks[b as usize].plastic(i as usize).unwrap_or((0.0, 0));
+            g.push(pg);
+            f.push(pf as i32);
+        }
+        r.plastic = Some((g, f));
     }
     for ei in 0..topo.edges.len() {
         let st = topo.crack_state(EdgeId::new(ei));

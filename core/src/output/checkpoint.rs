@@ -198,6 +198,21 @@ impl Checkpoint {
         // Contact pairs with their history (version 2: PairState::offset), and the Verlet list's build state (section
         // "contact_verlet": without it, as in older checkpoints, the list is rebuilt on the
         // next step, which can change the candidate sets and the rebuild steps after).
+        // Stateful blocks (plastic laws, large strain): every block's point stress, history,
+        // last displacements and internal work (`Block::save_state`), in block order.
+        if sim.model.stateful {
+            let blocks: Vec<Vec<f64>> = sim
+                .model
+                .blocks
+                .iter()
+                .map(|b| {
+                    let mut v = Vec::with_capacity(b.state_len());
+                    b.save_state(&mut v);
+                    v
+                })
+                .collect();
+            ck.put_section("blocks", 1, &blocks)?;
+        }
         if let Some(c) = &sim.contact {
             ck.put_section("contact", 2, &c.history)?;
             ck.put_section("contact_verlet", 1, &c.verlet_state())?;
@@ -290,6 +305,21 @@ impl Checkpoint {
             cr.index.clone_from(&self.failure_index);
             cr.index.resize(nc, 0.0);
             cr.n_splits = self.n_splits;
+        }
+        match (sim.model.stateful, self.section::<Vec<Vec<f64>>>("blocks", 1)?) {
+            (true, Some(blocks)) => {
+                if blocks.len() != sim.model.blocks.len() {
+                    return Err(bad(format!("{} stateful blocks in the checkpoint, {} in the scene", blocks.len(), sim.model.blocks.len())));
+                }
+                for (i, (b, v)) in sim.model.blocks.iter_mut().zip(&blocks).enumerate() {
+                    if !b.load_state(v) {
+                        return Err(bad(format!("block {i} (region \"{}\") has {} values of history, the scene's needs {}", b.region(), v.len(), b.state_len())));
+                    }
+                }
+            }
+            (false, None) => {}
+            (true, None) => return Err(bad("the scene has a material law with history (or large strain) and the checkpoint has no block state".into())),
+            (false, Some(_)) => return Err(bad("the checkpoint has block state and the scene's materials keep none".into())),
         }
         match (sim.contact.as_mut(), self.section::<crate::contact::ContactHistory>("contact", 2)?) {
             (Some(c), Some(h)) => {

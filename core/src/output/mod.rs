@@ -179,7 +179,15 @@ pub fn vtk_of(r: &arrays::ResultArrays) -> Vtk {
     if let Some(idx) = &r.failure_index {
         point.push(Attribute::generic("failure_index", 1).with_data(idx.clone()));
     }
-    let cell = vec![Attribute::generic("region", 1).with_data(region), Attribute::generic("crack", 1).with_data(crack), Attribute::generic("stress", 3).with_data(stress)];
+    let mut cell = vec![Attribute::generic("region", 1).with_data(region), Attribute::generic("crack", 1).with_data(crack), Attribute::generic("stress", 3).with_data(stress)];
+    if let Some((g, f)) = &r.plastic {
+        // Plastic shear strain and state per element (-1 on crack cells; issue 21).
+        let n_faces = r.crack_faces.len();
+        let pg: Vec<f64> = g.iter().copied().chain(std::iter::repeat_n(0.0, n_faces)).collect();
+        let pf: Vec<i32> = f.iter().copied().chain(std::iter::repeat_n(-1, n_faces)).collect();
+        cell.push(Attribute::generic("plastic_shear_strain", 1).with_data(pg));
+        cell.push(Attribute::generic("plastic_state", 1).with_data(pf));
+    }
     Vtk {
         version: Version::new_xml(1, 0),
         title: String::from("FLEM snapshot"),
@@ -213,6 +221,8 @@ pub struct OutputWriter {
     row: String,
     compress: bool,
     probes: Vec<(String, usize)>,
+    /// `[output] reactions`: the points of each set.
+    reactions: Vec<Vec<crate::ids::PointId>>,
     pub quiet: bool,
     pub on_progress: Option<Box<dyn FnMut(&Progress)>>,
     /// Set (e.g. by a SIGINT handler) to stop the run after the current step.
@@ -240,7 +250,14 @@ impl OutputWriter {
         for (n, _) in &probes {
             let _ = write!(history, ",{n}_ux,{n}_uy");
         }
-        history.push_str(",external_work,kinetic,strain,damping,energy_residual,unbalanced_ratio\n");
+        history.push_str(",external_work,kinetic,strain,damping,energy_residual,unbalanced_ratio");
+        let mut reactions = Vec::new();
+        let file = sim.scene.path.display().to_string();
+        for (i, n) in sim.scene.file.output.reactions.iter().enumerate() {
+            reactions.push(sim.model.node_set(n, &format!("output.reactions[{i}]"), &file)?);
+            let _ = write!(history, ",reaction_{n}_x,reaction_{n}_y");
+        }
+        history.push('\n');
         // A new run in a folder holding an older run's checkpoints numbers its own after them,
         // so that they are the newest (and the old ones get pruned); `resume` renumbers.
         let ck_seq = crate::output::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
@@ -254,6 +271,7 @@ impl OutputWriter {
             row: String::new(),
             compress: sim.scene.file.output.compress,
             probes,
+            reactions,
             quiet: false,
             on_progress: None,
             stop: None,
@@ -336,7 +354,8 @@ impl Observer for OutputWriter {
         push_num(r, sim.state.time);
         let _ = write!(r, ",{stage}");
         let probes = self.probes.iter().flat_map(|(_, p)| sim.state.u[sim.model.topo.point_clusters[*p][0].idx()]);
-        for v in sim.levels.iter().copied().chain(probes).chain([l.external(), l.kinetic, l.strain, l.dissipated(), l.residual(), sim.last_ratio]) {
+        let reactions = self.reactions.iter().flat_map(|p| sim.reaction(p));
+        for v in sim.levels.iter().copied().chain(probes).chain([l.external(), l.kinetic, l.strain, l.dissipated(), l.residual(), sim.last_ratio]).chain(reactions) {
             r.push(',');
             push_num(r, v);
         }

@@ -517,7 +517,8 @@ impl Simulation {
         for (i, set) in scene.file.sets.iter().enumerate() {
             mesh.add_selection(set, &format!("set[{i}]"), &file)?;
         }
-        let mut model = Model::new(mesh, &scene.file.materials, scene.file.model.plane, &file)?;
+        let opts = crate::element::model::ModelOpts { large_strain: scene.file.solver.large_strain };
+        let mut model = Model::new_with(mesh, &scene.file.materials, scene.file.model.plane, opts, &file)?;
         let loads = Loads::new(&model, &scene.file, &file)?;
         // Pre-separated edges.
         for (i, g) in scene.file.model.separated.iter().enumerate() {
@@ -547,6 +548,19 @@ impl Simulation {
                     quasi.join(", ")
                 ));
             }
+        }
+        // The implicit check solves a linear elastic small-strain body: it has nothing to say
+        // about a law with history or large strain.
+        if scene.file.check.is_some() && model.stateful {
+            return Err(FlemError::config(
+                &file,
+                "check",
+                "compares with a linear elastic small-strain solve; it cannot check a material law other than linear_elastic or [solver] large_strain = true: remove [check]",
+            ));
+        }
+        // `[output] reactions` name node sets: refused here, so that `flem check` sees it.
+        for (i, n) in scene.file.output.reactions.iter().enumerate() {
+            model.node_set(n, &format!("output.reactions[{i}]"), &file)?;
         }
         let contact = match &scene.file.contact {
             Some(c) => Some(crate::contact::Contact::new(c, &model, &file)?),
@@ -892,7 +906,7 @@ impl Simulation {
     /// the stage's last step). Displacements and velocities are the same either way.
     pub fn step_as(&mut self, full: bool) -> Result<()> {
         let dt = self.dt;
-        self.model.internal_forces(&self.state.u, &mut self.state.f_int);
+        self.model.update_internal_forces(&self.state.u, &mut self.state.f_int);
         if self.loads.has_follower || self.loads.has_time {
             self.state.f_ext.copy_from_slice(&self.f_const);
             self.loads.add_step_force(&self.model, &self.levels, &self.x0, &self.state.u, self.state.time, &mut self.state.f_ext)?;
@@ -903,7 +917,7 @@ impl Simulation {
             self.ledger.contact_dissipated += diss;
         }
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
-        let corot_strain = if full && self.model.corotational { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
+        let corot_strain = if full && (self.model.corotational || self.model.stateful) { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
         let (a, beta, eta) = (self.coeffs.viscous, self.coeffs.local, self.coeffs.eta);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
         // Node update in fixed chunks; the ledger sums are added chunk by chunk in chunk order,
@@ -1022,6 +1036,25 @@ impl Simulation {
             }
         }
         ratio_of(num.sqrt(), sum, cnt as f64)
+    }
+
+    /// Reaction on the points `pts` (every cluster of each): the sum over prescribed dofs of
+    /// `f_int - f_ext - f_con`, the force the supports or the prescribed motion apply to the
+    /// body (`m a = f_ext + f_con - f_int + R`, so `R = f_int - f_ext - f_con` at rest).
+    pub fn reaction(&self, pts: &[crate::ids::PointId]) -> [f64; 2] {
+        let st = &self.state;
+        let mut r = [0.0; 2];
+        for p in pts {
+            for c in &self.model.topo.point_clusters[p.idx()] {
+                let c = c.idx();
+                for (d, rd) in r.iter_mut().enumerate() {
+                    if st.fix[c] & (1 << d) != 0 {
+                        *rd += st.f_int[c][d] - st.f_ext[c][d] - st.f_con[c][d];
+                    }
+                }
+            }
+        }
+        r
     }
 
     /// [`Self::unbalanced_ratio`] of the last step: computed with it when that step was full.

@@ -1,0 +1,550 @@
+//! Stateful element blocks: a material law with history (plasticity) or large strain.
+//!
+//! What: a block of one element kind `S` and one law `L` (monomorphised per pair, no dynamic
+//! dispatch per element). Every step, [`Block::update_internal_forces`] takes the displacement
+//! increment of each element since the last step, forms the strain increment at each Gauss
+//! point, lets the law update the stress `[sxx, syy, sxy, szz]` and its history in place, and
+//! adds `f_a = sum_gp Bbar_a^T sigma w det J t` to the nodal forces. Stress, history, the last
+//! displacements and the internal work are core-owned arrays of the block (`state_len`,
+//! `save_state`, `load_state` carry them through checkpoints).
+//!
+//! B-bar (selective volumetric strain, mean dilatation; Hughes 1980, Nagtegaal, Parks & Rice
+//! 1974): for Q4 the in-plane volumetric strain of every Gauss point is replaced by its mean
+//! over the element, `eps_bar = eps + 1/2 (ev_mean - ev) [1, 1, 0]` with
+//! `ev_mean = (1/A) integral (exx + eyy) dA`, and `ezz = 0` is kept exactly (plane strain). An
+//! incompressible plastic flow then imposes one constraint per element instead of four, which
+//! is what keeps a Q4 mesh from locking at the limit load (docs/materials.md shows the
+//! footing's limit load with and without). `[[material]] bbar = false` turns it off. A T3
+//! has one point: B-bar changes nothing (and a T3 mesh locks: use Q4 for plastic flow).
+//!
+//! Large strain (`[solver] large_strain = true`): updated Lagrangian. The strain increment and
+//! the spin are taken on the mid-step configuration `x0 + (u_n + u_{n+1}) / 2`, the stress is
+//! first rotated by the Hughes-Winget (1980) increment `Q = (I - W/2)^-1 (I + W/2)` of the
+//! Jaumann rate, then updated by the law, and the forces are integrated on the current
+//! configuration `x0 + u_{n+1}`. A rigid rotation increment gives `deps = 0` exactly (the
+//! mid-point gradient of a rotation increment is skew, the Cayley transform) and rotates the
+//! stress exactly, so a body turned rigidly carries its stress along and gains none.
+//!
+//! Outside the step (stable step, implicit check, `add_internal_forces`): the block answers
+//! with the elastic law on the reference configuration (with B-bar), i.e. the initial
+//! tangent; `strain_energy` is the internal work done so far (stored plus dissipated: the
+//! energy ledger's "strain" term then balances with plastic dissipation in it).
+//!
+//! Determinism: elements are processed in the chunks and colours of `kernel::Schedule`; each
+//! element writes only its own points' history; the forces of a node are summed in a fixed
+//! order, whatever the number of threads.
+use crate::element::block::Block;
+use crate::element::kernel::{Schedule, SharedForces, LANES};
+use crate::element::law::{LawCfg, LinearElastic, MaterialLaw, RegionElems, StatefulOpts};
+use crate::element::{self, Dmat, Material, Shape};
+use crate::ids::ElemId;
+use crate::mesh::CellKind;
+
+/// Builds the stateful blocks of a region for `law` (what a [`LawCfg::build`] calls).
+pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
+    use crate::element::{Q4, T3};
+    let mut out: Vec<Box<dyn Block>> = Vec::new();
+    if !elems.q4.is_empty() {
+        let mut b = StatefulBlock::<Q4, L, 4>::new(region.to_string(), mat, law.clone(), opts);
+        for &(e, x, c) in &elems.q4 {
+            b.push(e, x, c);
+        }
+        out.push(Box::new(b));
+    }
+    if !elems.t3.is_empty() {
+        let mut b = StatefulBlock::<T3, L, 3>::new(region.to_string(), mat, law, opts);
+        for &(e, x, c) in &elems.t3 {
+            b.push(e, x, c);
+        }
+        out.push(Box::new(b));
+    }
+    out
+}
+
+/// `law = { type = "linear_elastic" }`: the default, written out (the elastic constants are
+/// those of the `[[material]]`).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearElasticCfg {}
+
+#[typetag::serde(name = "linear_elastic")]
+impl LawCfg for LinearElasticCfg {
+    fn validate(&self, _mat: &Material) -> Result<(), (String, String)> {
+        Ok(())
+    }
+    fn is_linear_elastic(&self) -> bool {
+        true
+    }
+    fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
+        build_stateful(LinearElastic::new(&mat), region, mat, opts, elems)
+    }
+    fn clone_box(&self) -> Box<dyn LawCfg> {
+        Box::new(self.clone())
+    }
+}
+
+/// Blocks smaller than this run on the calling thread.
+const PAR_MIN_ELEMS: usize = 512;
+
+pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
+    pub region: String,
+    pub mat: Material,
+    pub law: L,
+    pub d: Dmat,
+    pub opts: StatefulOpts,
+    pub elems: Vec<ElemId>,
+    pub x: Vec<[[f64; 2]; N]>,
+    pub conn: Vec<[u32; N]>,
+    /// Element displacements at the last update.
+    u_prev: Vec<[[f64; 2]; N]>,
+    /// Stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major).
+    stress: Vec<[f64; 4]>,
+    /// `L::STATE` f64 per Gauss point.
+    hist: Vec<f64>,
+    /// Internal work of each element so far.
+    work: Vec<f64>,
+    /// Reference gradients and `w det J t` of each Gauss point, and each element's mean
+    /// gradient (B-bar), built by `prepare`.
+    gp_g: Vec<[[f64; 2]; N]>,
+    gp_w: Vec<f64>,
+    gbar: Vec<[[f64; 2]; N]>,
+    /// The Gauss point nearest each corner (corner stress).
+    corner_gp: [usize; N],
+    sched: Schedule,
+    omega_bound: std::sync::OnceLock<f64>,
+    _s: std::marker::PhantomData<S>,
+}
+
+/// A raw view of a per-element array written by disjoint element ranges (chunks) at once.
+#[derive(Copy, Clone)]
+struct Raw<T> {
+    ptr: *mut T,
+    len: usize,
+}
+unsafe impl<T> Send for Raw<T> {}
+unsafe impl<T> Sync for Raw<T> {}
+impl<T> Raw<T> {
+    fn new(v: &mut [T]) -> Self {
+        Raw { ptr: v.as_mut_ptr(), len: v.len() }
+    }
+    /// # Safety
+    /// No other thread touches `[a, b)` during the borrow (chunks are disjoint element ranges).
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn range(&self, a: usize, b: usize) -> &mut [T] {
+        assert!(a <= b && b <= self.len);
+        // SAFETY: in bounds (checked); exclusive by the caller's contract.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(a), b - a) }
+    }
+}
+
+/// Gradients and `w det J` of every Gauss point of an element at coordinates `x`, and the
+/// element's mean gradient.
+#[inline(always)]
+fn geometry<S: Shape<N>, const N: usize>(x: &[[f64; 2]; N], g: &mut [[[f64; 2]; N]], w: &mut [f64]) -> [[f64; 2]; N] {
+    let mut gb = [[0.0; 2]; N];
+    let mut a = 0.0;
+    for (k, &(xi, wk)) in S::GAUSS.iter().enumerate() {
+        let (gk, det) = element::gradients::<S, N>(x, xi);
+        g[k] = gk;
+        w[k] = wk * det;
+        a += w[k];
+        for n in 0..N {
+            gb[n][0] += w[k] * gk[n][0];
+            gb[n][1] += w[k] * gk[n][1];
+        }
+    }
+    let inv = 1.0 / a;
+    for v in gb.iter_mut() {
+        v[0] *= inv;
+        v[1] *= inv;
+    }
+    gb
+}
+
+/// `[exx, eyy, gxy]` of `u` with the B-bar correction when `gb` is given.
+#[inline(always)]
+fn strain_bar<const N: usize>(g: &[[f64; 2]; N], gb: Option<&[[f64; 2]; N]>, u: &[[f64; 2]; N]) -> [f64; 3] {
+    let mut e = element::strain(g, u);
+    if let Some(gb) = gb {
+        let mut ev = 0.0;
+        for a in 0..N {
+            ev += gb[a][0] * u[a][0] + gb[a][1] * u[a][1];
+        }
+        let c = 0.5 * (ev - (e[0] + e[1]));
+        e[0] += c;
+        e[1] += c;
+    }
+    e
+}
+
+/// `f_a += c Bbar_a^T s`.
+#[inline(always)]
+fn add_force<const N: usize>(g: &[[f64; 2]; N], gb: Option<&[[f64; 2]; N]>, s: [f64; 3], c: f64, f: &mut [[f64; 2]; N]) {
+    let hp = 0.5 * (s[0] + s[1]);
+    for a in 0..N {
+        let (mut fx, mut fy) = (g[a][0] * s[0] + g[a][1] * s[2], g[a][0] * s[2] + g[a][1] * s[1]);
+        if let Some(gb) = gb {
+            fx += (gb[a][0] - g[a][0]) * hp;
+            fy += (gb[a][1] - g[a][1]) * hp;
+        }
+        f[a][0] += c * fx;
+        f[a][1] += c * fy;
+    }
+}
+
+impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
+    pub fn new(region: String, mat: Material, law: L, opts: StatefulOpts) -> Self {
+        let corner_gp = std::array::from_fn(|a| {
+            let c = S::CORNERS[a];
+            let d = |k: usize| (S::GAUSS[k].0[0] - c[0]).powi(2) + (S::GAUSS[k].0[1] - c[1]).powi(2);
+            (0..S::GAUSS.len()).fold(0, |best, k| if d(k) < d(best) { k } else { best })
+        });
+        StatefulBlock {
+            region,
+            d: law.elastic(),
+            mat,
+            law,
+            opts,
+            elems: Vec::new(),
+            x: Vec::new(),
+            conn: Vec::new(),
+            u_prev: Vec::new(),
+            stress: Vec::new(),
+            hist: Vec::new(),
+            work: Vec::new(),
+            gp_g: Vec::new(),
+            gp_w: Vec::new(),
+            gbar: Vec::new(),
+            corner_gp,
+            sched: Schedule::default(),
+            omega_bound: std::sync::OnceLock::new(),
+            _s: std::marker::PhantomData,
+        }
+    }
+
+    pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
+        let ng = S::GAUSS.len();
+        self.elems.push(e);
+        self.x.push(x);
+        self.conn.push(conn);
+        self.u_prev.push([[0.0; 2]; N]);
+        self.stress.extend(std::iter::repeat_n([0.0; 4], ng));
+        self.hist.extend(std::iter::repeat_n(0.0, ng * L::STATE));
+        self.work.push(0.0);
+        self.omega_bound = std::sync::OnceLock::new();
+    }
+
+    fn bbar(&self) -> bool {
+        self.opts.bbar && S::GAUSS.len() > 1
+    }
+
+    #[inline(always)]
+    fn gather(&self, i: usize, u: &[[f64; 2]]) -> [[f64; 2]; N] {
+        let c = &self.conn[i];
+        std::array::from_fn(|a| u[c[a] as usize])
+    }
+
+    /// Linear elastic forces of element `i` on the reference configuration (the initial tangent).
+    fn elastic_force(&self, i: usize, ue: &[[f64; 2]; N]) -> [[f64; 2]; N] {
+        let ng = S::GAUSS.len();
+        let gb = self.bbar().then_some(&self.gbar[i]);
+        let mut f = [[0.0; 2]; N];
+        for k in 0..ng {
+            let g = &self.gp_g[i * ng + k];
+            let s = self.d.stress(strain_bar(g, gb, ue));
+            add_force(g, gb, s, self.gp_w[i * ng + k], &mut f);
+        }
+        f
+    }
+
+    /// The step of element `i`: stress update of its points from the displacement increment,
+    /// then its forces. `st`, `hs` are its points' stress and history, `up` its last displacements.
+    #[inline(always)]
+    fn update_elem(&self, i: usize, ue: &[[f64; 2]; N], st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[f64; 2]; N], work: &mut f64) -> [[f64; 2]; N] {
+        const MAXG: usize = 4;
+        let ng = S::GAUSS.len();
+        debug_assert!(ng <= MAXG);
+        let du: [[f64; 2]; N] = std::array::from_fn(|a| [ue[a][0] - up[a][0], ue[a][1] - up[a][1]]);
+        let bbar = self.bbar();
+        let t = self.mat.thickness;
+        let mut f = [[0.0; 2]; N];
+        let mut w_acc = 0.0;
+        if self.opts.large_strain {
+            let x0 = &self.x[i];
+            let xm: [[f64; 2]; N] = std::array::from_fn(|a| [x0[a][0] + 0.5 * (up[a][0] + ue[a][0]), x0[a][1] + 0.5 * (up[a][1] + ue[a][1])]);
+            let xe: [[f64; 2]; N] = std::array::from_fn(|a| [x0[a][0] + ue[a][0], x0[a][1] + ue[a][1]]);
+            let (mut gm, mut wm) = ([[[0.0; 2]; N]; MAXG], [0.0; MAXG]);
+            let (mut ge, mut we) = ([[[0.0; 2]; N]; MAXG], [0.0; MAXG]);
+            let gbm = geometry::<S, N>(&xm, &mut gm[..ng], &mut wm[..ng]);
+            let gbe = geometry::<S, N>(&xe, &mut ge[..ng], &mut we[..ng]);
+            for k in 0..ng {
+                let e = strain_bar(&gm[k], bbar.then_some(&gbm), &du);
+                // Spin of the increment at the mid-step configuration, Hughes-Winget rotation.
+                let mut om = 0.0;
+                for a in 0..N {
+                    om += 0.5 * (gm[k][a][0] * du[a][1] - gm[k][a][1] * du[a][0]);
+                }
+                let s = &mut st[k];
+                let (c2, s2) = {
+                    // Q = rotation by theta with tan(theta / 2) = om / 2: cos, sin of 2 theta.
+                    let h = 0.5 * om;
+                    let (ct, sn) = ((1.0 - h * h) / (1.0 + h * h), 2.0 * h / (1.0 + h * h));
+                    (ct * ct - sn * sn, 2.0 * sn * ct)
+                };
+                let (m, dd, xy) = (0.5 * (s[0] + s[1]), 0.5 * (s[0] - s[1]), s[2]);
+                let (dd2, xy2) = (c2 * dd - s2 * xy, s2 * dd + c2 * xy);
+                s[0] = m + dd2;
+                s[1] = m - dd2;
+                s[2] = xy2;
+                let old = *s;
+                let de = [e[0], e[1], e[2], 0.0];
+                self.law.update(s, de, &mut hs[k * L::STATE..(k + 1) * L::STATE]);
+                w_acc += wm[k] * t * 0.5 * ((old[0] + s[0]) * de[0] + (old[1] + s[1]) * de[1] + (old[2] + s[2]) * de[2]);
+                add_force(&ge[k], bbar.then_some(&gbe), [s[0], s[1], s[2]], we[k] * t, &mut f);
+            }
+        } else {
+            let gb = bbar.then_some(&self.gbar[i]);
+            for k in 0..ng {
+                let g = &self.gp_g[i * ng + k];
+                let e = strain_bar(g, gb, &du);
+                let s = &mut st[k];
+                let old = *s;
+                let de = [e[0], e[1], e[2], 0.0];
+                self.law.update(s, de, &mut hs[k * L::STATE..(k + 1) * L::STATE]);
+                let c = self.gp_w[i * ng + k];
+                w_acc += c * 0.5 * ((old[0] + s[0]) * de[0] + (old[1] + s[1]) * de[1] + (old[2] + s[2]) * de[2]);
+                add_force(g, gb, [s[0], s[1], s[2]], c, &mut f);
+            }
+        }
+        *work += w_acc;
+        *up = *ue;
+        f
+    }
+
+    fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces, st: Raw<[f64; 4]>, hs: Raw<f64>, up: Raw<[[f64; 2]; N]>, wk: Raw<f64>) {
+        let ce = self.sched.chunk_packs * LANES;
+        let (e0, e1) = (k * ce, ((k + 1) * ce).min(self.len()));
+        let ng = S::GAUSS.len();
+        // SAFETY: chunks are disjoint element ranges; one chunk runs on one thread.
+        let (st, hs, up, wk) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * L::STATE, e1 * ng * L::STATE), up.range(e0, e1), wk.range(e0, e1)) };
+        for i in e0..e1 {
+            let j = i - e0;
+            let ue = self.gather(i, u);
+            let fe = self.update_elem(i, &ue, &mut st[j * ng..(j + 1) * ng], &mut hs[j * ng * L::STATE..(j + 1) * ng * L::STATE], &mut up[j], &mut wk[j]);
+            let c = &self.conn[i];
+            for a in 0..N {
+                // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
+                unsafe { f.add(c[a] as usize, fe[a]) };
+            }
+        }
+    }
+
+    fn stress3(&self, i: usize, k: usize) -> [f64; 3] {
+        let s = self.stress[i * S::GAUSS.len() + k];
+        [s[0], s[1], s[2]]
+    }
+}
+
+impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, N> {
+    fn kind(&self) -> CellKind {
+        S::KIND
+    }
+    fn nodes_per_elem(&self) -> usize {
+        N
+    }
+    fn len(&self) -> usize {
+        self.elems.len()
+    }
+    fn material(&self) -> &Material {
+        &self.mat
+    }
+    fn region(&self) -> &str {
+        &self.region
+    }
+    fn elems(&self) -> &[ElemId] {
+        &self.elems
+    }
+    fn conn(&self, i: usize) -> &[u32] {
+        &self.conn[i]
+    }
+    fn remap(&mut self, i: usize, a: usize, cluster: u32) {
+        self.conn[i][a] = cluster;
+    }
+    fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.add_internal_forces_range(0..self.len(), u, f)
+    }
+    fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], _pool: Option<&rayon::ThreadPool>) {
+        self.add_internal_forces_range(0..self.len(), u, f)
+    }
+    fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
+        let shared = SharedForces::new(f);
+        let (st, hs, up, wk) = (Raw::new(&mut self.stress), Raw::new(&mut self.hist), Raw::new(&mut self.u_prev), Raw::new(&mut self.work));
+        let this = &*self;
+        for colour in &this.sched.colours {
+            match pool {
+                Some(pool) if colour.len() > 1 && this.len() >= PAR_MIN_ELEMS => {
+                    use rayon::prelude::*;
+                    pool.install(|| colour.par_iter().for_each(|&k| this.run_chunk(k as usize, u, shared, st, hs, up, wk)));
+                }
+                _ => colour.iter().for_each(|&k| this.run_chunk(k as usize, u, shared, st, hs, up, wk)),
+            }
+        }
+    }
+    fn prepare(&mut self, n_clusters: usize) {
+        let ng = S::GAUSS.len();
+        self.gp_g = vec![[[0.0; 2]; N]; self.len() * ng];
+        self.gp_w = vec![0.0; self.len() * ng];
+        self.gbar = Vec::with_capacity(self.len());
+        for i in 0..self.len() {
+            let gb = geometry::<S, N>(&self.x[i], &mut self.gp_g[i * ng..(i + 1) * ng], &mut self.gp_w[i * ng..(i + 1) * ng]);
+            self.gbar.push(gb);
+        }
+        let t = self.mat.thickness;
+        self.gp_w.iter_mut().for_each(|w| *w *= t);
+        self.sched = Schedule::build(&self.conn, n_clusters);
+    }
+    fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.elems.capacity() * size_of::<ElemId>()
+            + (self.x.capacity() + self.u_prev.capacity() + self.gbar.capacity()) * size_of::<[[f64; 2]; N]>()
+            + self.conn.capacity() * size_of::<[u32; N]>()
+            + self.stress.capacity() * 32
+            + (self.hist.capacity() + self.work.capacity() + self.gp_w.capacity()) * 8
+            + self.gp_g.capacity() * size_of::<[[f64; 2]; N]>()
+    }
+    fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        for i in range {
+            let fe = self.elastic_force(i, &self.gather(i, u));
+            let c = &self.conn[i];
+            for a in 0..N {
+                f[c[a] as usize][0] += fe[a][0];
+                f[c[a] as usize][1] += fe[a][1];
+            }
+        }
+    }
+    fn add_mass(&self, m: &mut [f64]) {
+        for i in 0..self.len() {
+            let me = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);
+            for a in 0..N {
+                m[self.conn[i][a] as usize] += me[a];
+            }
+        }
+    }
+    /// The stress of the Gauss point nearest each corner (the stress lives at the points).
+    fn corner_stress(&self, _u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+        for i in 0..self.len() {
+            let base = first[self.elems[i].idx()] as usize;
+            for a in 0..N {
+                out[base + a] = self.stress3(i, self.corner_gp[a]);
+            }
+        }
+    }
+    fn gauss_stress(&self, _u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+        for i in 0..self.len() {
+            let base = first[self.elems[i].idx()] as usize;
+            for k in 0..S::GAUSS.len() {
+                out[base + k] = self.stress3(i, k);
+            }
+        }
+    }
+    /// The stress of the Gauss point nearest `xi`.
+    fn stress_at(&self, i: usize, _u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3] {
+        let d = |k: usize| (S::GAUSS[k].0[0] - xi[0]).powi(2) + (S::GAUSS[k].0[1] - xi[1]).powi(2);
+        let k = (0..S::GAUSS.len()).fold(0, |best, k| if d(k) < d(best) { k } else { best });
+        self.stress3(i, k)
+    }
+    fn mean_stress(&self, i: usize, _u: &[[f64; 2]]) -> [f64; 3] {
+        let (mut wsum, mut acc) = (0.0, [0.0; 3]);
+        for (k, &(_, w)) in S::GAUSS.iter().enumerate() {
+            let s = self.stress3(i, k);
+            for d in 0..3 {
+                acc[d] += w * s[d];
+            }
+            wsum += w;
+        }
+        acc.map(|a| a / wsum)
+    }
+    fn stiffness(&self, i: usize, k: &mut [f64]) {
+        let n2 = 2 * N;
+        for j in 0..n2 {
+            let mut u = [[0.0; 2]; N];
+            u[j / 2][j % 2] = 1.0;
+            let f = self.elastic_force(i, &u);
+            for r in 0..n2 {
+                k[r * n2 + j] = f[r / 2][r % 2];
+            }
+        }
+    }
+    fn coords(&self, i: usize) -> &[[f64; 2]] {
+        &self.x[i]
+    }
+    fn max_omega_bound(&self) -> f64 {
+        *self.omega_bound.get_or_init(|| {
+            let mut kbuf = vec![0.0; 4 * N * N];
+            let mut best: f64 = 0.0;
+            for i in 0..self.len() {
+                self.stiffness(i, &mut kbuf);
+                let m = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);
+                let n2 = 2 * N;
+                for r in 0..n2 {
+                    let row: f64 = (0..n2).map(|c| kbuf[r * n2 + c].abs() / (m[r / 2] * m[c / 2]).sqrt()).sum();
+                    best = best.max(row);
+                }
+            }
+            best.sqrt()
+        })
+    }
+    fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
+        Some(self.work.iter().sum())
+    }
+    fn state_len(&self) -> usize {
+        self.u_prev.len() * 2 * N + self.stress.len() * 4 + self.hist.len() + self.work.len()
+    }
+    fn save_state(&self, out: &mut Vec<f64>) {
+        out.extend(self.u_prev.iter().flat_map(|e| e.iter().flatten().copied()));
+        out.extend(self.stress.iter().flatten().copied());
+        out.extend_from_slice(&self.hist);
+        out.extend_from_slice(&self.work);
+    }
+    fn load_state(&mut self, s: &[f64]) -> bool {
+        if s.len() != self.state_len() {
+            return false;
+        }
+        let mut it = s.iter().copied();
+        for e in self.u_prev.iter_mut() {
+            for v in e.iter_mut().flatten() {
+                *v = it.next().unwrap_or(0.0);
+            }
+        }
+        for v in self.stress.iter_mut().flatten() {
+            *v = it.next().unwrap_or(0.0);
+        }
+        for v in self.hist.iter_mut().chain(self.work.iter_mut()) {
+            *v = it.next().unwrap_or(0.0);
+        }
+        true
+    }
+    fn plastic(&self, i: usize) -> Option<(f64, u8)> {
+        if L::STATE == 0 {
+            return None;
+        }
+        let ng = S::GAUSS.len();
+        let (mut gamma, mut wsum, mut flag) = (0.0, 0.0, 0u8);
+        for (k, &(_, w)) in S::GAUSS.iter().enumerate() {
+            let j = (i * ng + k) * L::STATE;
+            let (g, f) = self.law.output(&self.hist[j..j + L::STATE]);
+            gamma += w * g;
+            wsum += w;
+            flag = match (flag, f) {
+                (1, _) | (_, 1) => 1,
+                (2, _) | (_, 2) => 2,
+                _ => 0,
+            };
+        }
+        Some((gamma / wsum, flag))
+    }
+    /// The stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major).
+    fn point_stress(&self) -> Option<&[[f64; 4]]> {
+        Some(&self.stress)
+    }
+}

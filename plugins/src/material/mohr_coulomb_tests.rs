@@ -1,0 +1,222 @@
+//! Return-mapping tests of `mohr_coulomb`. References: the yield conditions and flow rule
+//! themselves (on the surface, multipliers >= 0, plastic strain along the potential), the
+//! variational inequality of the closest-point projection (associated flow), and the closed
+//! form of a uniaxial-strain (oedometer) path in plane strain.
+use super::*;
+
+fn mat() -> Material {
+    Material { young: 1000.0, poisson: 0.3, density: 1.0, thickness: 1.0, plane: Plane::Strain }
+}
+
+fn law(c: f64, phi_deg: f64, psi_deg: f64, st: Option<f64>) -> MohrCoulomb {
+    MohrCoulombCfg { cohesion: c, friction_angle_deg: phi_deg, dilation_angle_deg: psi_deg, tension_cutoff: st }.law(&mat())
+}
+
+/// Principal elastic compliance applied to a stress difference: `D^-1 ds`.
+fn compliance(l: &MohrCoulomb, ds: [f64; 3]) -> [f64; 3] {
+    let (lam, g) = (l.lambda, l.g);
+    let e = g * (3.0 * lam + 2.0 * g) / (lam + g);
+    let nu = lam / (2.0 * (lam + g));
+    std::array::from_fn(|i| (ds[i] - nu * (ds[(i + 1) % 3] + ds[(i + 2) % 3])) / e)
+}
+
+fn f13(l: &MohrCoulomb, s: [f64; 3]) -> f64 {
+    l.f(0, &s)
+}
+
+/// The admissible set: every plane in use.
+fn admissible(l: &MohrCoulomb, s: &[f64; 3], tol: f64) -> bool {
+    (0..6).filter(|&k| l.used & (1 << k) != 0).all(|k| l.f(k, s) <= tol)
+}
+
+/// A trial in the face region returns onto F13 = 0 with the plastic strain along the
+/// potential G13 (non-associated, psi = 10 deg): de2p = 0, de1p / de3p = -(1 + sin psi) /
+/// (1 - sin psi), and sigma_tr - sigma = D dep (consistency). Tolerance 1e-9 relative.
+#[test]
+fn face_return_is_on_the_surface_and_flows_along_the_potential() {
+    let l = law(1.0, 30.0, 10.0, None);
+    let tr = [0.0, -8.0, -20.0];
+    assert!(f13(&l, tr) > 0.0);
+    let (s, dep) = l.return_principal(tr).expect("plastic");
+    assert!(f13(&l, s).abs() < 1e-9 * 20.0, "{s:?}");
+    assert!(s[0] >= s[1] && s[1] >= s[2], "order kept: {s:?}");
+    let sp = 10f64.to_radians().sin();
+    assert!(dep[1].abs() < 1e-15);
+    assert!((dep[0] / dep[2] + (1.0 + sp) / (1.0 - sp)).abs() < 1e-9, "{dep:?}");
+    assert!(dep[0] > 0.0, "multiplier >= 0");
+    let back = compliance(&l, [tr[0] - s[0], tr[1] - s[1], tr[2] - s[2]]);
+    for d in 0..3 {
+        assert!((back[d] - dep[d]).abs() < 1e-9 * dep[0].abs(), "consistency {back:?} {dep:?}");
+    }
+}
+
+/// A trial with s2 close to s3 (compression meridian): the face return would put s3 above
+/// s2; the edge return ends with s2 = s3 and both planes F13, F12 at 0. 1e-9 relative.
+#[test]
+fn edge_return_s2_equals_s3() {
+    let l = law(1.0, 30.0, 30.0, None);
+    let tr = [0.0, -19.0, -20.0];
+    let (s, _) = l.return_principal(tr).unwrap();
+    assert!((s[1] - s[2]).abs() < 1e-9 * 20.0, "{s:?}");
+    assert!(l.f(0, &s).abs() < 1e-9 * 20.0 && l.f(2, &s).abs() < 1e-9 * 20.0, "{s:?}");
+    assert!(admissible(&l, &s, 1e-9));
+}
+
+/// A trial with s1 close to s2 (extension meridian): edge s1 = s2, planes F13 and F23 at 0.
+#[test]
+fn edge_return_s1_equals_s2() {
+    let l = law(1.0, 30.0, 30.0, None);
+    let tr = [-1.0, -1.5, -25.0];
+    let (s, _) = l.return_principal(tr).unwrap();
+    assert!((s[0] - s[1]).abs() < 1e-9 * 25.0, "{s:?}");
+    assert!(l.f(0, &s).abs() < 1e-9 * 25.0 && l.f(1, &s).abs() < 1e-9 * 25.0, "{s:?}");
+    assert!(admissible(&l, &s, 1e-9));
+}
+
+/// Hydrostatic tension beyond the apex returns to the apex s1 = s2 = s3 = c cot(phi).
+#[test]
+fn apex_return() {
+    let l = law(1.0, 30.0, 30.0, None);
+    let apex = 1.0 / 30f64.to_radians().tan();
+    for tr in [[5.0, 5.0, 5.0], [6.0, 4.0, 3.5]] {
+        let (s, _) = l.return_principal(tr).unwrap();
+        for v in s {
+            assert!((v - apex).abs() < 1e-9 * 6.0, "{tr:?} -> {s:?}");
+        }
+    }
+}
+
+/// Tension cut-off sigma_t = 0.5 (below the apex 1.73): a trial with s1 = 2 and a small
+/// deviator returns to s1 = sigma_t along D e1, i.e. ds2 = ds3 = lambda / (lambda + 2G) ds1.
+#[test]
+fn tension_cutoff_return() {
+    let l = law(1.0, 30.0, 0.0, Some(0.5));
+    let tr = [2.0, -0.2, -0.4];
+    let (s, dep) = l.return_principal(tr).unwrap();
+    assert!((s[0] - 0.5).abs() < 1e-12, "{s:?}");
+    let ratio = l.lambda / (l.lambda + 2.0 * l.g);
+    assert!(((tr[1] - s[1]) - ratio * (tr[0] - s[0])).abs() < 1e-12);
+    assert!(dep[0] > 0.0 && dep[1] == 0.0 && dep[2] == 0.0);
+    assert!(admissible(&l, &s, 1e-9));
+    // The corner of the cut-off and the shear face: a corner point plus positive multiples of
+    // D m13 and D e1 (the flow directions there) returns to that point.
+    let s3 = (0.75 - 2.0 * 30f64.to_radians().cos()) / 0.5;
+    let corner = [0.5, -1.0, s3];
+    assert!(l.f(0, &corner).abs() < 1e-12);
+    let tr: [f64; 3] = std::array::from_fn(|d| corner[d] + 0.7 * l.dm[0][d] * 1e-3 + 0.4 * l.dm[3][d] * 1e-3);
+    let (s, dep) = l.return_principal(tr).unwrap();
+    for d in 0..3 {
+        assert!((s[d] - corner[d]).abs() < 1e-9, "{s:?} {corner:?}");
+    }
+    assert!((dep[0] - 1.1e-3).abs() < 1e-12 && (dep[2] + 0.7e-3).abs() < 1e-12, "{dep:?}");
+}
+
+/// Associated flow: the return is the closest point in the energy norm, so for every
+/// admissible y, (sigma_tr - sigma) . D^-1 (y - sigma) <= 0 (projection onto a convex set).
+/// Random trials and random admissible points (fixed seed); also: the return never leaves
+/// the surface. Tolerance 1e-9 of the scale.
+#[test]
+fn associated_return_is_the_energy_norm_projection() {
+    let mut seed: u64 = 12345;
+    let mut rnd = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for (phi, st) in [(30.0, None), (30.0, Some(0.4)), (0.0, None), (0.0, Some(1.0)), (45.0, Some(0.0))] {
+        let l = law(1.0, phi, phi, st);
+        let mut ys = Vec::new();
+        while ys.len() < 300 {
+            let mut y = [20.0 * rnd() - 15.0, 20.0 * rnd() - 15.0, 20.0 * rnd() - 15.0];
+            y.sort_by(|a, b| b.partial_cmp(a).unwrap());
+            if admissible(&l, &y, 0.0) {
+                ys.push(y);
+            }
+        }
+        for _ in 0..500 {
+            let mut tr = [30.0 * rnd() - 20.0, 30.0 * rnd() - 20.0, 30.0 * rnd() - 20.0];
+            tr.sort_by(|a, b| b.partial_cmp(a).unwrap());
+            let Some((s, _)) = l.return_principal(tr) else {
+                assert!(admissible(&l, &tr, 1e-9));
+                continue;
+            };
+            assert!(admissible(&l, &s, 1e-8), "phi {phi} st {st:?}: {tr:?} -> {s:?}");
+            let dp = compliance(&l, [tr[0] - s[0], tr[1] - s[1], tr[2] - s[2]]);
+            for y in &ys {
+                let v: f64 = (0..3).map(|d| dp[d] * (y[d] - s[d])).sum();
+                assert!(v <= 1e-9, "phi {phi} st {st:?}: {tr:?} -> {s:?} not the projection (y = {y:?}: {v})");
+            }
+        }
+    }
+}
+
+/// Plane strain, Tresca (phi = psi = 0, c = 1), uniaxial strain exx = -e (oedometer):
+/// elastic sxx = (lambda + 2G) exx, syy = szz = lambda exx until sxx - syy = -2c, then
+/// (incompressible plastic flow on the edge s1 = s2 = syy = szz) every component grows by
+/// K dexx, K = lambda + 2G/3. Closed form; tolerance 1e-9 relative. The out-of-plane stress
+/// szz follows the in-plane syy through the edge return.
+#[test]
+fn plane_strain_szz_on_an_oedometer_path() {
+    let l = law(1.0, 0.0, 0.0, None);
+    let (lam, g) = (l.lambda, l.g);
+    let k = lam + 2.0 * g / 3.0;
+    let (mut s, mut h) = ([0.0; 4], [0.0; 2]);
+    let de = -1e-5;
+    let n = 1000;
+    for _ in 0..n {
+        l.update(&mut s, [de, 0.0, 0.0, 0.0], &mut h);
+    }
+    let e = de * n as f64;
+    let ey = -2.0 / (2.0 * g); // sxx - syy = 2 G exx reaches -2c
+    assert!(e < ey);
+    let sxx = (lam + 2.0 * g) * ey + k * (e - ey);
+    let syy = lam * ey + k * (e - ey);
+    assert!((s[0] - sxx).abs() < 1e-9 * sxx.abs(), "{s:?} {sxx}");
+    assert!((s[1] - syy).abs() < 1e-9 * syy.abs(), "{s:?} {syy}");
+    assert!((s[3] - syy).abs() < 1e-9 * syy.abs(), "szz {s:?} {syy}");
+    assert!(s[2].abs() < 1e-12);
+    assert_eq!(h[1], 1.0, "plastic now");
+    // Plastic shear strain: de1p - de3p accumulated = the strain beyond yield times 2G/(2G)...
+    // the plastic part of exx beyond yield: dexx_p = dexx - dsxx_dev/(2G) = (e - ey) (all deviatoric).
+    let gp = (e - ey).abs() * (1.0 - 0.0);
+    assert!((h[0] - gp).abs() < 1e-6 * gp.max(1e-12) + 1e-12, "{} {gp}", h[0]);
+    // Unloading is elastic and marks the past.
+    l.update(&mut s, [-de, 0.0, 0.0, 0.0], &mut h);
+    assert_eq!(h[1], 2.0);
+}
+
+/// The return does not depend on the in-plane axes: a trial rotated by 30 degrees returns to
+/// the rotated stress (isotropy). Tolerance 1e-9 relative.
+#[test]
+fn update_is_objective_in_plane() {
+    let l = law(1.0, 30.0, 0.0, Some(0.5));
+    let de = [2e-3, -5e-3, 3e-3, 0.0];
+    let (mut s, mut h) = ([0.0, -1.0, 0.0, -0.5], [0.0; 2]);
+    l.update(&mut s, de, &mut h);
+    assert_eq!(h[1], 1.0);
+    let th = 30f64.to_radians();
+    let (c, sn) = (th.cos(), th.sin());
+    let rot = |v: [f64; 4], shear_factor: f64| -> [f64; 4] {
+        // v = [xx, yy, xy * shear_factor, zz] rotated by th (strain: engineering shear).
+        let (xx, yy, xy) = (v[0], v[1], v[2] / shear_factor);
+        [c * c * xx - 2.0 * c * sn * xy + sn * sn * yy, sn * sn * xx + 2.0 * c * sn * xy + c * c * yy, (c * sn * (xx - yy) + (c * c - sn * sn) * xy) * shear_factor, v[3]]
+    };
+    let (mut sr, mut hr) = (rot([0.0, -1.0, 0.0, -0.5], 1.0), [0.0; 2]);
+    l.update(&mut sr, rot(de, 2.0), &mut hr);
+    let want = rot(s, 1.0);
+    for d in 0..4 {
+        assert!((sr[d] - want[d]).abs() < 1e-9, "{sr:?} {want:?}");
+    }
+    assert!((hr[0] - h[0]).abs() < 1e-12);
+}
+
+/// Bad parameters are refused with the key.
+#[test]
+fn validate_names_the_key() {
+    let bad = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 40.0, tension_cutoff: None };
+    assert_eq!(bad.validate(&mat()).unwrap_err().0, "dilation_angle_deg");
+    let bad = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 0.0, tension_cutoff: Some(5.0) };
+    assert_eq!(bad.validate(&mat()).unwrap_err().0, "tension_cutoff");
+    let ps = Material { plane: Plane::Stress, ..mat() };
+    let ok = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 0.0, tension_cutoff: None };
+    assert!(ok.validate(&ps).is_err());
+}
