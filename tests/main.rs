@@ -7,6 +7,7 @@ mod configs;
 mod contact;
 mod cracking;
 mod dynplug;
+mod events;
 mod fuzz;
 mod interop;
 mod layout;

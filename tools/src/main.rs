@@ -18,6 +18,7 @@ use std::sync::Arc;
 mod bench;
 mod bench_contact;
 mod bench_dyncall;
+mod bench_events;
 mod chart;
 mod converge;
 mod stability;
@@ -168,6 +169,33 @@ enum BenchWhat {
         /// Timed repetitions per size (the best is kept).
         #[arg(long, default_value_t = 5)]
         repeats: usize,
+    },
+    /// The events solver (ours, issue 19): wall time per crack event against dofs, with the
+    /// growth exponent.
+    Events {
+        /// Target numbers of dofs, comma separated.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1e3, 1e4, 1e5])]
+        dofs: Vec<f64>,
+        /// Events per size (the stage stops there: solver.max_events).
+        #[arg(long, default_value_t = 10)]
+        events: u64,
+    },
+    /// A one-stage events scene's crack path by events and by the explicit solver in load
+    /// steps: wall times, their ratio, and the agreement of the split logs.
+    EventsPath {
+        scene: PathBuf,
+        /// Explicit load step, as a fraction of the stage's levels.
+        #[arg(long, default_value_t = 0.005)]
+        step: f64,
+        /// Step limit of each explicit stage.
+        #[arg(long, default_value_t = 1_000_000)]
+        max_steps: u64,
+        /// Equilibrium tolerance (unbalanced-force ratio) of the explicit stages.
+        #[arg(long, default_value_t = 1e-5)]
+        tolerance: f64,
+        /// Compare at most this many splits (default: all the events run made).
+        #[arg(long)]
+        splits: Option<usize>,
     },
 }
 
@@ -482,6 +510,11 @@ fn bench(what: BenchWhat) -> Result<()> {
         BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h } => bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h)?,
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
+        BenchWhat::Events { dofs, events } => {
+            anyhow::ensure!(dofs.iter().all(|&d| d.is_finite() && (100.0..=1e7).contains(&d)), "--dofs: every value must be in [100, 1e7]");
+            bench_events::run(&dofs, events)?
+        }
+        BenchWhat::EventsPath { scene, step, max_steps, tolerance, splits } => bench_events::path(&scene, step, max_steps, tolerance, splits)?,
     }
     Ok(())
 }
