@@ -125,3 +125,34 @@ fn events_scenes_outside_the_solver_are_refused_naming_the_key() {
     assert!(err(&t_load).contains("load[0].value"), "{}", err(&t_load));
     let _ = NoOutput;
 }
+
+/// Reference: the fresh factorisation at every event (`solver.refactor_every = 0`, the check
+/// solver's own path, verified in tests/compare.rs). The kept factor with low-rank updates
+/// (the default, 50 updates between fresh factorisations; plugins/src/check/kept.rs) gives the
+/// same split log (points, edges, order) and the same event loads to 1e-9 relative, on the
+/// notched plate h = 0.25 (36 events, so the updates reach a capacitance of about 200 columns),
+/// and it did update (it is not the fresh path in disguise).
+#[test]
+fn kept_factor_updates_give_the_fresh_factorisations_path() {
+    let run = |every: usize| {
+        let mut sc = scene("notch_plate_h0.25.toml");
+        sc.file.solver.refactor_every = every;
+        let mut sim = Simulation::new(sc).unwrap();
+        let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+        sim.run(&mut log).unwrap();
+        let ev = sim.events.as_ref().unwrap();
+        (log.splits, ev.fresh_factorisations, ev.updates)
+    };
+    let (fresh, nf, nu) = run(0);
+    assert_eq!(nu, 0);
+    assert!(nf >= 30, "{nf}");
+    let (kept, kf, ku) = run(50);
+    // Measured: 3 fresh (the first; one after an update whose residual check failed; the last,
+    // which names the fragment without support), 33 updates.
+    assert!(ku >= 30 && kf <= 4, "fresh {kf}, updates {ku}");
+    assert_eq!(fresh.len(), kept.len());
+    for (a, b) in fresh.iter().zip(&kept) {
+        assert_eq!((a.point, &a.edges), (b.point, &b.edges));
+        assert!(rel(b.levels[0], a.levels[0]) < 1e-9, "{:?} {:?}", a.levels, b.levels);
+    }
+}

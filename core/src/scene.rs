@@ -117,6 +117,14 @@ pub struct SolverCfg {
     /// With `type = "events"`: at most this many events per stage (a guard; default 100000).
     #[serde(default = "default_max_events")]
     pub max_events: u64,
+    /// With `type = "events"`: events solved by a low-rank update of the kept factorisation
+    /// before a fresh one (0: a fresh factorisation at every event; docs/events.md).
+    #[serde(default = "default_refactor_every")]
+    pub refactor_every: usize,
+}
+
+fn default_refactor_every() -> usize {
+    50
 }
 
 /// The stage solver (`[solver] type`).
@@ -170,6 +178,7 @@ impl Default for SolverCfg {
             threads: 1,
             kind: SolverKind::Explicit,
             max_events: default_max_events(),
+            refactor_every: default_refactor_every(),
         }
     }
 }

@@ -4,7 +4,8 @@
 //! - `events`: wall time per crack event against the number of dofs (a side-notched plate of
 //!   structured Q4 pulled on top, Rankine, the crack running from the notch), with the growth
 //!   exponent of a least-squares fit `t = a dofs^b`; per size also the share of the time spent
-//!   in the linear solves (assembly, factorisation, two right-hand sides per event).
+//!   in the linear solves (two right-hand sides per event; `--refactor-every 0`: a fresh
+//!   factorisation per event, else low-rank updates of a kept factor between fresh ones).
 //! - `events-path SCENE`: a one-stage events scene's crack path by events, then by the explicit
 //!   solver (`explicit_twin`: load steps of `--step` of the stage's levels from the step below the
 //!   events' first split, checks at equilibrium), stopped after as many splits as the events
@@ -28,9 +29,11 @@ struct Row {
     wall_seconds: f64,
     seconds_per_event: f64,
     solve_share: f64,
+    fresh_factorisations: u64,
+    updates: u64,
 }
 
-fn notch_scene(nx: usize, events: u64) -> String {
+fn notch_scene(nx: usize, events: u64, refactor_every: usize) -> String {
     format!(
         r#"title = "bench events"
 [mesh]
@@ -50,6 +53,7 @@ density = 1.0
 [solver]
 type = "events"
 max_events = {events}
+refactor_every = {refactor_every}
 [[support]]
 nodes = "bottom"
 fix = "y"
@@ -73,12 +77,12 @@ levels = {{ pull = 1.0 }}
 }
 
 /// `flem bench events`: time per event against dofs.
-pub fn run(dofs: &[f64], events: u64) -> Result<()> {
+pub fn run(dofs: &[f64], events: u64, refactor_every: usize) -> Result<()> {
     let mut rows = Vec::new();
     for &d in dofs {
         // dofs = 2 (nx + 1)(2 nx + 1): nx a multiple of 4 (the notch depth 0.25).
         let nx = (((d / 4.0).sqrt() / 4.0).round().max(1.0) as usize) * 4;
-        let text = notch_scene(nx, events);
+        let text = notch_scene(nx, events, refactor_every);
         let scene = Scene::from_str(&text, Path::new("<bench events>"), Path::new("."))?;
         let mut sim = Simulation::new(scene)?;
         let t = Instant::now();
@@ -94,6 +98,8 @@ pub fn run(dofs: &[f64], events: u64) -> Result<()> {
             wall_seconds: wall,
             seconds_per_event: wall / ev.events as f64,
             solve_share: ev.solve_seconds / wall,
+            fresh_factorisations: ev.fresh_factorisations,
+            updates: ev.updates,
         });
         eprintln!("{} dofs: {} events, {:.3e} s per event", rows.last().unwrap().dofs, ev.events, wall / ev.events as f64);
     }
@@ -104,7 +110,8 @@ pub fn run(dofs: &[f64], events: u64) -> Result<()> {
     let sxy: f64 = lx.iter().zip(&ly).map(|(x, y)| (x - mx) * (y - my)).sum();
     let exponent = if sxx > 0.0 { sxy / sxx } else { f64::NAN };
     let out = serde_json::json!({
-        "what": "events solver: wall time per crack event against dofs (side-notched Q4 plate, Rankine, fresh faer factorisation per event)",
+        "what": "events solver: wall time per crack event against dofs (side-notched Q4 plate, Rankine)",
+        "refactor_every": refactor_every,
         "rows": rows,
         "growth_exponent": if exponent.is_finite() { Some(exponent) } else { None },
     });

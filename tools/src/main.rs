@@ -179,6 +179,13 @@ enum BenchWhat {
         /// Events per size (the stage stops there: solver.max_events).
         #[arg(long, default_value_t = 10)]
         events: u64,
+        /// Instead: per event, a fresh factorisation against a kept factor with a Woodbury
+        /// (capacitance) update, on the same matrices (flem_plugins::check::woodbury).
+        #[arg(long)]
+        woodbury: bool,
+        /// solver.refactor_every of the runs (0: a fresh factorisation per event).
+        #[arg(long, default_value_t = 50)]
+        refactor_every: usize,
     },
     /// A one-stage events scene's crack path by events and by the explicit solver in load
     /// steps: wall times, their ratio, and the agreement of the split logs.
@@ -510,9 +517,14 @@ fn bench(what: BenchWhat) -> Result<()> {
         BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h } => bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h)?,
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
-        BenchWhat::Events { dofs, events } => {
+        BenchWhat::Events { dofs, events, woodbury, refactor_every } => {
             anyhow::ensure!(dofs.iter().all(|&d| d.is_finite() && (100.0..=1e7).contains(&d)), "--dofs: every value must be in [100, 1e7]");
-            bench_events::run(&dofs, events)?
+            if woodbury {
+                let rows: Vec<_> = dofs.iter().map(|&d| flem_plugins::check::woodbury::bench_woodbury(d, events as usize)).collect::<Result<_, _>>()?;
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                bench_events::run(&dofs, events, refactor_every)?
+            }
         }
         BenchWhat::EventsPath { scene, step, max_steps, tolerance, splits } => bench_events::path(&scene, step, max_steps, tolerance, splits)?,
     }

@@ -47,7 +47,7 @@ use std::time::Instant;
 
 use crate::cracking::events::{smallest_failure, FactorStats, Path};
 use crate::error::{FlemError, Result};
-use crate::plugin::check::{CheckCfg, CheckSolver};
+use crate::plugin::check::{CheckCfg, CheckSolver, EventsFactor};
 use crate::solver::{Ledger, Observer, Simulation, StagePos, StageResult};
 
 /// What the events solver shows of the current event (read by the output writer).
@@ -67,6 +67,9 @@ pub struct EventsInfo {
     pub solves: u64,
     /// Seconds in the linear solves.
     pub solve_seconds: f64,
+    /// Fresh factorisations and low-rank updates of the kept factor (`solver.refactor_every`).
+    pub fresh_factorisations: u64,
+    pub updates: u64,
     pub factors: FactorStats,
     /// The message that ended the run (a fragment without support): later stages are skipped.
     pub stopped: Option<String>,
@@ -110,24 +113,41 @@ impl Simulation {
         Ok(())
     }
 
-    /// Solves the current model at the given levels (fixities of the current stage).
-    fn events_solve(&mut self, solver: &dyn CheckSolver, levels: &[f64]) -> Result<Vec<[f64; 2]>> {
-        let t = Instant::now();
-        let keep = std::mem::replace(&mut self.levels, levels.to_vec());
-        let f = self.external_force();
-        let (fix, _, up) = self.loads.constraints(&self.model, &self.levels);
-        self.levels = keep;
-        let f = f?;
+    /// External force, fixities and prescribed displacements at the given levels.
+    fn events_rhs(&self, levels: &[f64]) -> Result<(Vec<u8>, Vec<[f64; 2]>, Vec<[f64; 2]>)> {
+        let mut probe = self.levels.clone();
+        probe.copy_from_slice(levels);
+        let mut f = Vec::new();
+        self.loads.constant_force(&self.model, &probe, &self.state.mass, &mut f);
+        let (fix, _, up) = self.loads.constraints(&self.model, &probe);
         let mut u_p = vec![[0.0; 2]; fix.len()];
         for (c, d, v) in up {
             u_p[c][d] = v;
         }
-        let u = solver.solve(&self.model, &fix, &f, &u_p)?;
+        Ok((fix, f, u_p))
+    }
+
+    /// Solves the current model at the levels `l0` and `l1` (the kept factor when there is one).
+    fn events_solve_pair(&mut self, solver: &dyn CheckSolver, kept: &mut Option<Box<dyn EventsFactor>>, l0: &[f64], l1: &[f64]) -> Result<(Vec<[f64; 2]>, Vec<[f64; 2]>)> {
+        let t = Instant::now();
+        let (fix, f0, p0) = self.events_rhs(l0)?;
+        let (_, f1, p1) = self.events_rhs(l1)?;
+        let (a, b) = match kept.as_mut() {
+            Some(k) => {
+                let mut v = k.solve_many(&self.model, &fix, &[(f0, p0), (f1, p1)])?;
+                let b = v.pop().expect("two solutions");
+                (v.pop().expect("two solutions"), b)
+            }
+            None => (solver.solve(&self.model, &fix, &f0, &p0)?, solver.solve(&self.model, &fix, &f1, &p1)?),
+        };
         if let Some(ev) = self.events.as_mut() {
-            ev.solves += 1;
+            ev.solves += 2;
             ev.solve_seconds += t.elapsed().as_secs_f64();
+            if let Some(k) = kept.as_ref() {
+                (ev.fresh_factorisations, ev.updates) = k.counts();
+            }
         }
-        Ok(u)
+        Ok((a, b))
     }
 
     /// The state at factor `t`: displacement, levels, forces and the linear solve's ratio.
@@ -210,9 +230,9 @@ impl Simulation {
         }
         // A singular solve (a fragment without support) ends the run here, named.
         let mut stop: Option<String> = None;
-        let pair = |sim: &mut Self, stop: &mut Option<String>| -> Result<Option<(Vec<[f64; 2]>, Vec<[f64; 2]>)>> {
-            let a = sim.events_solve(solver, &l0).and_then(|a| Ok((a, sim.events_solve(solver, &l1)?)));
-            match a {
+        let mut kept = solver.events_factor(self.scene.file.solver.refactor_every);
+        let mut pair = |sim: &mut Self, stop: &mut Option<String>| -> Result<Option<(Vec<[f64; 2]>, Vec<[f64; 2]>)>> {
+            match sim.events_solve_pair(solver, &mut kept, &l0, &l1) {
                 Ok(p) => Ok(Some(p)),
                 Err(FlemError::Solve(m)) => {
                     *stop = Some(m);
