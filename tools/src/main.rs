@@ -20,6 +20,7 @@ mod bench_contact;
 mod bench_dyncall;
 mod bench_events;
 mod chart;
+mod chart_crack;
 mod converge;
 mod stability;
 
@@ -95,6 +96,20 @@ enum Cmd {
         /// Drop the scene's [cracking] (the elastic problem; pre-separated edges stay).
         #[arg(long)]
         no_cracking: bool,
+    },
+    /// Speed against accuracy for cracking (ours, issue 19): explicit runs in load steps of 5,
+    /// 2, 1, 0.5 % at two tolerances and the events solver, per one-stage events scene: errors
+    /// of the initiation load and of the crack path (PNG, SVG, CSV; docs/events.md).
+    ChartCrack {
+        /// One-stage events scenes (configs/events/).
+        #[arg(required = true)]
+        scenes: Vec<PathBuf>,
+        /// Output folder (default: out/chart_crack).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Compare the first N splits of every run.
+        #[arg(long, default_value_t = 12)]
+        splits: usize,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -217,6 +232,7 @@ fn main() -> ExitCode {
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
+        Some(Cmd::ChartCrack { scenes, out, splits }) => chart_crack::run(&scenes, out, splits),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
         Some(Cmd::Converge(a)) => converge::run(a),
