@@ -471,8 +471,22 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
     }
     w.write_summary(&sim, t0.elapsed().as_secs_f64()).with_context(|| "writing summary.json")?;
     r?;
+    let events = sim.scene.file.solver.kind == flem_core::scene::SolverKind::Events;
     for s in &sim.stages_done {
-        eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
+        if events {
+            // The events solver (ours): steps are events; a stage that did not end is named by a warning below.
+            eprintln!(
+                "{}: {} events, linear-solve ratio {:.2e}{}, {} splits, {:.2} s",
+                s.name,
+                s.steps,
+                s.final_ratio,
+                if s.converged { "" } else { " (stopped: see the warning)" },
+                s.splits,
+                s.wall_seconds
+            );
+        } else {
+            eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
+        }
     }
     for w in &sim.warnings[n_warn.min(sim.warnings.len())..] {
         eprintln!("warning: {w}");
