@@ -9,8 +9,8 @@
 //! - `events-path SCENE`: a one-stage events scene's crack path by events, then by the explicit
 //!   solver (`explicit_twin`: load steps of `--step` of the stage's levels from the step below the
 //!   events' first split, checks at equilibrium), stopped after as many splits as the events
-//!   run made (or `--splits`); wall time of each, their ratio, and how far the split logs (point,
-//!   edges, order) agree.
+//!   run made (or `--splits`, which stops the events run there too); wall time of each, their
+//!   ratio, and how far the split logs (point, edges, order) agree.
 use anyhow::Result;
 use flem_core::scene::Scene;
 use flem_core::solver::events::{explicit_twin, LoggedSplit, SplitLog};
@@ -122,8 +122,14 @@ pub fn run(dofs: &[f64], events: u64, refactor_every: usize) -> Result<()> {
 /// `flem bench events-path SCENE`: events against the explicit run of the same path.
 pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits: Option<usize>) -> Result<()> {
     anyhow::ensure!(step > 0.0 && step < 1.0, "--step must be in (0, 1)");
+    // With --splits the events run stops there too (solver.max_events; one split per event with
+    // max_splits_per_check = 1), so that both solvers are timed on the same path.
+    let mut sc0 = Scene::from_file(scene_path)?;
+    if let Some(n) = splits {
+        sc0.file.solver.max_events = n as u64;
+    }
     let t = Instant::now();
-    let mut sim = Simulation::new(Scene::from_file(scene_path)?)?;
+    let mut sim = Simulation::new(sc0)?;
     let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
     sim.run(&mut log)?;
     let wall_events = t.elapsed().as_secs_f64();
