@@ -156,3 +156,29 @@ fn kept_factor_updates_give_the_fresh_factorisations_path() {
         assert!(rel(b.levels[0], a.levels[0]) < 1e-9, "{:?} {:?}", a.levels, b.levels);
     }
 }
+
+/// Reference: `cracking::initiation` with the same nonlocal average (issue 18's, ours). With
+/// `[cracking] nonlocal = { radius = 0.5 }` the events solver's stress paths are the nonlocal
+/// nodal stresses (`Cracking::nodal_stress_of`), so its first event is the exact nonlocal
+/// initiation load to 1e-10, on the notched plate h = 0.25 loaded to 1 (stopped after 2 events).
+#[test]
+fn first_event_with_the_nonlocal_check_is_its_exact_initiation_load() {
+    flem_plugins::link();
+    let path = root().join("configs/events/notch_plate_h0.25.toml");
+    let text = std::fs::read_to_string(&path).unwrap().replace("[cracking]\n", "[cracking]\nnonlocal = { radius = 0.5 }\n").replace("levels = { pull = 0.2 }", "levels = { pull = 1.0 }");
+    let sc = || Scene::from_str(&text, &path, path.parent().unwrap()).unwrap();
+    let mut sim = Simulation::new(sc()).unwrap();
+    sim.set_stage_levels(0);
+    let u1 = flem_plugins::check::static_solve(&sim).unwrap();
+    let crit = &sim.scene.file.cracking.as_ref().unwrap().criterion;
+    let cr = sim.cracking.as_mut().unwrap();
+    let scale = cr.scale.clone();
+    let exact = initiation(crit.as_ref(), &scale, &sim.model, &u1, cr.nonlocal.as_mut()).unwrap().factor;
+    let mut s = sc();
+    s.file.solver.max_events = 2;
+    let mut ev = Simulation::new(s).unwrap();
+    let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+    ev.run(&mut log).unwrap();
+    assert!(!log.splits.is_empty() && exact < 1.0, "no event below the level 1 (exact {exact})");
+    assert!(rel(log.splits[0].levels[0], exact) < 1e-10, "events {:?}, exact {exact}", log.splits[0].levels);
+}
