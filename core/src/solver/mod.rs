@@ -767,7 +767,8 @@ impl Simulation {
             }
         }
         let uses_omega = self.scene.file.solver.damping.as_deref().is_none_or(|d| d.uses_rayleigh_stats());
-        if !uses_omega && self.dt <= self.safe_step_bound() {
+        // The events solver (events.rs) takes no time step: no new estimate per event.
+        if self.scene.file.solver.kind == crate::scene::SolverKind::Events || !uses_omega && self.dt <= self.safe_step_bound() {
             self.stable.iterations = 0;
             return;
         }
