@@ -130,6 +130,7 @@ pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits
     }
     let t = Instant::now();
     let mut sim = Simulation::new(sc0)?;
+    let setup_events = t.elapsed().as_secs_f64();
     let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
     sim.run(&mut log)?;
     let wall_events = t.elapsed().as_secs_f64();
@@ -142,6 +143,7 @@ pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits
     explicit_twin(&mut sc, (first / step).floor() as u64, step, 1.0, max_steps, tolerance)?;
     let t = Instant::now();
     let mut ex_sim = Simulation::new(sc)?;
+    let setup_explicit = t.elapsed().as_secs_f64();
     let mut ex = SplitLog { splits: Vec::new(), stop_after: n };
     let outcome = match ex_sim.run(&mut ex) {
         Ok(()) => "ran every stage".to_string(),
@@ -158,12 +160,13 @@ pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits
     let out = serde_json::json!({
         "scene": scene_path.display().to_string(),
         "elements": sim.model.n_elems(),
-        "events": { "splits": ev.len(), "wall_seconds": wall_events, "first_split_levels": ev[0].levels, "solves": sim.events.as_ref().map(|e| e.solves), "warnings": sim.warnings },
-        "explicit": { "splits": ex.splits.len(), "wall_seconds": wall_explicit, "steps": ex_sim.state.step, "stages": ex_sim.stages_done.len(), "load_step": step, "tolerance": tolerance, "max_steps_per_stage": max_steps, "outcome": outcome, "first_split_levels": ex.splits.first().map(|s| s.levels.clone()) },
+        "events": { "splits": ev.len(), "wall_seconds": wall_events, "setup_seconds": setup_events, "first_split_levels": ev[0].levels, "solves": sim.events.as_ref().map(|e| e.solves), "warnings": sim.warnings },
+        "explicit": { "splits": ex.splits.len(), "wall_seconds": wall_explicit, "setup_seconds": setup_explicit, "steps": ex_sim.state.step, "stages": ex_sim.stages_done.len(), "load_step": step, "tolerance": tolerance, "max_steps_per_stage": max_steps, "outcome": outcome, "first_split_levels": ex.splits.first().map(|s| s.levels.clone()) },
         "compared_splits": n.min(ex.splits.len()),
         "identical_prefix": same,
         "first_difference": first_difference,
         "wall_time_ratio_explicit_over_events": wall_explicit / wall_events,
+        "ratio_without_setup": (wall_explicit - setup_explicit) / (wall_events - setup_events),
     });
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
