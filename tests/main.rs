@@ -8,6 +8,7 @@ mod contact;
 mod cracking;
 mod dynplug;
 mod elements;
+mod events;
 mod fuzz;
 mod interop;
 mod layout;

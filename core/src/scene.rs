@@ -113,6 +113,37 @@ pub struct SolverCfg {
     /// (`crate::element::stateful`); default false: small strain.
     #[serde(default)]
     pub large_strain: bool,
+    /// The stage solver: `"explicit"` (the paper's damped relaxation, the default) or
+    /// `"events"` (ours, issue 19: one linear solve per crack event, `solver::events`,
+    /// docs/events.md; scenes with cracking, linear elements and no contact).
+    #[serde(default, rename = "type")]
+    pub kind: SolverKind,
+    /// With `type = "events"`: at most this many events per stage (a guard; default 100000).
+    #[serde(default = "default_max_events")]
+    pub max_events: u64,
+    /// With `type = "events"`: events solved by a low-rank update of the kept factorisation
+    /// before a fresh one (0: a fresh factorisation at every event; docs/events.md).
+    #[serde(default = "default_refactor_every")]
+    pub refactor_every: usize,
+}
+
+fn default_refactor_every() -> usize {
+    50
+}
+
+/// The stage solver (`[solver] type`).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Damped explicit relaxation (the paper's method).
+    #[default]
+    Explicit,
+    /// Ours: sequentially linear events (`solver::events`).
+    Events,
+}
+
+fn default_max_events() -> u64 {
+    100_000
 }
 
 fn default_safety() -> f64 {
@@ -150,6 +181,9 @@ impl Default for SolverCfg {
             ratio_every: default_ratio_every(),
             threads: 1,
             large_strain: false,
+            kind: SolverKind::Explicit,
+            max_events: default_max_events(),
+            refactor_every: default_refactor_every(),
         }
     }
 }
@@ -499,6 +533,31 @@ impl Scene {
         }
         if s.ratio_every == 0 {
             return Err(FlemError::config(&n, "solver.ratio_every", "= 0 is incorrect; it must be >= 1"));
+        }
+        if s.max_events == 0 {
+            return Err(FlemError::config(&n, "solver.max_events", "= 0 is incorrect; it must be >= 1"));
+        }
+        if s.kind == SolverKind::Events {
+            if f.cracking.is_none() {
+                return Err(FlemError::config(
+                    &n,
+                    "solver.type",
+                    "= \"events\" needs a [cracking] section (the events solver advances from one crack event to the next); remove solver.type for the explicit solver",
+                ));
+            }
+            if f.contact.is_some() {
+                return Err(FlemError::config(
+                    &n,
+                    "solver.type",
+                    "= \"events\" does not handle [contact] (its solve is linear, with no contact forces); remove solver.type to run the explicit solver",
+                ));
+            }
+            if let Some((i, _)) = f.stages.iter().enumerate().find(|(_, st)| st.dynamic) {
+                return Err(FlemError::config(&n, format!("stage[{i}].dynamic"), "= true is not possible with solver.type = \"events\" (quasi-static: every state is an equilibrium)"));
+            }
+            if let Some((i, _)) = f.materials.iter().enumerate().find(|(_, m)| m.corotational) {
+                return Err(FlemError::config(&n, format!("material[{i}].corotational"), "= true is not possible with solver.type = \"events\" (its stress must be linear in the load)"));
+            }
         }
         if s.threads > 1024 {
             return Err(FlemError::config(&n, "solver.threads", format!("= {} is incorrect; it must be in [0, 1024] (0: one per core)", s.threads)));

@@ -16,8 +16,10 @@ use std::sync::Arc;
 mod bench;
 mod bench_contact;
 mod bench_dyncall;
+mod bench_events;
 mod bench_laws;
 mod chart;
+mod chart_crack;
 mod converge;
 mod stability;
 mod sweep;
@@ -98,6 +100,20 @@ enum Cmd {
         /// scene's own.
         #[arg(long, value_delimiter = ',')]
         elements: Vec<String>,
+    },
+    /// Speed against accuracy for cracking (ours, issue 19): explicit runs in load steps of 5,
+    /// 2, 1, 0.5 % at two tolerances and the events solver, per one-stage events scene: errors
+    /// of the initiation load and of the crack path (PNG, SVG, CSV; docs/events.md).
+    ChartCrack {
+        /// One-stage events scenes (configs/events/).
+        #[arg(required = true)]
+        scenes: Vec<PathBuf>,
+        /// Output folder (default: out/chart_crack).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Compare the first N splits of every run.
+        #[arg(long, default_value_t = 12)]
+        splits: usize,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -206,6 +222,40 @@ enum BenchWhat {
         #[arg(long, default_value_t = 5)]
         repeats: usize,
     },
+    /// The events solver (ours, issue 19): wall time per crack event against dofs, with the
+    /// growth exponent.
+    Events {
+        /// Target numbers of dofs, comma separated.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1e3, 1e4, 1e5])]
+        dofs: Vec<f64>,
+        /// Events per size (the stage stops there: solver.max_events).
+        #[arg(long, default_value_t = 10)]
+        events: u64,
+        /// Instead: per event, a fresh factorisation against a kept factor with a Woodbury
+        /// (capacitance) update, on the same matrices (flem_plugins::check::woodbury).
+        #[arg(long)]
+        woodbury: bool,
+        /// solver.refactor_every of the runs (0: a fresh factorisation per event).
+        #[arg(long, default_value_t = 50)]
+        refactor_every: usize,
+    },
+    /// A one-stage events scene's crack path by events and by the explicit solver in load
+    /// steps: wall times, their ratio, and the agreement of the split logs.
+    EventsPath {
+        scene: PathBuf,
+        /// Explicit load step, as a fraction of the stage's levels.
+        #[arg(long, default_value_t = 0.005)]
+        step: f64,
+        /// Step limit of each explicit stage.
+        #[arg(long, default_value_t = 1_000_000)]
+        max_steps: u64,
+        /// Equilibrium tolerance (unbalanced-force ratio) of the explicit stages.
+        #[arg(long, default_value_t = 1e-5)]
+        tolerance: f64,
+        /// Compare at most this many splits (default: all the events run made).
+        #[arg(long)]
+        splits: Option<usize>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -219,6 +269,7 @@ fn main() -> ExitCode {
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking, elements }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking, &elements),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
+        Some(Cmd::ChartCrack { scenes, out, splits }) => chart_crack::run(&scenes, out, splits),
         Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
         Some(Cmd::Bench { what }) => bench(what),
         Some(Cmd::Sweep { sweep, workers }) => sweep::run(&sweep, workers, cli.allow_plugins),
@@ -448,8 +499,22 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
         Err(e @ FlemError::Output { .. }) => anyhow::bail!("{e}\nthe run stopped; {}", resume_hint(&w)),
         r => r?,
     }
+    let events = sim.scene.file.solver.kind == flem_core::scene::SolverKind::Events;
     for s in &sim.stages_done {
-        eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
+        if events {
+            // The events solver (ours): steps are events; a stage that did not end is named by a warning below.
+            eprintln!(
+                "{}: {} events, linear-solve ratio {:.2e}{}, {} splits, {:.2} s",
+                s.name,
+                s.steps,
+                s.final_ratio,
+                if s.converged { "" } else { " (stopped: see the warning)" },
+                s.splits,
+                s.wall_seconds
+            );
+        } else {
+            eprintln!("{}: {} steps, ratio {:.2e}{}, {} splits, {:.2} s", s.name, s.steps, s.final_ratio, if s.converged { "" } else { " (step limit: NOT in equilibrium)" }, s.splits, s.wall_seconds);
+        }
     }
     for w in &sim.warnings[n_warn.min(sim.warnings.len())..] {
         eprintln!("warning: {w}");
@@ -504,6 +569,16 @@ fn bench(what: BenchWhat) -> Result<()> {
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Laws { elements, min_time } => bench_laws::run(elements, min_time)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
+        BenchWhat::Events { dofs, events, woodbury, refactor_every } => {
+            anyhow::ensure!(dofs.iter().all(|&d| d.is_finite() && (100.0..=1e7).contains(&d)), "--dofs: every value must be in [100, 1e7]");
+            if woodbury {
+                let rows: Vec<_> = dofs.iter().map(|&d| flem_plugins::check::woodbury::bench_woodbury(d, events as usize)).collect::<Result<_, _>>()?;
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                bench_events::run(&dofs, events, refactor_every)?
+            }
+        }
+        BenchWhat::EventsPath { scene, step, max_steps, tolerance, splits } => bench_events::path(&scene, step, max_steps, tolerance, splits)?,
     }
     Ok(())
 }

@@ -10,6 +10,7 @@
 //! separation = { type = "sigma1_nearest" }
 //! nonlocal = { radius = 0.5 }
 //! ```
+pub mod events;
 pub mod initiation;
 pub mod nonlocal;
 pub mod weibull;
@@ -94,6 +95,15 @@ impl Cracking {
             cuts: Vec::new(),
             nonlocal,
         })
+    }
+
+    /// The nodal stress of `u` as [`Self::check`] computes it (the paper's corner mean, or the
+    /// nonlocal average), into `out` (the events solver, `solver::events`).
+    pub fn nodal_stress_of(&mut self, model: &Model, u: &[[f64; 2]], out: &mut Vec<[f64; 3]>) {
+        match &mut self.nonlocal {
+            None => model.nodal_stress_with(u, &mut self.corner, out, &mut self.counts),
+            Some(nl) => nl.nodal_stress(model, u, out),
+        }
     }
 
     /// Points (clusters) beyond the criterion at the last check that no split relieved: the

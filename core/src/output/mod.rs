@@ -257,12 +257,28 @@ impl OutputWriter {
             reactions.push(sim.model.node_set(n, &format!("output.reactions[{i}]"), &file)?);
             let _ = write!(history, ",reaction_{n}_x,reaction_{n}_y");
         }
+        if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
+            // The events solver's saw-tooth (solver::events): the critical factor of the
+            // configuration an event splits, its levels and the probes' displacement there.
+            history.push_str(",critical_factor");
+            for l in &sim.loads.loads {
+                let _ = write!(history, ",critical_level_{}", l.name);
+            }
+            for (n, _) in &probes {
+                let _ = write!(history, ",{n}_ux_critical,{n}_uy_critical");
+            }
+        }
         history.push('\n');
         // A new run in a folder holding an older run's checkpoints numbers its own after them,
         // so that they are the newest (and the old ones get pruned); `resume` renumbers.
         let ck_seq = crate::output::checkpoint::list(dir)?.first().map_or(0, |(s, _)| s + 1);
         let history = csvlog::CsvLog::new(dir.join("history.csv"), history);
-        let splits = csvlog::CsvLog::new(dir.join("splits.csv"), String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges\n"));
+        let mut splits_header = String::from("time,step,point,x,y,cluster,new_cluster,mode,failure_index,sigma1_deg,sxx,syy,sxy,edges");
+        for l in &sim.loads.loads {
+            let _ = write!(splits_header, ",level_{}", l.name);
+        }
+        splits_header.push('\n');
+        let splits = csvlog::CsvLog::new(dir.join("splits.csv"), splits_header);
         let w = OutputWriter {
             dir: dir.to_path_buf(),
             snapshots: Vec::new(),
@@ -359,6 +375,18 @@ impl Observer for OutputWriter {
             r.push(',');
             push_num(r, v);
         }
+        if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
+            let ev = sim.events.as_ref();
+            let nan = f64::NAN;
+            let crit = ev.map_or(nan, |e| e.critical_factor);
+            let lev = |k: usize| ev.and_then(|e| e.critical_levels.get(k).copied()).unwrap_or(nan);
+            let cu = |p: usize, d: usize| ev.and_then(|e| e.critical_u.get(sim.model.topo.point_clusters[p][0].idx())).map_or(nan, |u| u[d]);
+            let vals = std::iter::once(crit).chain((0..sim.loads.loads.len()).map(lev)).chain(self.probes.iter().flat_map(|(_, p)| [cu(*p, 0), cu(*p, 1)]));
+            for v in vals {
+                r.push(',');
+                push_num(r, v);
+            }
+        }
         r.push('\n');
         self.history.append(self.row.as_bytes())
     }
@@ -386,7 +414,7 @@ impl Observer for OutputWriter {
                     format!("{}-{}", p[0], p[1])
                 })
                 .collect();
-            let _ = writeln!(
+            let _ = write!(
                 self.row,
                 "{:e},{},{},{:e},{:e},{},{},{:?},{:e},{:.3},{:e},{:e},{:e},{}",
                 e.time,
@@ -404,6 +432,12 @@ impl Observer for OutputWriter {
                 e.stress[2],
                 edges.join(" ")
             );
+            // The load levels at the split (every run; issue 19).
+            for &v in &sim.levels {
+                self.row.push(',');
+                push_num(&mut self.row, v);
+            }
+            self.row.push('\n');
         }
         self.splits.append(self.row.as_bytes())?;
         if sim.scene.file.output.snapshot_on_split && !events.is_empty() {

@@ -36,6 +36,23 @@ pub trait CheckSolver: Debug + Send + Sync {
     /// `u_prescribed`; returns the displacement of every cluster. A singular system (a fragment
     /// without enough support) is an error naming the fragment, never a NaN solution.
     fn solve(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>>;
+    /// A factorisation kept across crack events (the events solver, ours, issue 19):
+    /// `refactor_every` events are solved by an update of the kept factor before a fresh one
+    /// (0: a fresh factorisation at every call). `None` (the default): the events solver calls
+    /// [`Self::solve`] per right-hand side.
+    fn events_factor(&self, _refactor_every: usize) -> Option<Box<dyn EventsFactor>> {
+        None
+    }
+}
+
+/// The linear algebra of the events solver (`solver::events`): solves the current model for
+/// several right-hand sides (`(f_ext, u_prescribed)` pairs), keeping what it can between calls
+/// while the model changes by splits. Errors as [`CheckSolver::solve`] (a fragment without
+/// support is named).
+pub trait EventsFactor: Send {
+    fn solve_many(&mut self, model: &Model, fix: &[u8], rhs: &[(Vec<[f64; 2]>, Vec<[f64; 2]>)]) -> Result<Vec<Vec<[f64; 2]>>>;
+    /// (fresh factorisations, updates) so far.
+    fn counts(&self) -> (u64, u64);
 }
 
 /// `[check]`: compare every stage's equilibrium with the implicit solve.

@@ -106,6 +106,57 @@ pub trait FailureCriterion: Debug + Send + Sync {
         self.check_batch(p, scale, out);
         Ok(())
     }
+    /// Closed form for the events solver (ours, issue 19): the smallest `t` in `[t0, t1]` at
+    /// which the criterion fails for the stress `s0 + t ds` (tension positive; out-of-plane
+    /// `szz0 + t dszz`), strength factor `scale`; `Some(f64::INFINITY)` when it holds on the
+    /// whole interval. `None` (the default): no closed form, the core searches by bisection
+    /// (`cracking::events`). The core checks every answer against [`Self::check`].
+    #[allow(clippy::too_many_arguments)]
+    fn affine_failure(&self, _s0: [f64; 3], _ds: [f64; 3], _szz0: f64, _dszz: f64, _scale: f64, _t0: f64, _t1: f64) -> Option<f64> {
+        None
+    }
+}
+
+/// The smallest `t` in `[t0, t1]` with `g(t) = r(t) + k m(t) - big_k >= 0`, where, for the
+/// in-plane tension-positive stress `s0 + t ds`, `m = (sxx + syy) / 2` and
+/// `r = sqrt(((sxx - syy) / 2)^2 + sxy^2)`; infinite if none. With `k = 1`, `big_k = sigma_t`
+/// this is the tension cut-off (most tensile principal stress `m + r` reaches `sigma_t`); with
+/// `k = sin(phi)`, `big_k = c cos(phi)` the Mohr-Coulomb shear line. `g` is convex in `t` (a
+/// norm of an affine map plus an affine term), so its first root after a negative `g(t0)` is the
+/// smaller root of `r^2 = (big_k - k m)^2` with `big_k - k m >= 0` (a quadratic in `t`).
+pub fn affine_crossing(s0: [f64; 3], ds: [f64; 3], k: f64, big_k: f64, t0: f64, t1: f64) -> f64 {
+    let (m0, dm) = (0.5 * (s0[0] + s0[1]), 0.5 * (ds[0] + ds[1]));
+    let (a0, da) = (0.5 * (s0[0] - s0[1]), 0.5 * (ds[0] - ds[1]));
+    let (b0, db) = (s0[2], ds[2]);
+    let g = |t: f64| ((a0 + t * da).powi(2) + (b0 + t * db).powi(2)).sqrt() + k * (m0 + t * dm) - big_k;
+    if g(t0) >= 0.0 {
+        return t0;
+    }
+    // (a0 + t da)^2 + (b0 + t db)^2 = (w0 - t dw)^2, w = big_k - k m.
+    let (w0, dw) = (big_k - k * m0, k * dm);
+    let qa = da * da + db * db - dw * dw;
+    let qb = 2.0 * (a0 * da + b0 * db + w0 * dw);
+    let qc = a0 * a0 + b0 * b0 - w0 * w0;
+    let mut roots = [f64::INFINITY; 2];
+    if qa.abs() <= 1e-14 * (da * da + db * db + dw * dw) {
+        if qb != 0.0 {
+            roots[0] = -qc / qb;
+        }
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc >= 0.0 {
+            // The numerically stable pair of roots.
+            let q = -0.5 * (qb + qb.signum() * disc.sqrt());
+            roots = [q / qa, if q != 0.0 { qc / q } else { f64::INFINITY }];
+        }
+    }
+    roots.sort_by(f64::total_cmp);
+    for t in roots {
+        if t.is_finite() && t > t0 && t <= t1 && w0 - t * dw >= -1e-12 * big_k.abs().max(w0.abs()) {
+            return t;
+        }
+    }
+    f64::INFINITY
 }
 
 /// A parameter error: `key = value is incorrect; it must be ...`.

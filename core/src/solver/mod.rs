@@ -59,6 +59,7 @@
 //! The stage loop is re-entrant (`run_from(StagePos)`) for checkpoints: `output/checkpoint.rs`.
 //! Results leave through the [`Observer`] trait, which the output writer and the comparer
 //! (`crate::output`) implement: the solver never depends on them.
+pub mod events;
 pub mod loads;
 
 use crate::cracking::Cracking;
@@ -275,6 +276,9 @@ pub struct Simulation {
     /// The unbalanced-force ratio of the last step when it was a full one.
     step_ratio: Option<f64>,
     scratch: Vec<[f64; 2]>,
+    /// The events solver's current event (`[solver] type = "events"`, `events.rs`); `None`
+    /// for the explicit solver.
+    pub events: Option<events::EventsInfo>,
 }
 
 /// An error of a generated mesh (`[mesh] type = "rectangle"`...), which has no file of its own,
@@ -600,6 +604,7 @@ impl Simulation {
             partials: Vec::new(),
             step_ratio: None,
             scratch: Vec::new(),
+            events: None,
             scene,
             model,
         };
@@ -608,6 +613,9 @@ impl Simulation {
             .set_threads(sim.scene.file.solver.threads)
             .map_err(|e| FlemError::config(&file, "solver.threads", format!("= {}: the thread pool could not be started: {e}", sim.scene.file.solver.threads)))?;
         sim.apply_constraints_bits();
+        if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
+            sim.check_events_scene()?;
+        }
         (sim.stable, sim.stable_vec) = sim.power_iteration(None);
         sim.dt = sim.choose_dt(&file)?;
         Ok(sim)
@@ -773,7 +781,8 @@ impl Simulation {
             }
         }
         let uses_omega = self.scene.file.solver.damping.as_deref().is_none_or(|d| d.uses_rayleigh_stats());
-        if !uses_omega && self.dt <= self.safe_step_bound() {
+        // The events solver (events.rs) takes no time step: no new estimate per event.
+        if self.scene.file.solver.kind == crate::scene::SolverKind::Events || !uses_omega && self.dt <= self.safe_step_bound() {
             self.stable.iterations = 0;
             return;
         }
@@ -1083,6 +1092,9 @@ impl Simulation {
     /// [`Self::run_stage`] entered at `pos` (re-entrant: a resumed run continues with the
     /// loop's counters as they were).
     pub fn run_stage_from(&mut self, pos: StagePos, obs: &mut dyn Observer) -> Result<()> {
+        if self.scene.file.solver.kind == crate::scene::SolverKind::Events {
+            return self.run_stage_events(pos, obs);
+        }
         let t0 = std::time::Instant::now();
         let i = pos.stage;
         if !pos.begun {

@@ -58,6 +58,8 @@ use serde::{Deserialize, Serialize};
 
 mod assemble;
 pub mod bench;
+pub mod kept;
+pub mod woodbury;
 
 /// What the solver keeps between calls while the fingerprint is unchanged.
 #[derive(Default)]
@@ -98,6 +100,11 @@ impl std::fmt::Debug for ImplicitSolver {
 impl CheckSolver for ImplicitSolver {
     fn solve(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>, FlemError> {
         self.solve_timed(model, fix, f_ext, u_prescribed).map(|(u, _)| u)
+    }
+
+    /// The events solver's kept factor with low-rank updates (`kept.rs`).
+    fn events_factor(&self, refactor_every: usize) -> Option<Box<dyn flem_core::plugin::check::EventsFactor>> {
+        Some(Box::new(kept::KeptFactor::new(refactor_every)))
     }
 }
 

@@ -45,7 +45,7 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::plugin::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
+use flem_core::plugin::traits::{affine_crossing, FailureCheck, FailureCriterion, ParamError, Principal};
 
 use super::{holds, ratio_index, shear_check, tension_check};
 
@@ -127,6 +127,16 @@ impl FailureCriterion for MohrCoulomb {
             (false, true) => shear_check(index, p.theta1, phi),
             (false, false) => holds(index),
         }
+    }
+
+    /// Closed form for the events solver: the first of the tension cut-off (`m + r = sigma_t`)
+    /// and the shear line (`r + m sin(phi) = c cos(phi)`, tension positive), each a root of a
+    /// quadratic (`affine_crossing`), for the branches that are on.
+    fn affine_failure(&self, s0: [f64; 3], ds: [f64; 3], _szz0: f64, _dszz: f64, scale: f64, t0: f64, t1: f64) -> Option<f64> {
+        let (c, phi, st) = (self.cohesion * scale, self.phi(), self.tensile_strength * scale);
+        let t = if self.tension { affine_crossing(s0, ds, 1.0, st, t0, t1) } else { f64::INFINITY };
+        let s = if self.shear { affine_crossing(s0, ds, phi.sin(), c * phi.cos(), t0, t1) } else { f64::INFINITY };
+        Some(t.min(s))
     }
 }
 

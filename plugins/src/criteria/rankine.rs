@@ -15,7 +15,7 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::plugin::traits::{FailureCheck, FailureCriterion, ParamError, Principal};
+use flem_core::plugin::traits::{affine_crossing, FailureCheck, FailureCriterion, ParamError, Principal};
 
 use super::{holds, tension_check};
 
@@ -46,6 +46,12 @@ impl FailureCriterion for Rankine {
         } else {
             holds(index)
         }
+    }
+
+    /// Closed form for the events solver: the most tensile principal stress `m + r` reaches
+    /// `sigma_t` (`affine_crossing` with `k = 1`).
+    fn affine_failure(&self, s0: [f64; 3], ds: [f64; 3], _szz0: f64, _dszz: f64, scale: f64, t0: f64, t1: f64) -> Option<f64> {
+        Some(affine_crossing(s0, ds, 1.0, self.tensile_strength * scale, t0, t1))
     }
 }
 

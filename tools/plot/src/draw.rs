@@ -195,12 +195,24 @@ pub fn fmt_num(v: f64) -> String {
 /// A load-displacement curve: the history (line) and the stage ends (markers; hollow when the
 /// stage did not reach equilibrium).
 /// `note` (may be empty) is written under the title.
-pub fn curve<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, note: &str, xlabel: &str, ylabel: &str, line: &[(f64, f64)], ends: &[(f64, f64, bool)]) -> Result<(), String> {
+/// `saw`: the critical states of an events run (issue 19; empty otherwise), drawn as the
+/// saw-tooth of sequentially linear analysis.
+#[allow(clippy::too_many_arguments)]
+pub fn curve<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    note: &str,
+    xlabel: &str,
+    ylabel: &str,
+    line: &[(f64, f64)],
+    ends: &[(f64, f64, bool)],
+    saw: &[(f64, f64)],
+) -> Result<(), String> {
     root.fill(&WHITE).map_err(err)?;
     if !note.is_empty() {
         root.draw(&Text::new(note.to_string(), (100, 44), ("sans-serif", 14).into_font())).map_err(err)?;
     }
-    let all = line.iter().copied().chain(ends.iter().map(|e| (e.0, e.1)));
+    let all = line.iter().copied().chain(ends.iter().map(|e| (e.0, e.1))).chain(saw.iter().copied());
     let (mut x0, mut x1, mut y0, mut y1) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for (x, y) in all {
         if x.is_finite() && y.is_finite() {
@@ -217,6 +229,21 @@ pub fn curve<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, not
         .map_err(err)?
         .label("history (relaxation path)")
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], faint.stroke_width(1)));
+    if !saw.is_empty() {
+        // Sequentially linear analysis: from the origin to each critical state and back.
+        let red = RGBColor(200, 40, 40);
+        let mut pts = Vec::with_capacity(3 * saw.len());
+        for &p in saw {
+            pts.extend([(0.0, 0.0), p]);
+        }
+        let teeth: Vec<(f64, f64)> = std::iter::once((0.0, 0.0)).chain(saw.iter().copied()).collect();
+        chart.draw_series(LineSeries::new(pts, red.mix(0.25).stroke_width(1))).map_err(err)?;
+        chart
+            .draw_series(LineSeries::new(teeth, red.stroke_width(2)))
+            .map_err(err)?
+            .label("critical state of each event (saw-tooth)")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(2)));
+    }
     // The static curve: the unloaded state, then the stage ends in equilibrium.
     let path: Vec<(f64, f64)> = std::iter::once((0.0, 0.0)).chain(ends.iter().filter(|e| e.2).map(|e| (e.0, e.1))).collect();
     chart.draw_series(LineSeries::new(path, BLACK.stroke_width(2))).map_err(err)?.label("equilibrium states").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));

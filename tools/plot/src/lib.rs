@@ -294,6 +294,17 @@ fn load_curve(dir: &Path, hist: &History, stages: &[(String, bool, u64)], out: &
     };
     let settled_max = |m: &dyn Fn(&[f64]) -> f64| ends.iter().filter(|e| conv(e.0)).map(|e| m(&hist.rows[e.1]).abs()).filter(|v| v.is_finite()).fold(0.0f64, f64::max);
     let Some((label, m)) = measures.iter().max_by(|a, b| settled_max(a.1.as_ref()).total_cmp(&settled_max(b.1.as_ref()))) else { return Ok(Vec::new()) };
+    // An events run (issue 19): the critical state of each event, the same measure on the
+    // `<probe>_ux_critical` columns against `critical_level_<load>`.
+    let mut saw: Vec<(f64, f64)> = Vec::new();
+    if let (Some(cl), Some(d)) = (hist.col(&format!("critical_level_{load}")), direction) {
+        if let Some(p) = probes.iter().find(|p| label.starts_with(&format!("displacement of probe {p} along"))) {
+            if let (Some(cx), Some(cy)) = (hist.col(&format!("{p}_ux_critical")), hist.col(&format!("{p}_uy_critical"))) {
+                saw = hist.rows.iter().map(|r| (r[cx] * d[0] + r[cy] * d[1], r[cl])).filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
+                saw.dedup();
+            }
+        }
+    }
     let all_max = hist.rows.iter().map(|r| m(r).abs()).filter(|v| v.is_finite()).fold(0.0f64, f64::max);
     let dmax = settled_max(m.as_ref());
     let limit = if dmax > 0.0 { 3.0 * dmax } else { all_max };
@@ -328,7 +339,7 @@ fn load_curve(dir: &Path, hist: &History, stages: &[(String, bool, u64)], out: &
     }
     let note = notes.join("; ");
     let (xl, yl) = (format!("{label} (length units)"), format!("level of load {load}"));
-    render(&out.join("load_displacement"), (900, 620), |a| draw::curve(a, &title, &note, &xl, &yl, &line, &pts), |a| draw::curve(a, &title, &note, &xl, &yl, &line, &pts))
+    render(&out.join("load_displacement"), (900, 620), |a| draw::curve(a, &title, &note, &xl, &yl, &line, &pts, &saw), |a| draw::curve(a, &title, &note, &xl, &yl, &line, &pts, &saw))
 }
 
 fn fmt_dir(v: f64) -> String {

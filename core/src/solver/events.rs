@@ -1,0 +1,419 @@
+//! The events stage solver (ours, issue 19; `[solver] type = "events"`, docs/events.md): a
+//! quasi-static crack path at one linear solve per crack event, for scenes with cracking, linear
+//! elements and no contact. The explicit solver stays the default (the paper's method).
+//!
+//! A stage takes the load levels from those held by the earlier stages, `L0`, to its own, `L1`,
+//! along `L(t) = L0 + t (L1 - L0)`, `t` in `[0, 1]`. The body is linear between two splits, so
+//!
+//! ```text
+//! u(t) = u0 + t (u1 - u0),   K u0 = f(L0),   K u1 = f(L1)     (prescribed displacements too)
+//! s_c(t) = s0_c + t (s1_c - s0_c)                              (nodal stress of every cluster)
+//! ```
+//!
+//! with the nodal stress exactly as the explicit run computes it (the paper's corner mean, or the
+//! nonlocal average: `Cracking::nodal_stress_of`). One stage:
+//! 1. solve `u0` and `u1` (the scene's check solver, faer's sparse Cholesky by default: one
+//!    factorisation, two right-hand sides, `CheckSolver::solve` keeps the factor);
+//! 2. set the state to `u(t)` and run the explicit solver's own failure check
+//!    (`Cracking::check`: criterion, most critical first, `max_splits_per_check`, the scene's
+//!    separation rule): a split is an event (a history row, its splits.csv rows); re-solve on the
+//!    new topology at the same `t` and repeat (the crack runs under load control, as in the
+//!    explicit run);
+//! 3. when the check splits nothing, find per cluster the smallest `t' > t` at which the
+//!    criterion fails (`cracking::events`: closed forms for the built-ins, bisection for any
+//!    other criterion) and advance to the smallest; none up to 1: the stage ends at `t = 1`.
+//!
+//! Per event the *critical factor of the current configuration* is recorded too: the smallest
+//! `t >= 0` at which a cluster of the configuration that the event splits fails on the stage's
+//! path (the sequentially linear analysis of Rots et al. 2008: the saw-tooth curve;
+//! history.csv columns `critical_factor`, `critical_level_<load>`, `<probe>_ux_critical`,
+//! `<probe>_uy_critical`). It lies below the current `t` where the crack runs at a load the
+//! cracked body could not carry (a snap-back that load control jumps over).
+//!
+//! Outside this solver: a fragment left without support (the solve is singular) stops the run
+//! with the check solver's message naming the fragment (as `flem compare` does); contact,
+//! dynamic stages and co-rotational materials are refused when the scene is read (scene.rs);
+//! prescribed velocities other than zero, loads of `t` and following pressures are refused when
+//! the simulation is built ([`Simulation::check_events_scene`]). Clusters the rule cannot cut
+//! (`Cracking::beyond_criterion`) are left out of the search while they fail.
+//!
+//! In events mode `state.step` counts events, `state.time` is the stage's load factor `t` plus
+//! the stage index (`time` of history.csv and splits.csv), velocities are zero, the energy
+//! ledger holds the strain energy only (external work is set equal to it: dissipation by
+//! cracking is not booked), the unbalanced-force ratio is that of the linear solve
+//! (round-off), `output.snapshot_every` counts events, and checkpoints are written at stage
+//! ends only.
+use std::time::Instant;
+
+use crate::cracking::events::{smallest_failure, FactorStats, Path};
+use crate::error::{FlemError, Result};
+use crate::plugin::check::{CheckCfg, CheckSolver, EventsFactor};
+use crate::solver::{Ledger, Observer, Simulation, StagePos, StageResult};
+
+/// What the events solver shows of the current event (read by the output writer).
+#[derive(Clone, Debug, Default)]
+pub struct EventsInfo {
+    /// The stage's load factor `t` now.
+    pub factor: f64,
+    /// Critical factor of the configuration the last event split (NaN before the first).
+    pub critical_factor: f64,
+    /// Load levels at `critical_factor`.
+    pub critical_levels: Vec<f64>,
+    /// Displacement of every cluster at `critical_factor` (before that split).
+    pub critical_u: Vec<[f64; 2]>,
+    /// Events (checks that split) so far in the run.
+    pub events: u64,
+    /// Linear solves so far.
+    pub solves: u64,
+    /// Seconds in the linear solves.
+    pub solve_seconds: f64,
+    /// Fresh factorisations and low-rank updates of the kept factor (`solver.refactor_every`).
+    pub fresh_factorisations: u64,
+    pub updates: u64,
+    pub factors: FactorStats,
+    /// The message that ended the run (a fragment without support): later stages are skipped.
+    pub stopped: Option<String>,
+}
+
+/// The largest stage factor the critical-factor search looks at (beyond it: infinite).
+const CRIT_MAX: f64 = 1e3;
+
+impl Simulation {
+    /// Refuses what the events solver cannot do, naming the key (called by `Simulation::new`).
+    pub(crate) fn check_events_scene(&self) -> Result<()> {
+        let file = self.scene.path.display().to_string();
+        if self.model.stateful {
+            // A material law with state (plasticity) or large strain (element::stateful): the
+            // stress is not linear in the load.
+            let key = if self.scene.file.solver.large_strain {
+                "solver.large_strain".to_string()
+            } else {
+                format!("material[{}].law", self.scene.file.materials.iter().position(|m| m.law.is_some()).unwrap_or(0))
+            };
+            return Err(FlemError::config(&file, key, "makes the stress not linear in the load, which solver.type = \"events\" needs (a linear elastic law on small strain)"));
+        }
+        for (i, l) in self.loads.loads.iter().enumerate() {
+            if l.uses_t() {
+                return Err(FlemError::config(&file, format!("load[{i}].value"), "is an expression of t, which solver.type = \"events\" cannot follow (its states have no time)"));
+            }
+        }
+        if self.loads.has_follower {
+            return Err(FlemError::config(&file, "load", "a pressure with follow = true is not possible with solver.type = \"events\" (its solve is linear, on the reference configuration)"));
+        }
+        for lv in self.scene.file.stages.iter().map(|s| &s.levels) {
+            let mut levels = vec![0.0; self.loads.loads.len()];
+            for (name, &v) in lv {
+                if let Some(k) = self.loads.loads.iter().position(|l| &l.name == name) {
+                    levels[k] = v;
+                }
+            }
+            let (_, vp, _) = self.loads.constraints(&self.model, &levels);
+            if let Some(c) = vp.iter().position(|v| v[0] != 0.0 || v[1] != 0.0) {
+                let p = self.model.topo.cluster_point[c];
+                return Err(FlemError::config(
+                    &file,
+                    "load",
+                    format!(
+                        "a prescribed velocity (at point {} of the mesh) is not possible with solver.type = \"events\" (its states have no time); prescribe a displacement (displacement = true)",
+                        p.0
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// External force, fixities and prescribed displacements at the given levels.
+    fn events_rhs(&self, levels: &[f64]) -> Result<(Vec<u8>, Vec<[f64; 2]>, Vec<[f64; 2]>)> {
+        let mut probe = self.levels.clone();
+        probe.copy_from_slice(levels);
+        let mut f = Vec::new();
+        self.loads.constant_force(&self.model, &probe, &self.state.mass, &mut f);
+        let (fix, _, up) = self.loads.constraints(&self.model, &probe);
+        let mut u_p = vec![[0.0; 2]; fix.len()];
+        for (c, d, v) in up {
+            u_p[c][d] = v;
+        }
+        Ok((fix, f, u_p))
+    }
+
+    /// Solves the current model at the levels `l0` and `l1` (the kept factor when there is one).
+    fn events_solve_pair(&mut self, solver: &dyn CheckSolver, kept: &mut Option<Box<dyn EventsFactor>>, l0: &[f64], l1: &[f64]) -> Result<(Vec<[f64; 2]>, Vec<[f64; 2]>)> {
+        let t = Instant::now();
+        let (fix, f0, p0) = self.events_rhs(l0)?;
+        let (_, f1, p1) = self.events_rhs(l1)?;
+        let (a, b) = match kept.as_mut() {
+            Some(k) => {
+                let mut v = k.solve_many(&self.model, &fix, &[(f0, p0), (f1, p1)])?;
+                let b = v.pop().expect("two solutions");
+                (v.pop().expect("two solutions"), b)
+            }
+            None => (solver.solve(&self.model, &fix, &f0, &p0)?, solver.solve(&self.model, &fix, &f1, &p1)?),
+        };
+        if let Some(ev) = self.events.as_mut() {
+            ev.solves += 2;
+            ev.solve_seconds += t.elapsed().as_secs_f64();
+            if let Some(k) = kept.as_ref() {
+                (ev.fresh_factorisations, ev.updates) = k.counts();
+            }
+        }
+        Ok((a, b))
+    }
+
+    /// The state at factor `t`: displacement, levels, forces and the linear solve's ratio.
+    fn events_set_state(&mut self, u0: &[[f64; 2]], u1: &[[f64; 2]], t: f64, l0: &[f64], l1: &[f64], stage: usize) {
+        for (k, l) in self.levels.iter_mut().enumerate() {
+            *l = l0[k] + t * (l1[k] - l0[k]);
+        }
+        let st = &mut self.state;
+        st.u.clear();
+        st.u.extend(u0.iter().zip(u1).map(|(a, b)| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]));
+        st.v.iter_mut().for_each(|v| *v = [0.0; 2]);
+        st.time = stage as f64 + t;
+        self.refresh_constant_force();
+        if self.loads.has_follower || self.loads.has_time {
+            // Refused for events scenes (check_events_scene); kept whole for safety.
+            if let Ok(f) = self.external_force() {
+                self.state.f_ext = f;
+            }
+        }
+        let mut fi = std::mem::take(&mut self.state.f_int);
+        self.model.internal_forces(&self.state.u, &mut fi);
+        self.state.f_int = fi;
+        let strain = self.strain_energy();
+        self.ledger = Ledger { external_work: strain, strain, ..Ledger::default() };
+        self.last_ratio = self.unbalanced_ratio();
+        if let Some(ev) = self.events.as_mut() {
+            ev.factor = t;
+        }
+    }
+
+    /// The stress paths of every cluster between `u0` (t = 0) and `u1` (t = 1).
+    fn events_paths(&mut self, u0: &[[f64; 2]], u1: &[[f64; 2]]) -> Vec<Path> {
+        let cr = self.cracking.as_mut().expect("events scenes have [cracking]");
+        let (mut s0, mut s1) = (Vec::new(), Vec::new());
+        cr.nodal_stress_of(&self.model, u0, &mut s0);
+        cr.nodal_stress_of(&self.model, u1, &mut s1);
+        let topo = &self.model.topo;
+        (0..s0.len())
+            .map(|c| {
+                let p = topo.cluster_point[c];
+                let mat = self.model.material_of(topo.copy_elem[topo.point_copies.row(p.idx())[0].idx()]);
+                let ds = std::array::from_fn(|k| s1[c][k] - s0[c][k]);
+                let (z0, z1) = (mat.szz(s0[c]), mat.szz(s1[c]));
+                Path { s0: s0[c], ds, szz0: z0, dszz: z1 - z0, scale: cr.scale[p.idx()] }
+            })
+            .collect()
+    }
+
+    /// Runs stage `pos.stage` by events (see the module docs).
+    pub(crate) fn run_stage_events(&mut self, pos: StagePos, obs: &mut dyn Observer) -> Result<()> {
+        let t_start = Instant::now();
+        let i = pos.stage;
+        let l0 = self.levels.clone();
+        if !pos.begun {
+            self.begin_stage(i);
+        }
+        let l1 = self.levels.clone();
+        if self.events.is_none() {
+            self.events = Some(EventsInfo { critical_factor: f64::NAN, ..EventsInfo::default() });
+        }
+        let file = self.scene.path.display().to_string();
+        // The default check solver (faer's sparse Cholesky), owned by the stage.
+        let own = CheckCfg::with_defaults(&file)?;
+        let st = self.scene.file.stages[i].clone();
+        let max_events = self.scene.file.solver.max_events;
+        let snap_every = self.scene.file.output.snapshot_every;
+        let name = if st.name.is_empty() { format!("stage{i}") } else { st.name.clone() };
+        let (mut splits, mut checks, mut stage_events) = (0usize, 0u64, 0u64);
+        let mut t = 0.0f64;
+        // Clusters failing at the last check that split nothing (the rule found no edge): left
+        // out of the searches while they fail.
+        let mut stuck: Vec<bool> = Vec::new();
+        // Consecutive advances after which the check split nothing (round-off at the factor).
+        let mut misses = 0u32;
+        let mut advanced = false;
+        let solver = own.solver();
+        if let Some(m) = self.events.as_ref().and_then(|e| e.stopped.clone()) {
+            self.warnings.push(format!("{file}: stage \"{name}\" skipped: the events solver stopped in an earlier stage ({m})"));
+            return Ok(());
+        }
+        // A singular solve (a fragment without support) ends the run here, named.
+        let mut stop: Option<String> = None;
+        let mut kept = solver.events_factor(self.scene.file.solver.refactor_every);
+        let mut pair = |sim: &mut Self, stop: &mut Option<String>| -> Result<Option<(Vec<[f64; 2]>, Vec<[f64; 2]>)>> {
+            match sim.events_solve_pair(solver, &mut kept, &l0, &l1) {
+                Ok(p) => Ok(Some(p)),
+                Err(FlemError::Solve(m)) => {
+                    *stop = Some(m);
+                    Ok(None)
+                }
+                Err(e) => Err(e),
+            }
+        };
+        let Some((mut u0, mut u1)) = pair(self, &mut stop)? else {
+            let m = stop.unwrap_or_default();
+            return Err(FlemError::Solve(format!("{file}: stage \"{name}\" cannot start by events: {m}")));
+        };
+        loop {
+            self.events_set_state(&u0, &u1, t, &l0, &l1, i);
+            // The critical factor of this configuration (before the check's split, if any).
+            let paths = self.events_paths(&u0, &u1);
+            let criterion = || self.scene.file.cracking.as_ref().expect("events scenes have [cracking]").criterion.as_ref();
+            let mut fs = FactorStats::default();
+            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck.get(*c).copied().unwrap_or(false)).map(|(_, p)| *p).collect();
+            let (crit, _) = smallest_failure(criterion(), &live, 0.0, CRIT_MAX, &mut fs)?;
+            let n = self.check_failure(obs)?;
+            checks += 1;
+            if n > 0 {
+                splits += n;
+                stage_events += 1;
+                misses = 0;
+                advanced = false;
+                {
+                    let ev = self.events.as_mut().expect("set above");
+                    ev.events += 1;
+                    ev.critical_factor = crit;
+                    ev.critical_levels = l0.iter().zip(&l1).map(|(a, b)| a + crit * (b - a)).collect();
+                    ev.critical_u = u0.iter().zip(&u1).map(|(a, b)| [a[0] + crit * (b[0] - a[0]), a[1] + crit * (b[1] - a[1])]).collect();
+                    ev.factors.closed += fs.closed;
+                    ev.factors.fallback += fs.fallback;
+                    ev.factors.searched += fs.searched;
+                }
+                self.state.step += 1;
+                obs.history(self, i)?;
+                if snap_every > 0 && self.state.step % snap_every == 0 {
+                    obs.snapshot(self, i, &format!("{}_event{}", i, self.state.step))?;
+                }
+                if stage_events >= max_events {
+                    self.warnings.push(format!("{file}: stage \"{name}\" stopped at solver.max_events = {max_events} events (load factor {t:.6e} of the stage)"));
+                    break;
+                }
+                match pair(self, &mut stop)? {
+                    Some((a, b)) => (u0, u1) = (a, b),
+                    None => break,
+                }
+                continue;
+            }
+            let cr = self.cracking.as_ref().expect("events scenes have [cracking]");
+            stuck = cr.index.iter().map(|&x| x >= 1.0).collect();
+            if advanced {
+                // The factor was found on the paths; the check's own stress of u(t) held by
+                // round-off: nudge up.
+                misses += 1;
+                if misses > 60 {
+                    return Err(FlemError::Other(format!(
+                        "{file}: stage \"{name}\": the events solver found a failure at load factor {t:e} that the failure check does not confirm (the criterion's closed form disagrees with its check)"
+                    )));
+                }
+            }
+            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck[*c]).map(|(_, p)| *p).collect();
+            let mut fs2 = FactorStats::default();
+            let criterion = self.scene.file.cracking.as_ref().expect("events scenes have [cracking]").criterion.as_ref();
+            let (next, _) = smallest_failure(criterion, &live, t, 1.0, &mut fs2)?;
+            if let Some(ev) = self.events.as_mut() {
+                ev.factors.closed += fs2.closed;
+                ev.factors.fallback += fs2.fallback;
+                ev.factors.searched += fs2.searched;
+            }
+            if !next.is_finite() {
+                if t < 1.0 {
+                    t = 1.0;
+                    self.events_set_state(&u0, &u1, t, &l0, &l1, i);
+                }
+                break;
+            }
+            let floor = if advanced { t + (1u64 << misses.min(40)) as f64 * f64::EPSILON * t.abs().max(1e-300) } else { t };
+            t = next.max(floor).min(1.0);
+            advanced = true;
+        }
+        if let Some(m) = &stop {
+            let msg = format!(
+                "{file}: stage \"{name}\" stopped after event {} at load factor {t:.9e} of the stage: {m}; the events solver ends the run here (it does not hand over to the explicit solver)",
+                self.state.step
+            );
+            self.warnings.push(msg.clone());
+            if let Some(ev) = self.events.as_mut() {
+                ev.stopped = Some(m.clone());
+            }
+        }
+        let result = StageResult {
+            name,
+            steps: stage_events,
+            converged: stop.is_none(),
+            final_ratio: self.last_ratio,
+            wall_seconds: pos.wall_seconds + t_start.elapsed().as_secs_f64(),
+            time: self.state.time,
+            splits,
+            energy_residual: 0.0,
+            checks,
+        };
+        self.stages_done.push(result);
+        obs.history(self, i)?;
+        if st.snapshot {
+            obs.snapshot(self, i, &format!("stage{i}"))?;
+        }
+        obs.stage_end(self, i)?;
+        obs.checkpoint(self, &StagePos::start(i + 1))?;
+        Ok(())
+    }
+}
+
+/// The explicit twin of a one-stage events scene (for comparisons: tests/events.rs,
+/// `flem bench events-path`): the explicit solver, checks at equilibrium, and the stage replaced
+/// by stages at the load factors `k step`, `k = k0, k0 + 1, ...` up to `k step <= to` (levels of
+/// the stage scaled), each with the step limit `max_steps` and the tolerance `tolerance`.
+pub fn explicit_twin(scene: &mut crate::scene::Scene, k0: u64, step: f64, to: f64, max_steps: u64, tolerance: f64) -> Result<()> {
+    let f = &mut scene.file;
+    if f.stages.len() != 1 {
+        return Err(FlemError::Other(format!("explicit_twin: the scene has {} stages, not one", f.stages.len())));
+    }
+    let st = f.stages[0].clone();
+    f.solver.kind = crate::scene::SolverKind::Explicit;
+    if let Some(c) = f.cracking.as_mut() {
+        c.at_equilibrium = true;
+    }
+    f.output.snapshot_every = 0;
+    f.stages.clear();
+    let mut k = k0;
+    while (k as f64) * step <= to * (1.0 + 1e-12) {
+        let t = k as f64 * step;
+        let mut s = st.clone();
+        s.name = format!("t{t:.6}");
+        s.levels.values_mut().for_each(|v| *v *= t);
+        s.max_steps = Some(max_steps);
+        s.tolerance = Some(tolerance);
+        s.snapshot = false;
+        f.stages.push(s);
+        k += 1;
+    }
+    Ok(())
+}
+
+/// One split as the comparisons see it: point, edges cut, load levels, the stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoggedSplit {
+    pub point: u32,
+    pub edges: Vec<u32>,
+    pub levels: Vec<f64>,
+    pub stage: usize,
+}
+
+/// An observer that records the split log and stops the run after `stop_after` splits
+/// (`FlemError::Interrupted`).
+pub struct SplitLog {
+    pub splits: Vec<LoggedSplit>,
+    pub stop_after: usize,
+}
+
+impl Observer for SplitLog {
+    fn splits(&mut self, sim: &Simulation, _rec: &crate::mesh::topology::SplitRecord, events: &[crate::cracking::SplitEvent]) -> Result<()> {
+        for e in events {
+            self.splits.push(LoggedSplit { point: e.point.0, edges: e.edges.iter().map(|x| x.0).collect(), levels: sim.levels.clone(), stage: sim.stages_done.len() });
+        }
+        Ok(())
+    }
+    fn should_stop(&mut self, _sim: &Simulation) -> bool {
+        self.splits.len() >= self.stop_after
+    }
+}
