@@ -132,11 +132,19 @@ fn events_scenes_outside_the_solver_are_refused_naming_the_key() {
 /// same split log (points, edges, order) and the same event loads to 1e-9 relative, on the
 /// notched plate h = 0.25 (36 events, so the updates reach a capacitance of about 200 columns),
 /// and it did update (it is not the fresh path in disguise).
+/// The same holds with the `qm6` element (issue 20), whose condensed stiffness the updates
+/// take from `Block::stiffness` as the fresh assembly does.
 #[test]
 fn kept_factor_updates_give_the_fresh_factorisations_path() {
+    kept_vs_fresh(None);
+    kept_vs_fresh(Some("qm6"));
+}
+
+fn kept_vs_fresh(element: Option<&str>) {
     let run = |every: usize| {
         let mut sc = scene("notch_plate_h0.25.toml");
         sc.file.solver.refactor_every = every;
+        sc.file.materials[0].element = element.map(String::from);
         let mut sim = Simulation::new(sc).unwrap();
         let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
         sim.run(&mut log).unwrap();
@@ -149,7 +157,7 @@ fn kept_factor_updates_give_the_fresh_factorisations_path() {
     let (kept, kf, ku) = run(50);
     // Measured: 3 fresh (the first; one after an update whose residual check failed; the last,
     // which names the fragment without support), 33 updates.
-    assert!(ku >= 30 && kf <= 4, "fresh {kf}, updates {ku}");
+    assert!(ku >= 30 && kf <= 4, "{element:?}: fresh {kf}, updates {ku}");
     assert_eq!(fresh.len(), kept.len());
     for (a, b) in fresh.iter().zip(&kept) {
         assert_eq!((a.point, &a.edges), (b.point, &b.edges));
@@ -181,4 +189,22 @@ fn first_event_with_the_nonlocal_check_is_its_exact_initiation_load() {
     ev.run(&mut log).unwrap();
     assert!(!log.splits.is_empty() && exact < 1.0, "no event below the level 1 (exact {exact})");
     assert!(rel(log.splits[0].levels[0], exact) < 1e-10, "events {:?}, exact {exact}", log.splits[0].levels);
+}
+
+/// The events solver needs a stress linear in the load (docs/events.md): a material law with
+/// state (Mohr-Coulomb plasticity) or large strain is refused when the scene is built, naming
+/// the key and the file.
+#[test]
+fn a_nonlinear_material_or_large_strain_is_refused() {
+    flem_plugins::link();
+    let path = root().join("configs/events/notch_plate_h0.25.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("type = \"events\"\n") && text.contains("[[material]]\n"), "the scene changed: update the test");
+    let ls = text.replace("type = \"events\"\n", "type = \"events\"\nlarge_strain = true\n");
+    let mc = text.replace("[[material]]\n", "[[material]]\nlaw = { type = \"mohr_coulomb\", cohesion = 10.0, friction_angle_deg = 20.0, dilation_angle_deg = 0.0 }\n");
+    for (t, key) in [(ls, "solver.large_strain"), (mc, "material[0].law")] {
+        let s = Scene::from_str(&t, &path, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+        let e = Simulation::new(s).err().expect("refused").to_string();
+        assert!(e.contains(key) && e.contains("notch_plate_h0.25.toml") && e.contains("events"), "{e}");
+    }
 }

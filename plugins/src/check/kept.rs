@@ -145,9 +145,15 @@ impl KeptFactor {
                 let blk = &model.blocks[*bi];
                 let mat = blk.material();
                 let nn = old.len();
-                match blk.kind() {
-                    CellKind::Q4 => assemble::elem_stiffness::<Q4, 4>(blk.coords(*i), &mat.dmat(), mat.thickness, &mut ke),
-                    CellKind::T3 => assemble::elem_stiffness::<T3, 3>(blk.coords(*i), &mat.dmat(), mat.thickness, &mut ke),
+                if !blk.isoparametric() {
+                    // An element with condensed internal fields (`qm6`): its own stiffness, as
+                    // the full assembly takes it (assemble.rs).
+                    blk.stiffness(*i, &mut ke[..4 * nn * nn]);
+                } else {
+                    match blk.kind() {
+                        CellKind::Q4 => assemble::elem_stiffness::<Q4, 4>(blk.coords(*i), &mat.dmat(), mat.thickness, &mut ke),
+                        CellKind::T3 => assemble::elem_stiffness::<T3, 3>(blk.coords(*i), &mat.dmat(), mat.thickness, &mut ke),
+                    }
                 }
                 for (sign, conn) in [(1.0, blk.conn(*i)), (-1.0, &old[..])] {
                     for r in 0..2 * nn {
