@@ -2,7 +2,6 @@
 the CLI's messages; Ctrl-C stops a run with a checkpoint, as `flem run` does (issue 22)."""
 import _thread
 import subprocess
-import threading
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -104,13 +103,19 @@ def test_ctrl_c_stops_with_a_checkpoint_and_resumes_bit_for_bit(root, tmp_path):
     # run's result bit for bit (reference: the same scene run without interruption).
     scene = flem.Scene.from_file(root / "configs/verification/notched_crack.toml")
     out = tmp_path / "int"
-    timer = threading.Timer(0.4, _thread.interrupt_main)  # Ctrl-C as Python sees it
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt) as e:
-            flem.run(scene, out=out, threads=1)
-    finally:
-        timer.cancel()
+    # Ctrl-C as Python sees it, raised from inside the run (the first progress report after
+    # step 100) so that it lands mid-run however fast the machine is (a timer of 0.4 s fired
+    # after the 0.3 s run had ended on an idle machine).
+    fired = []
+
+    def ctrl_c(info):
+        if not fired and info["step"] >= 100:
+            fired.append(info["step"])
+            _thread.interrupt_main()
+
+    with pytest.raises(KeyboardInterrupt) as e:
+        flem.run(scene, out=out, threads=1, on_progress=ctrl_c, progress_every=0.0)
+    assert fired
     assert isinstance(e.value, flem.RunInterrupted)
     assert e.value.checkpoint and Path(e.value.checkpoint).exists()
     assert list(out.glob("snapshot_*_interrupted.vtu")) and (out / "summary.json").exists()
