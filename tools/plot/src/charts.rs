@@ -190,7 +190,7 @@ fn converge_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, l
     c.configure_series_labels().position(SeriesLabelPosition::UpperRight).background_style(WHITE.mix(0.85)).border_style(BLACK).label_font(("sans-serif", 13)).draw().map_err(err)?;
     let [[x0, y0], [x1, y1]] = bounds;
     let mut c = ChartBuilder::on(&right)
-        .caption("crack paths of the explicit runs (split points)", ("sans-serif", 18))
+        .caption("crack paths (split points: the ramp's, else the run at 1.05 p_crit)", ("sans-serif", 18))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(50)
