@@ -106,7 +106,7 @@ fn model(nx: usize, ny: usize, kind: Kind) -> Result<Model> {
     let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, kind.cell).build()?;
     mesh.validate(ValidationOptions::Reorient)?;
     mesh.derive_node_sets();
-    let mat = MaterialCfg { region: "all".into(), young_modulus: 100.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, element: Some(kind.name.into()), law: None, bbar: None };
+    let mat = MaterialCfg { element: Some(kind.name.into()), ..MaterialCfg::elastic(100.0, 0.3, 1.0) };
     Ok(Model::new(mesh, &[mat], Plane::Strain, "<bench>")?)
 }
 

@@ -418,7 +418,7 @@ mod tests {
         r.distort = distort;
         let mut mesh = r.build().unwrap();
         mesh.validate(Default::default()).unwrap();
-        let mat = MaterialCfg { region: "all".into(), young_modulus: 1000.0, poisson_ratio: 0.2, density: 1.0, thickness: 1.0, corotational: false, element: None, law: None, bbar: None };
+        let mat = MaterialCfg::elastic(1000.0, 0.2, 1.0);
         Model::new(mesh, &[mat], Plane::Strain, "test").unwrap()
     }
 

@@ -39,6 +39,15 @@ pub struct MaterialCfg {
     pub bbar: Option<bool>,
 }
 
+impl MaterialCfg {
+    /// A linear elastic material for every region (`region = "all"`), unit thickness, no
+    /// co-rotation, the default element kind of each cell type and the default law: what a
+    /// generated model (benches, tests) needs; one place to grow when `[[material]]` does.
+    pub fn elastic(young_modulus: f64, poisson_ratio: f64, density: f64) -> Self {
+        MaterialCfg { region: all(), young_modulus, poisson_ratio, density, thickness: 1.0, corotational: false, element: None, law: None, bbar: None }
+    }
+}
+
 fn all() -> String {
     "all".into()
 }
@@ -250,9 +259,9 @@ impl Model {
     /// stress and history here (`Block::update_internal_forces`); call it once per step.
     pub fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
-        let pool = self.pool.clone();
+        let pool = self.pool.as_deref();
         for b in self.blocks.iter_mut() {
-            b.update_internal_forces(u, f, pool.as_deref());
+            b.update_internal_forces(u, f, pool);
         }
     }
 

@@ -64,7 +64,7 @@ fn problem(dofs: f64) -> Result<(Model, Vec<u8>, Vec<[f64; 2]>, usize, usize), F
     let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, CellKind::Q4).build()?;
     mesh.validate(ValidationOptions::Reorient)?;
     mesh.derive_node_sets();
-    let mat = MaterialCfg { region: "all".into(), young_modulus: 1000.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, element: None, law: None, bbar: None };
+    let mat = MaterialCfg::elastic(1000.0, 0.3, 1.0);
     let m = Model::new(mesh, &[mat], Plane::Strain, "<bench>")?;
     let nc = m.topo.n_clusters();
     let mut fix = vec![0u8; nc];

@@ -487,7 +487,7 @@ mod tests {
     fn model(mut mesh: RawMesh, plane: Plane) -> Model {
         mesh.validate(ValidationOptions::Reorient).unwrap();
         mesh.derive_node_sets();
-        let mat = MaterialCfg { region: "all".into(), young_modulus: 1000.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, element: None, law: None, bbar: None };
+        let mat = MaterialCfg::elastic(1000.0, 0.3, 1.0);
         Model::new(mesh, &[mat], plane, "<test>").unwrap()
     }
 

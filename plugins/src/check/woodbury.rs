@@ -125,7 +125,7 @@ pub fn bench_woodbury(dofs: f64, events: usize) -> Result<WoodburyBench, FlemErr
     let mut mesh = Rectangle::new(2.0, 1.0, nx, ny, CellKind::Q4).build()?;
     mesh.validate(ValidationOptions::Reorient)?;
     mesh.derive_node_sets();
-    let mat = MaterialCfg { region: "all".into(), young_modulus: 1000.0, poisson_ratio: 0.3, density: 1.0, thickness: 1.0, corotational: false, element: None, law: None, bbar: None };
+    let mat = MaterialCfg::elastic(1000.0, 0.3, 1.0);
     let mut m = Model::new(mesh, &[mat], Plane::Strain, "<bench>")?;
     let left: Vec<u32> = m.mesh.node_sets["left"].clone();
     let right: Vec<u32> = m.mesh.node_sets["right"].clone();
