@@ -136,10 +136,7 @@ impl Cracking {
     /// A plugin that fails or panics (dynamic plugins) gives an error.
     pub fn check(&mut self, cfg: &CrackingCfg, model: &mut Model, u: &[[f64; 2]], x0: &[[f64; 2]], time: f64, step: u64) -> crate::Result<(SplitRecord, Vec<SplitEvent>)> {
         let mut nodal = std::mem::take(&mut self.nodal);
-        match &mut self.nonlocal {
-            None => model.nodal_stress_with(u, &mut self.corner, &mut nodal, &mut self.counts),
-            Some(nl) => nl.nodal_stress(model, u, &mut nodal),
-        }
+        self.nodal_stress_of(model, u, &mut nodal);
         self.nodal = nodal;
         let nc = model.topo.n_clusters();
         self.principal.clear();
