@@ -267,7 +267,7 @@ fn element_doc_snippets_build() {
             _ => {}
         }
     }
-    for file in ["plugins/src/elements/qm6.rs"] {
+    for file in ["plugins/src/elements/q4.rs", "plugins/src/elements/t3.rs", "plugins/src/elements/qm6.rs"] {
         let src = std::fs::read_to_string(root().join(file)).unwrap();
         let blocks = flem_plugins::snippets::toml_blocks(&src);
         assert!(!blocks.is_empty(), "{file} has no ```toml block");
@@ -277,7 +277,12 @@ fn element_doc_snippets_build() {
     for (file, snip) in snippets {
         let t: toml::Table = toml::from_str(&snip).unwrap_or_else(|e| panic!("{file}: {e}\n{snip}"));
         let want = t["material"].as_array().unwrap()[0]["element"].as_str().unwrap().to_string();
-        let text = format!("[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = 4\nny = 2\n{snip}\n[[stage]]\nlevels = {{}}\n");
+        // The rectangle's cells are of the element's cell type.
+        let cell = match flem_core::element::registry::find(&want).unwrap_or_else(|| panic!("{file}: no kind {want}")).cell {
+            flem_core::mesh::CellKind::Q4 => "q4",
+            flem_core::mesh::CellKind::T3 => "t3",
+        };
+        let text = format!("[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = 4\nny = 2\nelement = \"{cell}\"\n{snip}\n[[stage]]\nlevels = {{}}\n");
         let s = sim(&text);
         assert!(s.model.blocks.iter().all(|b| b.element() == want), "{file}: {want}");
     }

@@ -7,7 +7,7 @@
 //! sort of its query results to be deterministic anyway.
 use super::{ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, PairKinematics, PairState};
 use crate::element::model::Model;
-use crate::element::{self, Q4, T3};
+use crate::element::registry;
 use crate::error::Result;
 use crate::ids::{EdgeId, ElemId, PointId};
 use crate::mesh::topology::{SplitRecord, Topology};
@@ -403,10 +403,11 @@ impl Contact {
                 let (rho, t) = (b.material().density, b.material().thickness);
                 for i in 0..b.len() {
                     let x = b.coords(i);
-                    let m: Vec<f64> = match x.len() {
-                        4 => element::lumped_mass::<Q4, 4>(&[x[0], x[1], x[2], x[3]], rho, t).to_vec(),
-                        _ => element::lumped_mass::<T3, 3>(&[x[0], x[1], x[2]], rho, t).to_vec(),
-                    };
+                    let mut m4 = [0.0; 4];
+                    if let Some(k) = registry::find(b.element()).or_else(|| registry::default_for(b.kind())) {
+                        k.lumped_mass(x, rho, t, &mut m4);
+                    }
+                    let m = &m4[..x.len()];
                     let n = x.len();
                     let len = |a: usize, b: usize| ((x[a][0] - x[b][0]).powi(2) + (x[a][1] - x[b][1]).powi(2)).sqrt();
                     for (a, &ma) in m.iter().enumerate() {

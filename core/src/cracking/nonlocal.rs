@@ -30,31 +30,19 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use crate::element::model::Model;
-use crate::element::{gradients, Shape, Q4, T3};
+use crate::element::registry;
 use crate::error::{FlemError, Result};
 use crate::ids::{ClusterId, EdgeId, PointId};
 use crate::mesh::topology::{Csr, Topology};
 use crate::mesh::{CellKind, RawMesh};
 use crate::scene::NonlocalWeight;
 
-/// Gauss points of one element: (position, quadrature weight x det J).
+/// Gauss points of one element: (position, quadrature weight x det J), those of its cell
+/// type's default element kind (`element::registry`; `Model::new` refuses a mesh whose cell
+/// type has none linked).
 fn elem_gauss(kind: CellKind, x: &[[f64; 2]], out: &mut Vec<([f64; 2], f64)>) {
-    fn go<S: Shape<N>, const N: usize>(x: &[[f64; 2]], out: &mut Vec<([f64; 2], f64)>) {
-        let xa: [[f64; 2]; N] = std::array::from_fn(|a| x[a]);
-        for &(xi, w) in S::GAUSS {
-            let n = S::n(xi);
-            let (_, det) = gradients::<S, N>(&xa, xi);
-            let mut p = [0.0; 2];
-            for a in 0..N {
-                p[0] += n[a] * xa[a][0];
-                p[1] += n[a] * xa[a][1];
-            }
-            out.push((p, w * det));
-        }
-    }
-    match kind {
-        CellKind::Q4 => go::<Q4, 4>(x, out),
-        CellKind::T3 => go::<T3, 3>(x, out),
+    if let Some(k) = registry::default_for(kind) {
+        k.gauss_points(x, out);
     }
 }
 

@@ -2,8 +2,8 @@
 //! inside. The solver calls each block once per step through `dyn Block`; there is no dynamic
 //! dispatch per element and no allocation inside a step.
 //!
-//! Kinds: Q4 (2x2 Gauss points) and T3. A block is generic over `Shape<N>` (`element/mod.rs`)
-//! and monomorphised per kind. Connectivity is by cluster index (`Block::conn`), so an unsplit
+//! Kinds: any element kind implementing `kernel::Blocked` (the built-ins `q4`, `t3`, `qm6` are
+//! plugins, `flem-plugins/src/elements/`); a block is generic over it and monomorphised per kind. Connectivity is by cluster index (`Block::conn`), so an unsplit
 //! node costs what a plain FEM node costs. The force kernel and its parallel schedule live in
 //! `element/kernel.rs`, the co-rotational block in `element/corot.rs`; `element/model.rs`
 //! builds the blocks of a `Model`.
@@ -68,10 +68,7 @@ pub trait Block: Send + Sync {
     /// Registered name of the element kind (`element::registry`; default: the cell type's
     /// default kind).
     fn element(&self) -> &'static str {
-        match self.kind() {
-            CellKind::Q4 => "q4",
-            CellKind::T3 => "t3",
-        }
+        element::default_kind(self.kind())
     }
     /// True when the element stiffness is the plain isoparametric `sum_gp B^T D B w det J t` of
     /// the shape gradients (a solver may then assemble it itself); false for an element with

@@ -20,6 +20,7 @@ use std::fmt::Debug;
 use crate::element::block::Block;
 use crate::element::{Dmat, Material, Plane};
 use crate::ids::ElemId;
+use crate::mesh::CellKind;
 
 /// A stress-update law (contract of issues 20/21, item 3).
 pub trait MaterialLaw: Clone + Send + Sync + 'static {
@@ -81,11 +82,43 @@ pub struct StatefulOpts {
     pub large_strain: bool,
 }
 
-/// The elements of one region, by kind, that a law's blocks are built from.
+/// The elements of one region, by cell type, that a law's blocks are built from, and the
+/// element kind (registered name, `element::registry`) the region's material chose for each
+/// cell type.
 #[derive(Clone, Debug, Default)]
 pub struct RegionElems {
+    /// Quadrilateral cells (`CellKind::Q4`).
     pub q4: Vec<(ElemId, [[f64; 2]; 4], [u32; 4])>,
+    /// Triangle cells (`CellKind::T3`).
     pub t3: Vec<(ElemId, [[f64; 2]; 3], [u32; 3])>,
+    /// Element kind of the quadrilaterals.
+    pub q4_kind: &'static str,
+    /// Element kind of the triangles.
+    pub t3_kind: &'static str,
+}
+
+impl RegionElems {
+    /// Calls `f(id, corners, clusters)` for every cell of type `cell`.
+    pub fn for_cell(&self, cell: CellKind, mut f: impl FnMut(ElemId, &[[f64; 2]], &[u32])) {
+        match cell {
+            CellKind::Q4 => self.q4.iter().for_each(|(e, x, c)| f(*e, x, c)),
+            CellKind::T3 => self.t3.iter().for_each(|(e, x, c)| f(*e, x, c)),
+        }
+    }
+    /// The element kind chosen for cell type `cell`.
+    pub fn kind_of(&self, cell: CellKind) -> &'static str {
+        match cell {
+            CellKind::Q4 => self.q4_kind,
+            CellKind::T3 => self.t3_kind,
+        }
+    }
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        self.q4.len() + self.t3.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
 }
 
 /// `[[material]] law = { type = "...", ... }`: a material law's parameters (typetag; built-ins

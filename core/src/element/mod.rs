@@ -4,9 +4,12 @@
 //! (row-sum) mass. Stress is tension-positive here, `[sxx, syy, sxy]`; failure criteria convert
 //! to the geomechanics convention (compression positive) at their boundary, once.
 //!
-//! The folder holds the element math and what is built from it: [`kernel`] (the blocked,
-//! vectorised internal force), [`block`] (one element kind and material per block, monomorphised),
-//! [`corot`] (co-rotational blocks) and [`model`] (topology + blocks: the model the solver steps).
+//! The folder holds the element math and what is built from it: [`kernel`] (the element trait
+//! `Blocked` and the blocked schedule), [`registry`] (element kinds by name), [`block`] (one
+//! element kind and material per block, monomorphised), [`corot`] (co-rotational blocks),
+//! [`stateful`] (material laws with history) and [`model`] (topology + blocks: the model the
+//! solver steps). The element kinds themselves (`q4`, `t3`, `qm6`, ...) are plugins
+//! (`flem-plugins/src/elements/`, docs/elements.md): core names none of them.
 pub mod block;
 pub mod corot;
 pub mod kernel;
@@ -14,6 +17,8 @@ pub mod law;
 pub mod model;
 pub mod registry;
 pub mod stateful;
+#[cfg(test)]
+pub mod testkinds;
 
 use serde::{Deserialize, Serialize};
 
@@ -87,42 +92,12 @@ pub trait Shape<const N: usize>: Copy + Default + Send + Sync + 'static {
     fn dn(xi: [f64; 2]) -> [[f64; 2]; N];
 }
 
-/// Bilinear quadrilateral, 2 x 2 Gauss points.
-#[derive(Copy, Clone, Default, Debug)]
-pub struct Q4;
-/// Constant-strain triangle, one point.
-#[derive(Copy, Clone, Default, Debug)]
-pub struct T3;
-
-const G: f64 = 0.577_350_269_189_625_8; // 1/sqrt(3)
-
-impl Shape<4> for Q4 {
-    const KIND: CellKind = CellKind::Q4;
-    const CORNERS: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-    const GAUSS: &'static [([f64; 2], f64)] = &[([-G, -G], 1.0), ([G, -G], 1.0), ([G, G], 1.0), ([-G, G], 1.0)];
-    #[inline(always)]
-    fn n(xi: [f64; 2]) -> [f64; 4] {
-        let c = Self::CORNERS;
-        std::array::from_fn(|a| 0.25 * (1.0 + c[a][0] * xi[0]) * (1.0 + c[a][1] * xi[1]))
-    }
-    #[inline(always)]
-    fn dn(xi: [f64; 2]) -> [[f64; 2]; 4] {
-        let c = Self::CORNERS;
-        std::array::from_fn(|a| [0.25 * c[a][0] * (1.0 + c[a][1] * xi[1]), 0.25 * c[a][1] * (1.0 + c[a][0] * xi[0])])
-    }
-}
-
-impl Shape<3> for T3 {
-    const KIND: CellKind = CellKind::T3;
-    const CORNERS: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
-    const GAUSS: &'static [([f64; 2], f64)] = &[([1.0 / 3.0, 1.0 / 3.0], 0.5)];
-    #[inline(always)]
-    fn n(xi: [f64; 2]) -> [f64; 3] {
-        [1.0 - xi[0] - xi[1], xi[0], xi[1]]
-    }
-    #[inline(always)]
-    fn dn(_xi: [f64; 2]) -> [[f64; 2]; 3] {
-        [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]]
+/// The name of the default element kind of a cell type (the paper's elements: `q4` for
+/// quadrilaterals, `t3` for triangles; both are plugins, looked up by name in [`registry`]).
+pub fn default_kind(cell: CellKind) -> &'static str {
+    match cell {
+        CellKind::Q4 => "q4",
+        CellKind::T3 => "t3",
     }
 }
 

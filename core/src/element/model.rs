@@ -2,7 +2,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::element::block::Block;
-use crate::element::law::{LawCfg, RegionElems, StatefulOpts};
+use crate::element::law::{LawCfg, LinearElastic, RegionElems, StatefulOpts};
 use crate::element::registry;
 use crate::element::{Material, Plane};
 use crate::error::{FlemError, Result};
@@ -122,9 +122,18 @@ impl Model {
                 }
             }
         }
-        let kind_of = |region: &str, cell: CellKind| -> &'static registry::ElementKind {
+        let kind_of = |region: &str, cell: CellKind| -> Result<&'static registry::ElementKind> {
             let named = cfg_of(region).and_then(|(_, m)| m.element.as_deref()).and_then(registry::find).filter(|k| k.cell == cell);
-            named.or_else(|| registry::find(registry::default_for(cell))).expect("the default element kinds are registered in core")
+            named.or_else(|| registry::default_for(cell)).ok_or_else(|| {
+                FlemError::config(
+                    scene_file,
+                    "material",
+                    format!(
+                        "no element kind \"{}\" is linked for the {cell:?} cells of region \"{region}\" (the built-in kinds are in flem-plugins: call flem_plugins::link())",
+                        crate::element::default_kind(cell)
+                    ),
+                )
+            })
         };
         let mut stateful = false;
         let mut blocks: Vec<Box<dyn Block>> = Vec::new();
@@ -145,14 +154,7 @@ impl Model {
                         "= true cannot be combined with [solver] large_strain = true (large strain already rotates the stress with the body)",
                     ));
                 }
-                if let Some(name) = mcfg.element.as_deref().filter(|n| !matches!(*n, "q4" | "t3")) {
-                    return Err(FlemError::config(
-                        scene_file,
-                        format!("material[{mi}].element"),
-                        format!("= \"{name}\" has no stateful kernel: a material law other than linear elastic, or [solver] large_strain, runs on \"q4\" (with B-bar) and \"t3\" only"),
-                    ));
-                }
-                let mut elems = RegionElems { q4: Vec::new(), t3: Vec::new() };
+                let mut elems = RegionElems::default();
                 for (e, c) in mesh.cells.iter().enumerate() {
                     if mesh.cell_region[e] != *region {
                         continue;
@@ -163,17 +165,37 @@ impl Model {
                         CellKind::T3 => elems.t3.push((ElemId::new(e), [x(0), x(1), x(2)], [c.nodes[0], c.nodes[1], c.nodes[2]])),
                     }
                 }
-                let so = StatefulOpts { bbar: mcfg.bbar.unwrap_or(true), large_strain: opts.large_strain };
-                match &mcfg.law {
-                    Some(l) => blocks.extend(l.build(region, mat, so, &elems)),
-                    None => blocks.extend(crate::element::stateful::build_stateful(crate::element::law::LinearElastic::new(&mat), region, mat, so, &elems)),
+                if !elems.q4.is_empty() {
+                    elems.q4_kind = kind_of(region, CellKind::Q4)?.name;
                 }
+                if !elems.t3.is_empty() {
+                    elems.t3_kind = kind_of(region, CellKind::T3)?.name;
+                }
+                let so = StatefulOpts { bbar: mcfg.bbar.unwrap_or(true), large_strain: opts.large_strain };
+                let built = match &mcfg.law {
+                    Some(l) => l.build(region, mat, so, &elems),
+                    None => build_stateful_elastic(region, mat, so, &elems),
+                };
+                // Every cell must be in a block: a kind without a stateful kernel for this law
+                // builds none (named here, before anything runs).
+                if built.iter().map(|b| b.len()).sum::<usize>() != elems.len() {
+                    let name = mcfg.element.as_deref().unwrap_or("?");
+                    return Err(FlemError::config(
+                        scene_file,
+                        format!("material[{mi}].element"),
+                        format!("= \"{name}\" has no stateful kernel for this material law: a law other than linear elastic, or [solver] large_strain, runs on the kinds {:?}", stateful_kinds()),
+                    ));
+                }
+                blocks.extend(built);
                 stateful = true;
                 continue;
             }
             // One block per cell type, quadrilaterals first (the order the model always had).
             for cell in [CellKind::Q4, CellKind::T3] {
-                let mut b = kind_of(region, cell).builder(region.to_string(), mat);
+                if !mesh.cells.iter().zip(&mesh.cell_region).any(|(c, r)| c.kind == cell && r == region) {
+                    continue;
+                }
+                let mut b = kind_of(region, cell)?.builder(region.to_string(), mat);
                 for (e, c) in mesh.cells.iter().enumerate() {
                     if mesh.cell_region[e] != *region || c.kind != cell {
                         continue;
@@ -349,5 +371,43 @@ impl Model {
     /// The material of element `e`.
     pub fn material_of(&self, e: ElemId) -> &Material {
         self.blocks[self.elem_slot[e.idx()].0 as usize].material()
+    }
+}
+/// The stateful blocks of a region with the linear elastic law: each element kind's own
+/// constructor (`registry::ElementKind::stateful_elastic`, monomorphised at registration).
+pub fn build_stateful_elastic(region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
+    let mut out = Vec::new();
+    for cell in [CellKind::Q4, CellKind::T3] {
+        if let Some(ctor) = registry::find(elems.kind_of(cell)).and_then(|k| k.stateful_elastic) {
+            out.extend(ctor(LinearElastic::new(&mat), region, mat, opts, elems));
+        }
+    }
+    out
+}
+
+/// Names of the linked element kinds with a stateful kernel.
+fn stateful_kinds() -> Vec<&'static str> {
+    registry::kinds().iter().filter(|k| k.stateful_elastic.is_some()).map(|k| k.name).collect()
+}
+
+/// `law = { type = "linear_elastic" }`: the default, written out (the elastic constants are
+/// those of the `[[material]]`).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearElasticCfg {}
+
+#[typetag::serde(name = "linear_elastic")]
+impl LawCfg for LinearElasticCfg {
+    fn validate(&self, _mat: &Material) -> std::result::Result<(), (String, String)> {
+        Ok(())
+    }
+    fn is_linear_elastic(&self) -> bool {
+        true
+    }
+    fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
+        build_stateful_elastic(region, mat, opts, elems)
+    }
+    fn clone_box(&self) -> Box<dyn LawCfg> {
+        Box::new(self.clone())
     }
 }

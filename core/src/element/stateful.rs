@@ -35,53 +35,10 @@
 //! order, whatever the number of threads.
 use crate::element::block::Block;
 use crate::element::kernel::{Schedule, SharedForces, LANES};
-use crate::element::law::{LawCfg, LinearElastic, MaterialLaw, RegionElems, StatefulOpts};
+use crate::element::law::{MaterialLaw, StatefulOpts};
 use crate::element::{self, Dmat, Material, Shape};
 use crate::ids::ElemId;
 use crate::mesh::CellKind;
-
-/// Builds the stateful blocks of a region for `law` (what a [`LawCfg::build`] calls).
-pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
-    use crate::element::{Q4, T3};
-    let mut out: Vec<Box<dyn Block>> = Vec::new();
-    if !elems.q4.is_empty() {
-        let mut b = StatefulBlock::<Q4, L, 4>::new(region.to_string(), mat, law.clone(), opts);
-        for &(e, x, c) in &elems.q4 {
-            b.push(e, x, c);
-        }
-        out.push(Box::new(b));
-    }
-    if !elems.t3.is_empty() {
-        let mut b = StatefulBlock::<T3, L, 3>::new(region.to_string(), mat, law, opts);
-        for &(e, x, c) in &elems.t3 {
-            b.push(e, x, c);
-        }
-        out.push(Box::new(b));
-    }
-    out
-}
-
-/// `law = { type = "linear_elastic" }`: the default, written out (the elastic constants are
-/// those of the `[[material]]`).
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LinearElasticCfg {}
-
-#[typetag::serde(name = "linear_elastic")]
-impl LawCfg for LinearElasticCfg {
-    fn validate(&self, _mat: &Material) -> Result<(), (String, String)> {
-        Ok(())
-    }
-    fn is_linear_elastic(&self) -> bool {
-        true
-    }
-    fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
-        build_stateful(LinearElastic::new(&mat), region, mat, opts, elems)
-    }
-    fn clone_box(&self) -> Box<dyn LawCfg> {
-        Box::new(self.clone())
-    }
-}
 
 /// Blocks smaller than this run on the calling thread.
 const PAR_MIN_ELEMS: usize = 512;

@@ -21,7 +21,9 @@ use std::hash::{DefaultHasher, Hash, Hasher};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use flem_core::element::block::Block;
 use flem_core::element::model::Model;
-use flem_core::element::{self, Dmat, Plane, Shape, Q4, T3};
+use flem_core::element::{self, Dmat, Plane, Shape};
+
+use crate::elements::{Q4, T3};
 use flem_core::mesh::CellKind;
 
 /// Hash of everything the pattern and the matrix values depend on: number of clusters, fixity
@@ -250,7 +252,8 @@ fn scatter<S: Shape<N>, const N: usize>(blk: &dyn Block, eq: &[usize], cp: &[usi
 
 #[cfg(test)]
 mod tests {
-    use flem_core::element::{Material, Plane, Q4, T3};
+    use crate::elements::{Q4, T3};
+    use flem_core::element::{Material, Plane};
 
     /// The written-out `B^T D B` stiffness equals the column-by-column one of the core
     /// (`element::stiffness`, built from the force kernel). Reference: that function;

@@ -18,11 +18,11 @@
 //! against the external force on free dofs, 1e-9 of their scale); a failed check, a change of
 //! fixities, or a capacitance above 2000 columns falls back to a fresh factorisation, whose
 //! failure (a fragment without support, a hinge) is named by the check solver's own messages.
+use crate::elements::{Q4, T3};
 use faer::prelude::*;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::{Mat, Side};
 use flem_core::element::model::Model;
-use flem_core::element::{Q4, T3};
 use flem_core::mesh::CellKind;
 use flem_core::plugin::check::EventsFactor;
 use flem_core::FlemError;

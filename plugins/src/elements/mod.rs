@@ -1,10 +1,54 @@
-//! Element kinds beyond core's `q4` and `t3` (the element trait: `flem_core::element::kernel::
-//! Blocked`; the registry: `flem_core::element::registry`; docs/elements.md). Each file is one
-//! element and one `inventory::submit!` registration line, chosen by
-//! `[[material]] element = "name"`.
+//! Element kinds (the element trait: `flem_core::element::kernel::Blocked`; the registry:
+//! `flem_core::element::registry`; docs/elements.md). Each file is one element and one
+//! `inventory::submit!` registration line, chosen by `[[material]] element = "name"`; `q4` and
+//! `t3` are the defaults of their cell types (the paper's elements).
+pub mod q4;
 pub mod qm6;
+pub mod t3;
 
+pub use q4::Q4;
 pub use qm6::Qm6;
+pub use t3::T3;
+
+use flem_core::element::block::Block;
+use flem_core::element::law::{MaterialLaw, RegionElems, StatefulOpts};
+use flem_core::element::registry::stateful_block;
+use flem_core::element::Material;
+use flem_core::mesh::CellKind;
+
+/// The stateful blocks of a region for a law defined in a plugin (what its `LawCfg::build`
+/// calls): one block per element kind present, monomorphised per (kind, law). The kinds known
+/// here are the built-ins with a stateful kernel (`q4` with B-bar, `t3`); a kind without one
+/// builds nothing, and `Model::new` then refuses the scene naming `material[i].element`. (The
+/// linear elastic law, a core law, reaches every kind through its registration instead:
+/// `ElementKind::stateful_elastic`.)
+pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
+    let mut out = Vec::new();
+    for cell in [CellKind::Q4, CellKind::T3] {
+        let b = match elems.kind_of(cell) {
+            "q4" => stateful_block::<Q4, L, 4>(law.clone(), region, mat, opts, elems),
+            "t3" => stateful_block::<T3, L, 3>(law.clone(), region, mat, opts, elems),
+            _ => None,
+        };
+        out.extend(b);
+    }
+    out
+}
+
+/// The integrand at one Gauss point: strain from the displacement derivatives along the
+/// parent axes, stress, and the stress pulled back to the parent axes (unscaled by 1/det J,
+/// which cancels against the Gauss weight's det J): `(P_x,s, P_x,e, P_y,s, P_y,e)`.
+#[inline(always)]
+pub(crate) fn parent_stress(j: [f64; 4], inv: f64, du: [f64; 4], d: &[f64; 3]) -> (f64, f64, f64, f64) {
+    let [j11, j12, j21, j22] = j;
+    let [uxs, uxe, uys, uye] = du;
+    let [d11, d12, d33] = *d;
+    let exx = inv * (j22 * uxs - j12 * uxe);
+    let eyy = inv * (j11 * uye - j21 * uys);
+    let gxy = inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs));
+    let (sxx, syy, sxy) = (d11 * exx + d12 * eyy, d12 * exx + d11 * eyy, d33 * gxy);
+    (j22 * sxx - j21 * sxy, j11 * sxy - j12 * sxx, j22 * sxy - j21 * syy, j11 * syy - j12 * sxy)
+}
 
 #[cfg(test)]
 mod tests;

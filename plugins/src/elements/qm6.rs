@@ -54,7 +54,9 @@
 //! ```
 use flem_core::element::kernel::{Blocked, LANES};
 use flem_core::element::registry::ElementKind;
-use flem_core::element::{gradients, Dmat, Shape, Q4};
+use flem_core::element::{gradients, Dmat, Shape};
+
+use super::Q4;
 use flem_core::mesh::CellKind;
 
 /// The incompatible-mode quadrilateral (see the module doc).

@@ -6,7 +6,7 @@
 //! blocked kernel; any other law (or `[solver] large_strain = true`) runs in a stateful block
 //! (`flem_core::element::stateful`: per-point stress and history, B-bar on Q4).
 //!
-//! Built-ins: `linear_elastic` (in core: `flem_core::element::stateful::LinearElasticCfg`),
+//! Built-ins: `linear_elastic` (in core: `flem_core::element::model::LinearElasticCfg`),
 //! `mohr_coulomb` (this folder). docs/materials.md has the equations and the verification.
 pub mod mohr_coulomb;
 

@@ -50,9 +50,9 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
+use crate::elements::build_stateful;
 use flem_core::element::block::Block;
 use flem_core::element::law::{LawCfg, MaterialLaw, RegionElems, StatefulOpts};
-use flem_core::element::stateful::build_stateful;
 use flem_core::element::{Dmat, Material, Plane};
 
 /// `law = { type = "mohr_coulomb", ... }` (see the module docs).
