@@ -325,3 +325,108 @@ fn qm6_forces_bit_identical_across_threads() {
     assert!(f1.iter().zip(&f2).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits()));
     assert!(f1.iter().any(|f| f[0] != 0.0));
 }
+
+/// A scene on the distorted 6 x 5 patch mesh with `element = "qm6"` and the `mohr_coulomb` law
+/// at a cohesion no stress reaches (an elastic law run by the stateful block).
+fn stateful_qm6(plane: &str, bbar: bool) -> Simulation {
+    sim(&format!(
+        "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.5\nnx = 6\nny = 5\ndistort = 0.25\n[model]\nplane = \"{plane}\"\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nthickness = 0.7\nelement = \"qm6\"\nbbar = {bbar}\nlaw = {{ type = \"mohr_coulomb\", cohesion = 1e9, friction_angle_deg = 0.0 }}\n[[stage]]\nlevels = {{}}\n"
+    ))
+}
+
+/// Patch test of the stateful qm6 block (incompatible modes condensed with the elastic moduli,
+/// `StatefulBlock::with_enhanced`) with an elastic law (`mohr_coulomb` far from yield, which
+/// needs plane strain), B-bar on and off, on the distorted mesh. Reference: the exact linear field and `D eps`. Tolerance 1e-12
+/// relative: (A) zero internal force at every interior node under the exact nodal values,
+/// (B) the stress of every Gauss point after the one-step update equal to `D eps`.
+#[test]
+fn stateful_qm6_patch_test() {
+    for plane in ["strain"] {
+        for bbar in [false, true] {
+            let mut s = stateful_qm6(plane, bbar);
+            assert!(s.model.stateful && s.model.blocks.iter().all(|b| b.element() == "qm6" && !b.isoparametric()));
+            let x0 = s.model.cluster_x0();
+            let u: Vec<[f64; 2]> = x0.iter().map(|&x| u_lin(x)).collect();
+            let mut f = vec![[0.0; 2]; u.len()];
+            s.model.update_internal_forces(&u, &mut f);
+            let d = s.model.blocks[0].material().dmat();
+            let want = d.stress(EPS);
+            let t = 0.7;
+            let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs())) * t * 0.25;
+            for (c, x) in x0.iter().enumerate() {
+                let interior = x[0] > 1e-9 && x[0] < 2.0 - 1e-9 && x[1] > 1e-9 && x[1] < 1.5 - 1e-9;
+                if interior {
+                    assert!(f[c][0].abs() < 1e-12 * scale && f[c][1].abs() < 1e-12 * scale, "{plane} bbar {bbar}: node {c} force {:?}", f[c]);
+                }
+            }
+            let ps = s.model.blocks[0].point_stress().expect("stateful block keeps its point stress");
+            assert_eq!(ps.len(), 4 * s.model.n_elems());
+            for p in ps {
+                for k in 0..3 {
+                    assert!((p[k] - want[k]).abs() <= 1e-12 * want[0].abs(), "{plane} bbar {bbar}: {p:?} vs {want:?}");
+                }
+            }
+        }
+    }
+}
+
+/// The stateful qm6 block (elastic law, B-bar off) gives the forces of the stateless qm6
+/// kernel (`f = K u` with the condensed K) for a random displacement in one step: with
+/// `alpha = H u` the force `sum (B + G H)^T D (B + G H) u` is `K u` exactly in exact
+/// arithmetic. Reference: the stateless block; tolerance 1e-12 relative.
+#[test]
+fn stateful_qm6_equals_the_stateless_qm6() {
+    let lin = sim("[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.5\nnx = 6\nny = 5\ndistort = 0.25\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nthickness = 0.7\nelement = \"qm6\"\n[[stage]]\nlevels = {}\n");
+    let mut st = stateful_qm6("strain", false);
+    assert!(!lin.model.stateful && lin.model.blocks[0].element() == "qm6");
+    let n = lin.state.u.len();
+    let u: Vec<[f64; 2]> = (0..n).map(|i| [1e-4 * ((i * 7919) % 13) as f64, -1e-4 * ((i * 104729) % 11) as f64]).collect();
+    let (mut f1, mut f2) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
+    lin.model.internal_forces(&u, &mut f1);
+    st.model.update_internal_forces(&u, &mut f2);
+    let scale = f1.iter().map(|f| f[0].abs().max(f[1].abs())).fold(0.0, f64::max);
+    for c in 0..n {
+        for d in 0..2 {
+            assert!((f1[c][d] - f2[c][d]).abs() < 1e-12 * scale, "{c} {d}: {:?} {:?}", f1[c], f2[c]);
+        }
+    }
+    // The implicit check's stiffness of the stateful block is qm6's condensed K.
+    let (mut k1, mut k2) = (vec![0.0; 64], vec![0.0; 64]);
+    lin.model.blocks[0].stiffness(3, &mut k1);
+    st.model.blocks[0].stiffness(3, &mut k2);
+    let km = k1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(k1.iter().zip(&k2).all(|(a, b)| (a - b).abs() < 1e-12 * km));
+}
+
+/// qm6 with a stateful law and `[solver] large_strain` is refused naming the key (the
+/// large-strain path has no incompatible modes).
+#[test]
+fn stateful_qm6_refuses_large_strain() {
+    let text = "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.0\nnx = 2\nny = 1\n[solver]\nlarge_strain = true\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nelement = \"qm6\"\n[[stage]]\nlevels = {}\n";
+    let e = Simulation::new(crate::common::scene(text)).err().expect("refused").to_string();
+    assert!(e.contains("material[0].element") && e.contains("qm6"), "{e}");
+}
+
+/// configs/verification/strip_footing.toml (smooth rigid strip footing on weightless Tresca
+/// soil, c = 1, half model, b = 1) with `element = "qm6"` in the stateful block. Reference:
+/// Prandtl's limit pressure (2 + pi) c = 5.1416; tolerance 3 % on the peak of
+/// |reaction_footing_y| / b (measured 5.241, +1.9 %; q4 with B-bar gives 5.247).
+#[test]
+fn strip_footing_tresca_with_stateful_qm6() {
+    let text = std::fs::read_to_string(root().join("configs/verification/strip_footing.toml")).unwrap().replacen("density = 1.0\n", "density = 1.0\nelement = \"qm6\"\n", 1);
+    assert!(text.contains("element = \"qm6\""));
+    let mut s = sim(&text);
+    assert!(s.model.stateful && s.model.blocks.iter().all(|b| b.element() == "qm6"));
+    struct Peak(Vec<flem_core::ids::PointId>, f64);
+    impl flem_core::solver::Observer for Peak {
+        fn history(&mut self, s: &Simulation, _stage: usize) -> flem_core::Result<()> {
+            self.1 = self.1.max(s.reaction(&self.0)[1].abs());
+            Ok(())
+        }
+    }
+    let pts = s.model.node_set("footing", "test", "test").unwrap();
+    let mut obs = Peak(pts, 0.0);
+    s.run(&mut obs).unwrap_or_else(|e| panic!("{e}"));
+    let prandtl = 2.0 + std::f64::consts::PI;
+    assert!((obs.1 - prandtl).abs() / prandtl < 0.03, "footing pressure {} vs Prandtl {prandtl}", obs.1);
+}

@@ -17,6 +17,11 @@
 //! footing's limit load with and without). `[[material]] bbar = false` turns it off. A T3
 //! has one point: B-bar changes nothing (and a T3 mesh locks: use Q4 for plastic flow).
 //!
+//! Incompatible modes (`with_enhanced`, an element kind that has them: `qm6`): the strain of a
+//! point adds the modes' `G alpha` with `alpha = H u` condensed once with the elastic moduli,
+//! and the force is `(B + G H)^T sigma` ([`Enhanced`]; docs/elements.md says why the elastic
+//! condensation). Exactly the stateless element while the law is elastic; small strain only.
+//!
 //! Large strain (`[solver] large_strain = true`): updated Lagrangian. The strain increment and
 //! the spin are taken on the mid-step configuration `x0 + (u_n + u_{n+1}) / 2`, the stress is
 //! first rotated by the Hughes-Winget (1980) increment `Q = (I - W/2)^-1 (I + W/2)` of the
@@ -69,7 +74,58 @@ pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
     corner_gp: [usize; N],
     sched: Schedule,
     omega_bound: std::sync::OnceLock<f64>,
+    /// Incompatible modes of the element kind, if it has them (`with_enhanced`).
+    enh_fn: Option<(&'static str, EnhancedFn<N>)>,
+    enh: Vec<Enhanced<N>>,
     _s: std::marker::PhantomData<S>,
+}
+
+/// Incompatible (enhanced) modes of one element for the stateful block, from an element kind
+/// that has them (`qm6`, flem-plugins/src/elements/qm6.rs). Two modes ("bubbles") per element,
+/// seen as two extra nodes: `h` row `m` gives the parameter `alpha[m / 2][m % 2] = sum_a
+/// h[m][a] . u_a` of the element displacements (condensed once with the elastic moduli), `g[k]`
+/// the two modes' Cartesian gradients at Gauss point `k`. The strain of a point is then
+/// `B u + G alpha` and the force `f = sum_gp w det J t (B + G H)^T sigma`.
+#[derive(Clone, Copy, Debug)]
+pub struct Enhanced<const N: usize> {
+    pub h: [[[f64; 2]; N]; 4],
+    pub g: [[[f64; 2]; 2]; 4],
+}
+
+/// Builds the [`Enhanced`] data of an element from its corners, the elastic D and thickness.
+pub type EnhancedFn<const N: usize> = fn(&[[f64; 2]; N], &Dmat, f64) -> Enhanced<N>;
+
+const NO_MEAN: [[f64; 2]; 2] = [[0.0; 2]; 2];
+
+/// The modes' parameters `alpha = H u`.
+#[inline(always)]
+fn modes<const N: usize>(h: &[[[f64; 2]; N]; 4], u: &[[f64; 2]; N]) -> [[f64; 2]; 2] {
+    let mut al = [[0.0; 2]; 2];
+    for m in 0..4 {
+        let mut s = 0.0;
+        for a in 0..N {
+            s += h[m][a][0] * u[a][0] + h[m][a][1] * u[a][1];
+        }
+        al[m / 2][m % 2] = s;
+    }
+    al
+}
+
+/// `f += H^T fa`: the modes' forces carried to the nodes.
+#[inline(always)]
+fn add_modes_force<const N: usize>(h: &[[[f64; 2]; N]; 4], fa: &[[f64; 2]; 2], f: &mut [[f64; 2]; N]) {
+    for m in 0..4 {
+        let v = fa[m / 2][m % 2];
+        for a in 0..N {
+            f[a][0] += h[m][a][0] * v;
+            f[a][1] += h[m][a][1] * v;
+        }
+    }
+}
+
+#[inline(always)]
+fn add3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
 /// A raw view of a per-element array written by disjoint element ranges (chunks) at once.
@@ -175,8 +231,19 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             corner_gp,
             sched: Schedule::default(),
             omega_bound: std::sync::OnceLock::new(),
+            enh_fn: None,
+            enh: Vec::new(),
             _s: std::marker::PhantomData,
         }
+    }
+
+    /// The block of an element kind with incompatible modes (see [`Enhanced`]): `name` is the
+    /// kind's registered name, `f` builds each element's modes when the block is prepared. The
+    /// modes are condensed with the elastic moduli (a fixed `alpha = H u` per element; why:
+    /// docs/elements.md). Small strain only (the large-strain path has no modes).
+    pub fn with_enhanced(mut self, name: &'static str, f: EnhancedFn<N>) -> Self {
+        self.enh_fn = Some((name, f));
+        self
     }
 
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
@@ -206,10 +273,23 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let ng = S::GAUSS.len();
         let gb = self.bbar().then_some(&self.gbar[i]);
         let mut f = [[0.0; 2]; N];
+        let enh = self.enh.get(i);
+        let al = enh.map(|en| modes(&en.h, ue));
+        let mut fa = [[0.0; 2]; 2];
         for k in 0..ng {
             let g = &self.gp_g[i * ng + k];
-            let s = self.d.stress(strain_bar(g, gb, ue));
+            let mut e = strain_bar(g, gb, ue);
+            if let (Some(en), Some(al)) = (enh, &al) {
+                e = add3(e, strain_bar(&en.g[k], self.bbar().then_some(&NO_MEAN), al));
+            }
+            let s = self.d.stress(e);
             add_force(g, gb, s, self.gp_w[i * ng + k], &mut f);
+            if let Some(en) = enh {
+                add_force(&en.g[k], self.bbar().then_some(&NO_MEAN), s, self.gp_w[i * ng + k], &mut fa);
+            }
+        }
+        if let Some(en) = enh {
+            add_modes_force(&en.h, &fa, &mut f);
         }
         f
     }
@@ -261,9 +341,15 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             }
         } else {
             let gb = bbar.then_some(&self.gbar[i]);
+            let enh = self.enh.get(i);
+            let dal = enh.map(|en| modes(&en.h, &du));
+            let mut fa = [[0.0; 2]; 2];
             for k in 0..ng {
                 let g = &self.gp_g[i * ng + k];
-                let e = strain_bar(g, gb, &du);
+                let mut e = strain_bar(g, gb, &du);
+                if let (Some(en), Some(dal)) = (enh, &dal) {
+                    e = add3(e, strain_bar(&en.g[k], bbar.then_some(&NO_MEAN), dal));
+                }
                 let s = &mut st[k];
                 let old = *s;
                 let de = [e[0], e[1], e[2], 0.0];
@@ -271,6 +357,12 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 let c = self.gp_w[i * ng + k];
                 w_acc += c * 0.5 * ((old[0] + s[0]) * de[0] + (old[1] + s[1]) * de[1] + (old[2] + s[2]) * de[2]);
                 add_force(g, gb, [s[0], s[1], s[2]], c, &mut f);
+                if let Some(en) = enh {
+                    add_force(&en.g[k], bbar.then_some(&NO_MEAN), [s[0], s[1], s[2]], c, &mut fa);
+                }
+            }
+            if let Some(en) = enh {
+                add_modes_force(&en.h, &fa, &mut f);
             }
         }
         *work += w_acc;
@@ -358,6 +450,10 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         }
         let t = self.mat.thickness;
         self.gp_w.iter_mut().for_each(|w| *w *= t);
+        if let Some((_, f)) = self.enh_fn {
+            let d = self.d;
+            self.enh = self.x.iter().map(|x| f(x, &d, t)).collect();
+        }
         self.sched = Schedule::build(&self.conn, n_clusters);
     }
     fn memory_bytes(&self) -> usize {
@@ -368,6 +464,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
             + self.stress.capacity() * 32
             + (self.hist.capacity() + self.work.capacity() + self.gp_w.capacity()) * 8
             + self.gp_g.capacity() * size_of::<[[f64; 2]; N]>()
+            + self.enh.capacity() * size_of::<Enhanced<N>>()
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         for i in range {
@@ -453,6 +550,13 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
     }
     fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
         Some(self.work.iter().sum())
+    }
+    fn element(&self) -> &'static str {
+        self.enh_fn.map_or_else(|| element::default_kind(S::KIND), |(name, _)| name)
+    }
+    /// A block with modes has a condensed stiffness (`stiffness`), not the plain `B^T D B`.
+    fn isoparametric(&self) -> bool {
+        self.enh_fn.is_none()
     }
     fn state_len(&self) -> usize {
         self.u_prev.len() * 2 * N + self.stress.len() * 4 + self.hist.len() + self.work.len()

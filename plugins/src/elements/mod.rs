@@ -18,7 +18,7 @@ use flem_core::mesh::CellKind;
 
 /// The stateful blocks of a region for a law defined in a plugin (what its `LawCfg::build`
 /// calls): one block per element kind present, monomorphised per (kind, law). The kinds known
-/// here are the built-ins with a stateful kernel (`q4` with B-bar, `t3`); a kind without one
+/// here are the built-ins with a stateful kernel (`q4` with B-bar, `t3`, `qm6`); a kind without one
 /// builds nothing, and `Model::new` then refuses the scene naming `material[i].element`. (The
 /// linear elastic law, a core law, reaches every kind through its registration instead:
 /// `ElementKind::stateful_elastic`.)
@@ -28,6 +28,7 @@ pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts:
         let b = match elems.kind_of(cell) {
             "q4" => stateful_block::<Q4, L, 4>(law.clone(), region, mat, opts, elems),
             "t3" => stateful_block::<T3, L, 3>(law.clone(), region, mat, opts, elems),
+            "qm6" => qm6::stateful::<L>(law.clone(), region, mat, opts, elems),
             _ => None,
         };
         out.extend(b);

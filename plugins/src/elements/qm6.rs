@@ -52,9 +52,12 @@
 //! density = 1.0
 //! element = "qm6"
 //! ```
+use flem_core::element::block::Block;
 use flem_core::element::kernel::{Blocked, LANES};
+use flem_core::element::law::{LinearElastic, MaterialLaw, RegionElems, StatefulOpts};
 use flem_core::element::registry::ElementKind;
-use flem_core::element::{gradients, Dmat, Shape};
+use flem_core::element::stateful::{Enhanced, StatefulBlock};
+use flem_core::element::{gradients, Dmat, Material, Shape};
 
 use super::Q4;
 use flem_core::mesh::CellKind;
@@ -63,7 +66,7 @@ use flem_core::mesh::CellKind;
 #[derive(Copy, Clone, Default, Debug)]
 pub struct Qm6;
 
-inventory::submit! { ElementKind::new::<Qm6, 4>("ours: Q4 with incompatible modes (Wilson-Taylor QM6), condensed per element; no bending locking") }
+inventory::submit! { ElementKind::new::<Qm6, 4>("ours: Q4 with incompatible modes (Wilson-Taylor QM6), condensed per element; no bending locking").with_stateful_elastic(stateful::<LinearElastic>) }
 
 impl Shape<4> for Qm6 {
     const KIND: CellKind = CellKind::Q4;
@@ -114,6 +117,12 @@ fn bmat<const M: usize>(g: &[[f64; 2]; M]) -> Bmat<M> {
 /// Q4's `B` and the corrected bubble `G` (as two "nodes") at `xi`, and `det J(xi)`.
 fn b_and_g(x: &[[f64; 2]; 4], xi: [f64; 2]) -> (Bmat<4>, Bmat<2>, f64) {
     let (g, det) = gradients::<Q4, 4>(x, xi);
+    let gb = bubble_gradients(x, xi, det);
+    (bmat(&g), bmat(&gb), det)
+}
+
+/// The two bubbles' Cartesian gradients at `xi` with Taylor's correction (`det` = det J(xi)).
+fn bubble_gradients(x: &[[f64; 2]; 4], xi: [f64; 2], det: f64) -> [[f64; 2]; 2] {
     // J0 at the centre: rows d/dxi, d/deta of (x, y).
     let dn0 = <Q4 as Shape<4>>::dn([0.0, 0.0]);
     let (mut j11, mut j12, mut j21, mut j22) = (0.0, 0.0, 0.0, 0.0);
@@ -126,11 +135,37 @@ fn b_and_g(x: &[[f64; 2]; 4], xi: [f64; 2]) -> (Bmat<4>, Bmat<2>, f64) {
     // (det J0 / det J) J0^-1 = adj J0 / det J (Taylor's correction).
     let s = 1.0 / det;
     let nat = [[-2.0 * xi[0], 0.0], [0.0, -2.0 * xi[1]]];
-    let gb: [[f64; 2]; 2] = std::array::from_fn(|k| {
+    std::array::from_fn(|k| {
         let [dxi, deta] = nat[k];
         [s * (j22 * dxi - j12 * deta), s * (-j21 * dxi + j11 * deta)]
-    });
-    (bmat(&g), bmat(&gb), det)
+    })
+}
+
+/// The element's modes for the stateful block (`StatefulBlock::with_enhanced`): `H` of the
+/// elastic condensation (`matrices`) and the corrected bubble gradients at the 2 x 2 points.
+pub fn enhanced(x: &[[f64; 2]; 4], d: &Dmat, t: f64) -> Enhanced<4> {
+    let (_, h) = matrices(x, d, t);
+    Enhanced {
+        h: std::array::from_fn(|m| std::array::from_fn(|a| [h[m][2 * a], h[m][2 * a + 1]])),
+        g: std::array::from_fn(|k| {
+            let xi = <Q4 as Shape<4>>::GAUSS[k].0;
+            bubble_gradients(x, xi, gradients::<Q4, 4>(x, xi).1)
+        }),
+    }
+}
+
+/// The stateful qm6 block of law `L` over the region's quadrilaterals (`None` without any, or
+/// with `[solver] large_strain`, which has no modes: `Model::new` then refuses naming
+/// `material[i].element`).
+pub fn stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Option<Box<dyn Block>> {
+    if opts.large_strain || elems.q4.is_empty() {
+        return None;
+    }
+    let mut b = StatefulBlock::<Qm6, L, 4>::new(region.to_string(), mat, law, opts).with_enhanced(<Qm6 as Blocked<4>>::NAME, enhanced);
+    for &(e, x, c) in &elems.q4 {
+        b.push(e, x, c);
+    }
+    Some(Box::new(b))
 }
 
 fn dfull(d: &Dmat) -> [[f64; 3]; 3] {
