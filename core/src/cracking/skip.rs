@@ -48,6 +48,8 @@ pub struct Skip {
     valid: bool,
     /// Number of clusters and of cuts at the reference (a split elsewhere invalidates it).
     at: (usize, usize),
+    /// Corners of every element when all have as many (4, 3), else 0.
+    uniform: u8,
 }
 
 /// `1 + sqrt 2`: the bound of a principal value's move per unit of the stress components'.
@@ -146,9 +148,18 @@ impl Skip {
         self.ensure_lip(model);
         let first = &topo.elem_first_copy;
         self.allowed.clear();
-        self.allowed.extend(
-            (0..first.len() - 1).map(|e| (first[e] as usize..first[e + 1] as usize).map(|k| margin[topo.copy_cluster[k].idx()] / (PRINCIPAL_FACTOR * self.lip[k])).fold(f64::INFINITY, f64::min)),
-        );
+        // The round-off allowance `ROUND max |u|` (both states) is split: `ROUND max |u_ref|`
+        // comes off the allowance here, `ROUND max |du|` is added at the check
+        // (`|u| <= |u_ref| + |du|`).
+        self.allowed.extend((0..first.len() - 1).map(|e| {
+            let ks = first[e] as usize..first[e + 1] as usize;
+            let mag = ks.clone().map(|k| u[topo.copy_cluster[k].idx()]).fold(0.0f64, |a, x| a.max(x[0].abs()).max(x[1].abs()));
+            ks.map(|k| margin[topo.copy_cluster[k].idx()] / (PRINCIPAL_FACTOR * self.lip[k])).fold(f64::INFINITY, f64::min) - Self::ROUND * mag
+        }));
+        self.uniform = (0..first.len() - 1).all(|e| first[e + 1] - first[e] == 4) as u8 * 4;
+        if self.uniform == 0 && (0..first.len() - 1).all(|e| first[e + 1] - first[e] == 3) {
+            self.uniform = 3;
+        }
         self.u_ref.clear();
         self.u_ref.extend_from_slice(u);
         self.at = (nc, cuts);
@@ -156,30 +167,55 @@ impl Skip {
     }
 
     /// True when the check at `u` is certified to find no failing point (see the module doc).
-    /// `margin_factor` is 1 (values above 1 make the bound unsafe: tests only).
+    /// `margin_factor` is 1 (values above 1 make the bound unsafe: tests only). Element chunks
+    /// on the model's pool (a logical and: the answer does not depend on the threads).
     pub fn certified(&self, model: &Model, u: &[[f64; 2]], cuts: usize, margin_factor: f64) -> bool {
         let topo = &model.topo;
         if !self.valid || self.at != (topo.n_clusters(), cuts) || u.len() != self.u_ref.len() {
             return false;
         }
-        let (first, cl) = (&topo.elem_first_copy, &topo.copy_cluster);
-        let (ur, allowed) = (&self.u_ref[..], &self.allowed[..]);
-        // One pass over the elements; the first element beyond its allowance ends it.
-        for (e, &a) in allowed.iter().enumerate() {
-            let (mut lo, mut hi, mut mag, mut nan) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2], 0.0f64, false);
-            for c in &cl[first[e] as usize..first[e + 1] as usize] {
-                let (x, r) = (u[c.idx()], ur[c.idx()]);
+        const CHUNK: usize = 8192;
+        let ne = self.allowed.len();
+        let chunk = |k: usize| -> bool {
+            let r = k * CHUNK..((k + 1) * CHUNK).min(ne);
+            match self.uniform {
+                4 => self.pass::<4>(topo, u, r, margin_factor),
+                3 => self.pass::<3>(topo, u, r, margin_factor),
+                _ => self.pass::<0>(topo, u, r, margin_factor),
+            }
+        };
+        let n_chunks = ne.div_ceil(CHUNK);
+        match model.pool.as_deref() {
+            Some(pool) if n_chunks > 1 => {
+                use rayon::prelude::*;
+                pool.install(|| (0..n_chunks).into_par_iter().all(chunk))
+            }
+            _ => (0..n_chunks).all(chunk),
+        }
+    }
+
+    /// The elements `r`: all within their allowance? `N`: the corners of every element (0:
+    /// read them from the topology).
+    #[inline(always)]
+    fn pass<const N: usize>(&self, topo: &crate::mesh::topology::Topology, u: &[[f64; 2]], r: std::ops::Range<usize>, margin_factor: f64) -> bool {
+        let (first, cl, ur) = (&topo.elem_first_copy, &topo.copy_cluster, &self.u_ref[..]);
+        for e in r {
+            let ks = if N == 0 { first[e] as usize..first[e + 1] as usize } else { N * e..N * e + N };
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            let mut nan = false;
+            for c in &cl[ks] {
+                let (x, y) = (u[c.idx()], ur[c.idx()]);
                 for d in 0..2 {
-                    let du = x[d] - r[d];
+                    let du = x[d] - y[d];
                     nan |= du.is_nan();
                     lo[d] = lo[d].min(du);
                     hi[d] = hi[d].max(du);
-                    mag = mag.max(x[d].abs()).max(r[d].abs());
                 }
             }
-            let delta = 0.5 * (hi[0] - lo[0]).max(hi[1] - lo[1]) + Self::ROUND * mag;
+            let half = 0.5 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+            let big = hi[0].max(hi[1]).max(-lo[0]).max(-lo[1]);
             // A NaN displacement (or allowance) is never certified.
-            if nan || !(delta < a * margin_factor) {
+            if nan || !(half + Self::ROUND * big < self.allowed[e] * margin_factor) {
                 return false;
             }
         }
