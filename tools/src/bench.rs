@@ -351,7 +351,9 @@ pub fn step(o: &StepOpts) -> Result<()> {
     // The machine's bandwidth at each thread count, in this run (issue 24: the kernel's
     // effective bandwidth is quoted as a fraction of it).
     let mut triad = Vec::new();
-    for &t in &o.threads {
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // Always one thread and all threads (issue 24), besides the thread counts asked for.
+    for &t in [1, all].iter().chain(&o.threads) {
         let n = if t == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { t };
         if !triad.iter().any(|(k, _)| *k == n) {
             triad.push((n, triad_gb_per_s(n, o.min_time)?));
