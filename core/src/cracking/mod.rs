@@ -72,10 +72,12 @@ pub struct Cracking {
     pub n_skipped: u64,
     skip: skip::Skip,
     margins: Vec<f64>,
-    /// The displacement of the last check when it was skipped (its failure index is computed
-    /// from it on demand: [`Self::failure_index`]); empty when `index` is current.
+    /// The displacement of the last check when it was skipped and a step came after it (its
+    /// failure index is computed from it on demand: [`Self::failure_index`]); saved by
+    /// [`Self::before_step`] only, so that a check every step copies nothing.
     u_skipped: Vec<[f64; 2]>,
     index_stale: bool,
+    u_saved: bool,
 }
 
 impl Cracking {
@@ -118,6 +120,7 @@ impl Cracking {
             margins: Vec::new(),
             u_skipped: Vec::new(),
             index_stale: false,
+            u_saved: false,
         })
     }
 
@@ -133,17 +136,33 @@ impl Cracking {
     /// The failure index of every cluster at the last check, as a check of every point gives
     /// it: `index` itself, or (the last check was skipped, `skip.rs`) computed here from that
     /// check's displacement. What the output writes (VTU, Python, checkpoints).
-    pub fn failure_index(&self, cfg: &CrackingCfg, model: &Model) -> std::borrow::Cow<'_, [f64]> {
+    /// `u`: the current displacement (that of the last check unless a step came after it).
+    pub fn failure_index(&self, cfg: &CrackingCfg, model: &Model, u: &[[f64; 2]]) -> std::borrow::Cow<'_, [f64]> {
         if !self.index_stale {
             return std::borrow::Cow::Borrowed(&self.index);
         }
         let (mut corner, mut nodal, mut counts) = (Vec::new(), Vec::new(), Vec::new());
         // A skipped check only happens with the corner mean (no nonlocal average).
-        model.nodal_stress_with(&self.u_skipped, &mut corner, &mut nodal, &mut counts);
+        let u = if self.u_saved { &self.u_skipped[..] } else { u };
+        model.nodal_stress_with(u, &mut corner, &mut nodal, &mut counts);
         let (mut principal, mut scales, mut checks) = (Vec::new(), Vec::new(), Vec::new());
         let point_mat = &self.point_mat;
         Self::evaluate(cfg, model, &nodal, &self.scale, point_mat, &mut principal, &mut scales, &mut checks).expect("a criterion that gave margins evaluates");
         std::borrow::Cow::Owned(checks.iter().map(|c| c.index).collect())
+    }
+
+    /// Called by the solver before a step changes `u`: after a skipped check whose failure
+    /// index may be read before the next check, keeps that check's `u`. `check_follows`: the
+    /// next check comes right after this step, before anything reads the index (the stage loop
+    /// with a check every step): nothing to keep. (Should the step fail, divergence, the index
+    /// of that skipped check is then evaluated at the diverged `u`: a run that stops with
+    /// `FlemError::Diverged` writes no state.)
+    pub fn before_step(&mut self, u: &[[f64; 2]], check_follows: bool) {
+        if self.index_stale && !self.u_saved && !check_follows {
+            self.u_skipped.clear();
+            self.u_skipped.extend_from_slice(u);
+            self.u_saved = true;
+        }
     }
 
     /// Principal stresses and the criterion at every cluster (the first half of a check).
@@ -216,9 +235,8 @@ impl Cracking {
         if skippable && self.skip.certified(model, u, self.cuts.len(), self.skip_margin_factor) {
             // Every point is certified inside the criterion: no split, and the index of this
             // check is computed only if someone reads it.
-            self.u_skipped.clear();
-            self.u_skipped.extend_from_slice(u);
             self.index_stale = true;
+            self.u_saved = false;
             self.n_skipped += 1;
             return Ok((SplitRecord::default(), Vec::new()));
         }
