@@ -13,6 +13,7 @@
 pub mod events;
 pub mod initiation;
 pub mod nonlocal;
+pub mod skip;
 pub mod weibull;
 
 use crate::cracking::weibull::weibull_scale;
@@ -60,6 +61,23 @@ pub struct Cracking {
     pub cuts: Vec<(u32, Vec<u32>)>,
     /// The nonlocal average (`[cracking] nonlocal`, ours); `None`: the paper's corner mean.
     pub nonlocal: Option<nonlocal::Nonlocal>,
+    /// The certified skip (ours, issue 24, `skip.rs`): on by default (it changes no result);
+    /// `false` evaluates every point at every check.
+    pub certified_skip: bool,
+    /// Multiplies the skip's margins: 1. Tests only (above 1 the bound is unsafe, and
+    /// `tests/skip.rs` shows that its splits then differ).
+    pub skip_margin_factor: f64,
+    /// Checks evaluated in full and checks skipped (certified).
+    pub n_full: u64,
+    pub n_skipped: u64,
+    skip: skip::Skip,
+    margins: Vec<f64>,
+    /// The displacement of the last check when it was skipped and a step came after it (its
+    /// failure index is computed from it on demand: [`Self::failure_index`]); saved by
+    /// [`Self::before_step`] only, so that a check every step copies nothing.
+    u_skipped: Vec<[f64; 2]>,
+    index_stale: bool,
+    u_saved: bool,
 }
 
 impl Cracking {
@@ -94,6 +112,15 @@ impl Cracking {
             n_splits: 0,
             cuts: Vec::new(),
             nonlocal,
+            certified_skip: true,
+            skip_margin_factor: 1.0,
+            n_full: 0,
+            n_skipped: 0,
+            skip: skip::Skip::default(),
+            margins: Vec::new(),
+            u_skipped: Vec::new(),
+            index_stale: false,
+            u_saved: false,
         })
     }
 
@@ -104,6 +131,75 @@ impl Cracking {
             None => model.nodal_stress_with(u, &mut self.corner, out, &mut self.counts),
             Some(nl) => nl.nodal_stress(model, u, out),
         }
+    }
+
+    /// The failure index of every cluster at the last check, as a check of every point gives
+    /// it: `index` itself, or (the last check was skipped, `skip.rs`) computed here from that
+    /// check's displacement. What the output writes (VTU, Python, checkpoints).
+    /// `u`: the current displacement (that of the last check unless a step came after it).
+    pub fn failure_index(&self, cfg: &CrackingCfg, model: &Model, u: &[[f64; 2]]) -> std::borrow::Cow<'_, [f64]> {
+        if !self.index_stale {
+            return std::borrow::Cow::Borrowed(&self.index);
+        }
+        let (mut corner, mut nodal, mut counts) = (Vec::new(), Vec::new(), Vec::new());
+        // A skipped check only happens with the corner mean (no nonlocal average).
+        let u = if self.u_saved { &self.u_skipped[..] } else { u };
+        model.nodal_stress_with(u, &mut corner, &mut nodal, &mut counts);
+        let (mut principal, mut scales, mut checks) = (Vec::new(), Vec::new(), Vec::new());
+        let point_mat = &self.point_mat;
+        Self::evaluate(cfg, model, &nodal, &self.scale, point_mat, &mut principal, &mut scales, &mut checks).expect("a criterion that gave margins evaluates");
+        std::borrow::Cow::Owned(checks.iter().map(|c| c.index).collect())
+    }
+
+    /// Called by the solver before a step changes `u`: after a skipped check whose failure
+    /// index may be read before the next check, keeps that check's `u`. `check_follows`: the
+    /// next check comes right after this step, before anything reads the index (the stage loop
+    /// with a check every step): nothing to keep. (Should the step fail, divergence, the index
+    /// of that skipped check is then evaluated at the diverged `u`: a run that stops with
+    /// `FlemError::Diverged` writes no state.)
+    pub fn before_step(&mut self, u: &[[f64; 2]], check_follows: bool) {
+        if self.index_stale && !self.u_saved && !check_follows {
+            self.u_skipped.clear();
+            self.u_skipped.extend_from_slice(u);
+            self.u_saved = true;
+        }
+    }
+
+    /// Principal stresses and the criterion at every cluster (the first half of a check).
+    #[allow(clippy::too_many_arguments)]
+    fn evaluate(
+        cfg: &CrackingCfg,
+        model: &Model,
+        nodal: &[[f64; 3]],
+        scale: &[f64],
+        point_mat: &[crate::element::Material],
+        principal_out: &mut Vec<Principal>,
+        scales: &mut Vec<f64>,
+        checks: &mut Vec<FailureCheck>,
+    ) -> crate::Result<()> {
+        let nc = model.topo.n_clusters();
+        principal_out.clear();
+        scales.clear();
+        // An isotropic criterion decides on the principal values alone: the sigma1 direction
+        // (an atan2 per point) is computed, and the criterion asked again, only where it fails.
+        let iso = cfg.criterion.isotropic();
+        let szz = |c: usize| point_mat[model.topo.cluster_point[c].idx()].szz(nodal[c]);
+        for c in 0..nc {
+            let s = nodal[c];
+            principal_out.push(if iso { principal_values(s, szz(c)) } else { principal(s, szz(c)) });
+            scales.push(scale[model.topo.cluster_point[c].idx()]);
+        }
+        checks.resize(nc, FailureCheck::default());
+        cfg.criterion.try_check_batch(principal_out, scales, checks).map_err(crate::FlemError::Other)?;
+        if iso {
+            for c in 0..nc {
+                if checks[c].failed() {
+                    principal_out[c] = principal(nodal[c], szz(c));
+                    cfg.criterion.try_check_batch(std::slice::from_ref(&principal_out[c]), std::slice::from_ref(&scales[c]), std::slice::from_mut(&mut checks[c])).map_err(crate::FlemError::Other)?;
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Points (clusters) beyond the criterion at the last check that no split relieved: the
@@ -135,36 +231,39 @@ impl Cracking {
     /// critical first (index descending, then cluster id), at most `max_splits_per_check`.
     /// A plugin that fails or panics (dynamic plugins) gives an error.
     pub fn check(&mut self, cfg: &CrackingCfg, model: &mut Model, u: &[[f64; 2]], x0: &[[f64; 2]], time: f64, step: u64) -> crate::Result<(SplitRecord, Vec<SplitEvent>)> {
+        let skippable = self.certified_skip && self.nonlocal.is_none() && skip::Skip::applies(model);
+        if skippable && self.skip.certified(model, u, self.cuts.len(), self.skip_margin_factor) {
+            // Every point is certified inside the criterion: no split, and the index of this
+            // check is computed only if someone reads it.
+            self.index_stale = true;
+            self.u_saved = false;
+            self.n_skipped += 1;
+            return Ok((SplitRecord::default(), Vec::new()));
+        }
+        self.n_full += 1;
+        self.index_stale = false;
         let mut nodal = std::mem::take(&mut self.nodal);
         self.nodal_stress_of(model, u, &mut nodal);
         self.nodal = nodal;
         let nc = model.topo.n_clusters();
-        self.principal.clear();
-        self.scales.clear();
-        // An isotropic criterion decides on the principal values alone: the sigma1 direction
-        // (an atan2 per point) is computed, and the criterion asked again, only where it fails.
-        let iso = cfg.criterion.isotropic();
         // The material of a point (that of its first copy's element) never changes: its
         // out-of-plane factor is looked up once, not through the blocks at every check.
         if self.point_mat.len() != model.topo.n_points {
             self.point_mat = (0..model.topo.n_points).map(|p| model.material_of(model.topo.copy_elem[model.topo.point_copies.row(p)[0].idx()]).clone()).collect();
         }
-        let szz = |c: usize| self.point_mat[model.topo.cluster_point[c].idx()].szz(self.nodal[c]);
-        for c in 0..nc {
-            let s = self.nodal[c];
-            self.principal.push(if iso { principal_values(s, szz(c)) } else { principal(s, szz(c)) });
-            self.scales.push(self.scale[model.topo.cluster_point[c].idx()]);
-        }
-        self.checks.resize(nc, FailureCheck::default());
-        cfg.criterion.try_check_batch(&self.principal, &self.scales, &mut self.checks).map_err(crate::FlemError::Other)?;
-        if iso {
-            for c in 0..nc {
-                if self.checks[c].failed() {
-                    self.principal[c] = principal(self.nodal[c], szz(c));
-                    cfg.criterion
-                        .try_check_batch(std::slice::from_ref(&self.principal[c]), std::slice::from_ref(&self.scales[c]), std::slice::from_mut(&mut self.checks[c]))
-                        .map_err(crate::FlemError::Other)?;
+        Self::evaluate(cfg, model, &self.nodal, &self.scale, &self.point_mat, &mut self.principal, &mut self.scales, &mut self.checks)?;
+        if skippable {
+            // The margins of this evaluation become the next checks' reference (a split below
+            // invalidates it: the reference records the number of cuts).
+            self.margins.resize(nc, 0.0);
+            let ok = cfg.criterion.margin_batch(&self.principal, &self.scales, &mut self.margins);
+            if ok {
+                for (m, p) in self.margins.iter_mut().zip(&self.principal) {
+                    *m -= skip::Skip::ROUND * (m.abs() + p.s1.abs() + p.s3.abs() + p.s2.abs());
                 }
+                self.skip.set_reference(model, u, &self.margins, self.cuts.len());
+            } else {
+                self.skip.invalidate();
             }
         }
         self.index.resize(nc, 0.0);

@@ -91,7 +91,8 @@ pub fn result_arrays(sim: &Simulation) -> ResultArrays {
     let mut corner = Vec::new();
     m.nodal_stress(&sim.state.u, &mut corner, &mut r.nodal_stress);
     if let Some(cr) = &sim.cracking {
-        let mut idx = cr.index.clone();
+        let cfg = sim.scene.file.cracking.as_ref().expect("cracking config");
+        let mut idx = cr.failure_index(cfg, &sim.model, &sim.state.u).into_owned();
         idx.resize(nc, 0.0);
         r.failure_index = Some(idx);
     }

@@ -163,7 +163,7 @@ impl Checkpoint {
         let st = &sim.state;
         let s = &sim.stats;
         let (cuts, failure_index, n_splits) = match &sim.cracking {
-            Some(c) => (c.cuts.clone(), c.index.clone(), c.n_splits),
+            Some(c) => (c.cuts.clone(), c.failure_index(sim.scene.file.cracking.as_ref().expect("cracking config"), &sim.model, &sim.state.u).into_owned(), c.n_splits),
             None => (Vec::new(), Vec::new(), 0),
         };
         let mut ck = Checkpoint {

@@ -115,6 +115,26 @@ pub trait FailureCriterion: Debug + Send + Sync {
     fn affine_failure(&self, _s0: [f64; 3], _ds: [f64; 3], _szz0: f64, _dszz: f64, _scale: f64, _t0: f64, _t1: f64) -> Option<f64> {
         None
     }
+    /// The certified skip of the failure check (ours, issue 24, `cracking::skip`): a distance
+    /// `rho >= 0` in stress units such that no principal triple `p'` with `|p'.s1 - p.s1|`,
+    /// `|p'.s3 - p.s3|`, `|p'.s2 - p.s2|` all below `rho` fails (any `theta1`, same `scale`),
+    /// in exact arithmetic (the core allows for round-off). `None` (the default; dynamic
+    /// plugins): no bound, the point is evaluated at every check. A wrong (too large) margin
+    /// would skip a failure: `tests/skip.rs` checks each built-in's against its `check`.
+    fn margin(&self, _p: &Principal, _scale: f64) -> Option<f64> {
+        None
+    }
+    /// Batch form of [`Self::margin`] (one dynamic call per check); `false` as soon as a point
+    /// has no margin (then `out` is partly written and the check is not skipped).
+    fn margin_batch(&self, p: &[Principal], scale: &[f64], out: &mut [f64]) -> bool {
+        for i in 0..p.len() {
+            match self.margin(&p[i], scale[i]) {
+                Some(m) => out[i] = m,
+                None => return false,
+            }
+        }
+        true
+    }
 }
 
 /// The smallest `t` in `[t0, t1]` with `g(t) = r(t) + k m(t) - big_k >= 0`, where, for the

@@ -914,6 +914,16 @@ impl Simulation {
     /// ledger only on the steps after which it is read (ratio checks, history rows, snapshots,
     /// the stage's last step). Displacements and velocities are the same either way.
     pub fn step_as(&mut self, full: bool) -> Result<()> {
+        self.step_checked(full, false)
+    }
+
+    /// [`Self::step_as`]; `check_follows`: the caller checks failure right after this step,
+    /// before anything reads the failure index (the stage loop with a check every step), so a
+    /// skipped check's displacement need not be kept (`Cracking::before_step`).
+    fn step_checked(&mut self, full: bool, check_follows: bool) -> Result<()> {
+        if let Some(cr) = self.cracking.as_mut() {
+            cr.before_step(&self.state.u, check_follows);
+        }
         let dt = self.dt;
         self.model.update_internal_forces(&self.state.u, &mut self.state.f_int);
         if self.loads.has_follower || self.loads.has_time {
@@ -1155,7 +1165,7 @@ impl Simulation {
                 || (hist_every > 0 && kn % hist_every == 0)
                 || (snap_every > 0 && kn % snap_every == 0)
                 || (split_snap && check_every > 0 && kn % check_every == 0);
-            self.step_as(full)?;
+            self.step_checked(full, check_every == 1)?;
             k += 1;
             if check_every > 0 && k % check_every == 0 {
                 splits += self.check_failure(obs)?;

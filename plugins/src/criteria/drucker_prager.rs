@@ -171,6 +171,14 @@ impl FailureCriterion for DruckerPrager {
         true
     }
 
+    /// `cap - q` over its largest rate (ours, issue 24): `I1` moves at most `3 rho`, so `cap`
+    /// at most `3 |alpha| rho`; `sqrt(J2)` at most `sqrt(2) rho` (each difference of principal
+    /// values at most `2 rho`).
+    fn margin(&self, p: &Principal, scale: f64) -> Option<f64> {
+        let Some((alpha, k, _)) = self.params() else { return Some(f64::INFINITY) };
+        let (i1, q) = invariants(p);
+        Some((alpha * i1 + k * scale - q) / (3.0 * alpha.abs() + std::f64::consts::SQRT_2))
+    }
     fn check(&self, p: &Principal, scale: f64) -> FailureCheck {
         let Some((alpha, k, phi)) = self.params() else { return holds(0.0) };
         let (i1, q) = invariants(p);

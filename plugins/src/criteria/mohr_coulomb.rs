@@ -132,6 +132,16 @@ impl FailureCriterion for MohrCoulomb {
     /// Closed form for the events solver: the first of the tension cut-off (`m + r = sigma_t`)
     /// and the shear line (`r + m sin(phi) = c cos(phi)`, tension positive), each a root of a
     /// quadratic (`affine_crossing`), for the branches that are on.
+    /// The smaller of the branches' distances (ours, issue 24): tension `s3 + st` (moves
+    /// with `s3` only); shear `h = 2 c cos(phi) - (1 - sin(phi)) s1 + (1 + sin(phi)) s3`, which
+    /// moves at most `(1 - sin(phi)) + (1 + sin(phi)) = 2` per unit move of each principal value.
+    fn margin(&self, p: &Principal, scale: f64) -> Option<f64> {
+        let (c, phi, st) = (self.cohesion * scale, self.phi(), self.tensile_strength * scale);
+        let t = if self.tension { st + p.s3 } else { f64::INFINITY };
+        let h = 2.0 * c * phi.cos() + (p.s1 + p.s3) * phi.sin() - (p.s1 - p.s3);
+        let s = if self.shear { 0.5 * h } else { f64::INFINITY };
+        Some(t.min(s))
+    }
     fn affine_failure(&self, s0: [f64; 3], ds: [f64; 3], _szz0: f64, _dszz: f64, scale: f64, t0: f64, t1: f64) -> Option<f64> {
         let (c, phi, st) = (self.cohesion * scale, self.phi(), self.tensile_strength * scale);
         let t = if self.tension { affine_crossing(s0, ds, 1.0, st, t0, t1) } else { f64::INFINITY };

@@ -50,6 +50,10 @@ impl FailureCriterion for Rankine {
 
     /// Closed form for the events solver: the most tensile principal stress `m + r` reaches
     /// `sigma_t` (`affine_crossing` with `k = 1`).
+    /// Fails at `s3 <= -st`: the distance of `s3` from there (ours, issue 24).
+    fn margin(&self, p: &Principal, scale: f64) -> Option<f64> {
+        Some(self.tensile_strength * scale + p.s3)
+    }
     fn affine_failure(&self, s0: [f64; 3], ds: [f64; 3], _szz0: f64, _dszz: f64, scale: f64, t0: f64, t1: f64) -> Option<f64> {
         Some(affine_crossing(s0, ds, 1.0, self.tensile_strength * scale, t0, t1))
     }

@@ -1,0 +1,238 @@
+//! The certified skip of the failure check (ours, issue 24): a check whose every point is
+//! provably inside the criterion is skipped, so that the splits, their order and the output are
+//! exactly those of evaluating every point, at a fraction of the cost.
+//!
+//! # The bound
+//! The paper's nodal stress (corner mean, METHOD section 3) of a cluster `c` is linear in the
+//! displacement: `sigma_c(u) = 1/n_c sum_{k in c} A_k u_e(k)`, where `A_k` (3 x 2N) maps the
+//! corner displacements of the element `e(k)` of copy `k` to its stress at the copy's corner.
+//! A rigid translation gives no stress (`A_k t = 0`), so with `du = u - u_ref`,
+//!
+//! `|sigma_c(u) - sigma_c(u_ref)|_inf <= max_{k in c} L_k delta_e(k)`,
+//!
+//! `L_k = max_row sum_j |(A_k)_rj|` (the infinity operator norm, computed once per model by
+//! probing the blocks' own `corner_stress` with unit displacements on a distance-2 colouring of
+//! the clusters; it depends on the element geometry only, so splits do not change it) and
+//! `delta_e = max_d (max_i du_id - min_i du_id) / 2` (the half range of the corner
+//! displacement changes, i.e. `du` less its best translation). The in-plane principal values
+//! move at most `(1 + sqrt 2)` times the component bound (`|d(sxx + syy)/2| <= eps`,
+//! `|d r| <= sqrt 2 eps`), and the out-of-plane `szz = nu (sxx + syy)` at most `2 nu <= 1`
+//! times it: so every principal value moves by at most `rho = (1 + sqrt 2) max_k L_k delta_e`.
+//!
+//! The criterion supplies the margin (`FailureCriterion::margin`): a `rho_c` such that no
+//! principal triple within `rho_c` (max norm) of the point's fails. A check is skipped when
+//! `rho < rho_c` at every copy; otherwise it is evaluated in full, which also becomes the new
+//! reference (`u_ref`, margins). A criterion without a margin (the default; dynamic plugins),
+//! a failed point, a split, the nonlocal average (ours; its average spans a radius, not the
+//! element patch), co-rotational or stateful blocks (stress not linear in `u`): no skip.
+//!
+//! Round-off: the margin is cut by `1e-9 (|m| + |s1| + |s3| + |s2|)`, `L_k` raised by `1e-9`
+//! relative, and `delta_e` raised by `1e-9 max |u|` over the element's corners (both states):
+//! this covers the rounding of the nodal stress (`~1e-15 L |u|`), of the translation the
+//! gradients do not annihilate exactly, and of the principal values (`~1e-15 |sigma|`).
+//!
+//! The failure index of a skipped check (VTU output, checkpoints) is computed on demand from the
+//! displacement of that check ([`super::Cracking::failure_index`]), so the output is the same.
+use crate::element::model::Model;
+
+/// Lipschitz constants per copy and the reference of the last full evaluation.
+#[derive(Default)]
+pub struct Skip {
+    /// `(1 + 1e-9) L_k` per copy (empty until first needed).
+    lip: Vec<f64>,
+    /// Allowed `delta` per element: `min_k m_c(k) / ((1 + sqrt 2) L_k)` at the reference.
+    allowed: Vec<f64>,
+    /// Cluster displacements at the reference.
+    u_ref: Vec<[f64; 2]>,
+    /// Whether `allowed` and `u_ref` hold a reference.
+    valid: bool,
+    /// Number of clusters and of cuts at the reference (a split elsewhere invalidates it).
+    at: (usize, usize),
+    /// Corners of every element when all have as many (4, 3), else 0.
+    uniform: u8,
+}
+
+/// `1 + sqrt 2`: the bound of a principal value's move per unit of the stress components'.
+const PRINCIPAL_FACTOR: f64 = 1.0 + std::f64::consts::SQRT_2;
+
+impl Skip {
+    /// The relative round-off allowance of the bound (see the module doc).
+    pub const ROUND: f64 = 1e-9;
+
+    /// Forgets the reference: the next check is evaluated in full.
+    pub fn invalidate(&mut self) {
+        self.valid = false;
+    }
+
+    /// Whether the model's nodal stress is linear in `u` (the bound's premise).
+    pub fn applies(model: &Model) -> bool {
+        !model.corotational && !model.stateful
+    }
+
+    /// `L_k` of every copy (once per model).
+    fn ensure_lip(&mut self, model: &Model) {
+        let topo = &model.topo;
+        let nk = topo.copy_cluster.len();
+        if self.lip.len() == nk {
+            return;
+        }
+        let nc = topo.n_clusters();
+        // Elements of each cluster (CSR), then a greedy distance-2 colouring: no two clusters
+        // of one colour share an element, so a unit displacement on one colour class moves at
+        // most one corner of each element.
+        let mut start = vec![0u32; nc + 1];
+        for c in &topo.copy_cluster {
+            start[c.idx() + 1] += 1;
+        }
+        for i in 0..nc {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut elems = vec![0u32; nk];
+        for (k, c) in topo.copy_cluster.iter().enumerate() {
+            elems[fill[c.idx()] as usize] = topo.copy_elem[k].0;
+            fill[c.idx()] += 1;
+        }
+        let copies = |e: usize| topo.elem_first_copy[e] as usize..topo.elem_first_copy[e + 1] as usize;
+        let mut colour = vec![u32::MAX; nc];
+        let mut stamp: Vec<usize> = Vec::new();
+        let mut n_col = 0u32;
+        for c in 0..nc {
+            for &e in &elems[start[c] as usize..start[c + 1] as usize] {
+                for k in copies(e as usize) {
+                    let col = colour[topo.copy_cluster[k].idx()];
+                    if col != u32::MAX {
+                        stamp[col as usize] = c + 1;
+                    }
+                }
+            }
+            let col = (0..n_col).find(|&q| stamp[q as usize] != c + 1).unwrap_or(n_col);
+            if col == n_col {
+                n_col += 1;
+                stamp.push(0);
+            }
+            colour[c] = col;
+        }
+        let mut sums = vec![[0.0f64; 3]; nk];
+        let (mut u, mut corner) = (vec![[0.0f64; 2]; nc], Vec::new());
+        for col in 0..n_col {
+            for d in 0..2 {
+                for (c, uc) in u.iter_mut().enumerate() {
+                    *uc = [0.0; 2];
+                    if colour[c] == col {
+                        uc[d] = 1.0;
+                    }
+                }
+                model.corner_stresses(&u, &mut corner);
+                for (s, x) in sums.iter_mut().zip(&corner) {
+                    for r in 0..3 {
+                        s[r] += x[r].abs();
+                    }
+                }
+            }
+        }
+        self.lip = sums.iter().map(|s| s[0].max(s[1]).max(s[2]) * (1.0 + Self::ROUND)).collect();
+    }
+
+    /// Takes `u` and the criterion's margins (`margin[c]`, stress units, after the round-off
+    /// cut; `<= 0` or NaN: no skip) as the new reference. `cuts`: the cuts applied so far.
+    pub fn set_reference(&mut self, model: &Model, u: &[[f64; 2]], margin: &[f64], cuts: usize) {
+        self.valid = false;
+        let topo = &model.topo;
+        let nc = topo.n_clusters();
+        // Every cluster must hold with room (a cluster without copies has zero stress and is
+        // covered by its own margin here).
+        if u.len() != nc || margin.len() != nc || !margin.iter().all(|&m| m > 0.0) {
+            return;
+        }
+        self.ensure_lip(model);
+        let first = &topo.elem_first_copy;
+        self.allowed.clear();
+        // The round-off allowance `ROUND max |u|` (both states) is split: `ROUND max |u_ref|`
+        // comes off the allowance here, `ROUND max |du|` is added at the check
+        // (`|u| <= |u_ref| + |du|`).
+        self.allowed.extend((0..first.len() - 1).map(|e| {
+            let ks = first[e] as usize..first[e + 1] as usize;
+            let mag = ks.clone().map(|k| u[topo.copy_cluster[k].idx()]).fold(0.0f64, |a, x| a.max(x[0].abs()).max(x[1].abs()));
+            ks.map(|k| margin[topo.copy_cluster[k].idx()] / (PRINCIPAL_FACTOR * self.lip[k])).fold(f64::INFINITY, f64::min) - Self::ROUND * mag
+        }));
+        self.uniform = (0..first.len() - 1).all(|e| first[e + 1] - first[e] == 4) as u8 * 4;
+        if self.uniform == 0 && (0..first.len() - 1).all(|e| first[e + 1] - first[e] == 3) {
+            self.uniform = 3;
+        }
+        self.u_ref.clear();
+        self.u_ref.extend_from_slice(u);
+        self.at = (nc, cuts);
+        self.valid = true;
+    }
+
+    /// True when the check at `u` is certified to find no failing point (see the module doc).
+    /// `margin_factor` is 1 (values above 1 make the bound unsafe: tests only). Element chunks
+    /// on the model's pool (a logical and: the answer does not depend on the threads).
+    pub fn certified(&self, model: &Model, u: &[[f64; 2]], cuts: usize, margin_factor: f64) -> bool {
+        let topo = &model.topo;
+        if !self.valid || self.at != (topo.n_clusters(), cuts) || u.len() != self.u_ref.len() {
+            return false;
+        }
+        const CHUNK: usize = 8192;
+        let ne = self.allowed.len();
+        let chunk = |k: usize| -> bool {
+            let r = k * CHUNK..((k + 1) * CHUNK).min(ne);
+            match self.uniform {
+                4 => self.pass::<4>(topo, u, r, margin_factor),
+                3 => self.pass::<3>(topo, u, r, margin_factor),
+                _ => self.pass::<0>(topo, u, r, margin_factor),
+            }
+        };
+        let n_chunks = ne.div_ceil(CHUNK);
+        match model.pool.as_deref() {
+            Some(pool) if n_chunks > 1 => {
+                use rayon::prelude::*;
+                pool.install(|| (0..n_chunks).into_par_iter().all(chunk))
+            }
+            _ => (0..n_chunks).all(chunk),
+        }
+    }
+
+    /// The elements `r`: all within their allowance? `N`: the corners of every element (0:
+    /// read them from the topology). Branch-free min/max (`a < b ? a : b`, one instruction);
+    /// a NaN is caught by the sum of the changes instead.
+    #[inline(always)]
+    fn pass<const N: usize>(&self, topo: &crate::mesh::topology::Topology, u: &[[f64; 2]], r: std::ops::Range<usize>, margin_factor: f64) -> bool {
+        let (first, cl, ur) = (&topo.elem_first_copy, &topo.copy_cluster, &self.u_ref[..]);
+        #[inline(always)]
+        fn mn(a: f64, b: f64) -> f64 {
+            if a < b {
+                a
+            } else {
+                b
+            }
+        }
+        #[inline(always)]
+        fn mx(a: f64, b: f64) -> f64 {
+            if a > b {
+                a
+            } else {
+                b
+            }
+        }
+        for e in r {
+            let ks = if N == 0 { first[e] as usize..first[e + 1] as usize } else { N * e..N * e + N };
+            let (mut lo, mut hi, mut sum) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2], 0.0f64);
+            for c in &cl[ks] {
+                let (x, y) = (u[c.idx()], ur[c.idx()]);
+                let du = [x[0] - y[0], x[1] - y[1]];
+                sum += du[0] + du[1];
+                lo = [mn(du[0], lo[0]), mn(du[1], lo[1])];
+                hi = [mx(du[0], hi[0]), mx(du[1], hi[1])];
+            }
+            let half = 0.5 * mx(hi[0] - lo[0], hi[1] - lo[1]);
+            let big = mx(mx(hi[0], hi[1]), mx(-lo[0], -lo[1]));
+            // A NaN (or infinite) displacement, or a NaN allowance, is never certified.
+            if !sum.is_finite() || !(half + Self::ROUND * big < self.allowed[e] * margin_factor) {
+                return false;
+            }
+        }
+        true
+    }
+}
