@@ -16,13 +16,20 @@
 //!
 //! faer 0.24 calls: the lower triangle of `K_ff` is assembled on a pattern built from the
 //! cluster graph (`assemble.rs`: `SymbolicSparseColMat::new_checked`, values scattered in place;
-//! not `try_new_from_triplets`, whose sort cost as much as the factorisation),
-//! `SymbolicLlt::try_new(a.symbolic(), Side::Lower)`; the pattern, the symbolic and the numeric
-//! factorisation are kept and reused while the fingerprint (clusters, fixities, connectivity,
-//! geometry, materials) is unchanged; `Llt::try_new_with_symbolic(sym.clone(), a.as_ref(),
-//! Side::Lower)` and `Llt::solve`. A later stage then costs one right-hand side from the force
-//! kernel and two triangular solves. Element `B^T D B` is written out per block (`assemble.rs`).
-//! `flem bench implicit` (`bench.rs`) times this path against faer's bare Cholesky.
+//! not `try_new_from_triplets`, whose sort cost as much as the factorisation). The fill-reducing
+//! ordering is a geometric nested dissection of the dofs (`factor.rs`, ours; faer's default AMD
+//! cost a quarter of the solve at 5e5 dofs and gives 6 % more fill there), handed to
+//! `cholesky::factorize_symbolic_cholesky(.., SymmetricOrdering::Custom(perm), ..)`; the numeric
+//! factorisation (`SymbolicCholesky::factorize_numeric_llt`) and the triangular solves run on the
+//! calling thread pool (`Par::rayon(n)`, bit-identical whatever `n`). The pattern, the ordering,
+//! the symbolic and the numeric factorisation are kept and reused while the fingerprint
+//! (clusters, fixities, connectivity, geometry, materials) is unchanged: a later stage then costs
+//! one right-hand side from the force kernel and two triangular solves. A fresh solve checks its
+//! residual and takes one step of iterative refinement only when the residual is above
+//! [`REFINE_RESIDUAL`] of the load. Element `B^T D B` is written out per block (`assemble.rs`).
+//! `flem bench implicit` (`bench.rs`) times this path against faer's bare Cholesky (AMD), on
+//! each thread count asked; `tools/peers/implicit_vs_peers.sh` runs it beside CHOLMOD and MKL
+//! Pardiso on the same problem (docs/perf/implicit.md).
 //!
 //! Selected in a scene by the `[check]` section (core/src/plugin/check.rs), which compares every
 //! stage's FLEM equilibrium with this solve:
@@ -36,12 +43,12 @@
 //! Singular systems: a fragment (elements joined through shared clusters, after separation)
 //! whose prescribed dofs cannot stop its three rigid motions (two translations, one rotation) is
 //! named before factorising (a rank test on its prescribed dofs). Other mechanisms (e.g. two
-//! parts joined at a single cluster, a hinge) show as `NonPositivePivot`; faer's `SymbolicLlt`
-//! does not expose its fill-reducing permutation, so the pivot index is not a dof number: the
-//! stiffness is block-diagonal by fragment, so each fragment's block is then factorised alone to
-//! find and name the one that fails. A non-finite solution is reported the same way, and so is a
-//! solution whose one step of iterative refinement changes it by more than 1e-6 relative (a
-//! hinge's pivot can round to a tiny positive value instead of failing: the correction is then
+//! parts joined at a single cluster, a hinge) show as `NonPositivePivot`, whose index counts in
+//! the supernodal elimination order, not dofs: the stiffness is block-diagonal by fragment, so
+//! each fragment's block is then factorised alone to find and name the one that fails. A non-finite solution is reported the same way, and so is a
+//! solution whose residual asks for refinement and whose one refinement step changes it by more
+//! than 1e-6 relative (a hinge's pivot can round to a tiny positive value instead of failing: the
+//! solution is then so large that the residual is of the order of the load and the correction
 //! O(1)).
 use std::sync::Mutex;
 use std::time::Instant;
