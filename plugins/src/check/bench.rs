@@ -127,7 +127,7 @@ pub fn bench_implicit(dofs: &[f64], repeats: usize, threads: &[usize]) -> Result
 
 fn bench_one(d: f64, repeats: usize) -> Result<ImplicitBenchRow, FlemError> {
     let repeats = repeats.max(1);
-    let par = super::factor::par();
+    let par = super::factor::par(d as usize);
     {
         let (m, fix, f, nx, ny) = problem(d)?;
         let zero = vec![[0.0; 2]; f.len()];

@@ -20,10 +20,10 @@
 //! events solver's fresh factorisations reuse it (`extend_ordering`: dofs added by splits go
 //! next to the dof they were split from), so a refactorisation after splits skips the ordering.
 //!
-//! Threads: the numeric factorisation and the triangular solves take `Par::rayon(n)` with the
-//! calling pool's thread count (`rayon::current_num_threads`); faer's supernodal kernels split
-//! work by blocks of the output, so the factor is bit-identical whatever `n` (the unit test
-//! below checks it on 1 and 2 threads).
+//! Threads: from [`PAR_MIN_DOFS`] dofs on, the numeric factorisation and the triangular solves
+//! take `Par::rayon(n)` with the calling pool's thread count (`rayon::current_num_threads`);
+//! faer's supernodal kernels split work by blocks of the output, so the factor is bit-identical
+//! whatever `n` (the unit test below checks it on 1 and 2 threads).
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -39,13 +39,19 @@ use faer::{Conj, MatMut, Par, Side};
 /// minimum degree) gave no less fill at leaves of 48 (56.4 M) and cost a quarter of a second.
 const LEAF: usize = 8;
 
-/// The parallelism of the calling thread pool.
-pub fn par() -> Par {
-    let n = rayon::current_num_threads();
-    if n <= 1 {
+/// Below this many dofs the factorisation and the solves run on one thread: faer's parallel
+/// supernodal tasks cost more than they save on small fronts (the events solver's 2e4-dof plate
+/// ran 25 % slower on two busy cores with them).
+pub const PAR_MIN_DOFS: usize = 100_000;
+
+/// The parallelism for a system of `n` dofs: the calling thread pool's threads from
+/// [`PAR_MIN_DOFS`] on.
+pub fn par(n: usize) -> Par {
+    let t = rayon::current_num_threads();
+    if t <= 1 || n < PAR_MIN_DOFS {
         Par::Seq
     } else {
-        Par::rayon(n)
+        Par::rayon(t)
     }
 }
 
@@ -324,8 +330,8 @@ mod tests {
         let x1 = f1.solve(&b, Par::Seq);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         let (f2, x2) = pool.install(|| {
-            let f = Factor::new(sym.clone(), &a, par()).unwrap();
-            let x = f.solve(&b, par());
+            let f = Factor::new(sym.clone(), &a, Par::rayon(2)).unwrap();
+            let x = f.solve(&b, Par::rayon(2));
             (f, x)
         });
         assert_eq!(f1.values, f2.values, "factor differs between 1 and 2 threads");

@@ -132,7 +132,7 @@ impl KeptFactor {
         let (a, _) = ImplicitSolver::assembled(model, fix, &rhs[0].0, &rhs[0].1);
         let order = self.ordering(model, fix, &eq, n, &a);
         let Ok(sym) = factor::symbolic(a.symbolic(), &order) else { return Err(named(0)) };
-        let Ok(llt) = factor::Factor::new(sym, &a, factor::par()) else { return Err(named(0)) };
+        let Ok(llt) = factor::Factor::new(sym, &a, factor::par(n)) else { return Err(named(0)) };
         let mut out = Vec::new();
         for (i, (f, up)) in rhs.iter().enumerate() {
             let b = assemble::rhs_by_forces(model, &eq, n, fix, f, up);
@@ -239,7 +239,7 @@ impl KeptFactor {
                     zn[(k, q)] = v;
                 }
             }
-            base.llt.solve_in_place(zn.as_mut().subrows_mut(0, base.n0), factor::par());
+            base.llt.solve_in_place(zn.as_mut().subrows_mut(0, base.n0), factor::par(base.n0));
             for q in 0..r_new {
                 base.z.push((0..n).map(|k| zn[(k, q)]).collect());
             }
@@ -250,7 +250,7 @@ impl KeptFactor {
         for (f, up) in rhs {
             let b = assemble::rhs_by_forces(model, &eq, n, fix, f, up);
             let mut y = Mat::<f64>::from_fn(n, 1, |k, _| b[k]);
-            base.llt.solve_in_place(y.as_mut().subrows_mut(0, base.n0), factor::par());
+            base.llt.solve_in_place(y.as_mut().subrows_mut(0, base.n0), factor::par(base.n0));
             let x: Vec<f64> = if r > 0 {
                 let wy = nalgebra::DVector::from_fn(r, |a, _| base.w[a].iter().map(|&(k, x)| x * y[(k, 0)]).sum());
                 let c = lu.solve(&wy)?;

@@ -383,7 +383,7 @@ pub(crate) fn dof_coords(model: &Model, eq: &[usize], n: usize) -> Vec<[f64; 2]>
 /// Numeric LLT on a (reused) symbolic factorisation. `Err(None)`: a non-positive pivot.
 fn factor(sym: Arc<SymbolicCholesky<usize>>, a: &SparseColMat<usize, f64>, tm: &mut Timings) -> Result<factor::Factor, Option<String>> {
     let t0 = Instant::now();
-    let r = match factor::Factor::new(sym, a, factor::par()) {
+    let r = match factor::Factor::new(sym, a, factor::par(a.nrows())) {
         Ok(l) => Ok(l),
         Err(faer::sparse::linalg::LltError::Numeric(_)) => Err(None),
         Err(e) => Err(Some(format!("{e:?}"))),
@@ -404,7 +404,7 @@ pub const REFINE_RESIDUAL: f64 = 1e-10;
 /// epsilon, so a mechanism whose pivot rounds to a tiny positive value is caught).
 fn refined_solve(llt: &factor::Factor, a: &SparseColMat<usize, f64>, rhs: &[f64], refine: bool, tm: &mut Timings) -> Option<Vec<f64>> {
     let t1 = Instant::now();
-    let par = factor::par();
+    let par = factor::par(rhs.len());
     let x = refined_solve_with(|b| llt.solve(b, par), a, rhs, refine);
     tm.solve = t1.elapsed().as_secs_f64();
     x
