@@ -177,6 +177,9 @@ enum BenchWhat {
         /// Repetitions per size (the best time is kept).
         #[arg(long, default_value_t = 2)]
         repeats: usize,
+        /// Thread counts (a pool of each size; faer's factorisation and solves use it).
+        #[arg(long, value_delimiter = ',', default_value = "1,2")]
+        threads: Vec<usize>,
     },
     /// Explicit step throughput: bare kernel (ns per element-update, 1 and N threads, Q4/T3),
     /// memory per element, full step against the bare step, failure checks every k steps.
@@ -563,9 +566,10 @@ fn compare(scene: Scene, out: Option<PathBuf>) -> Result<()> {
 
 fn bench(what: BenchWhat) -> Result<()> {
     match what {
-        BenchWhat::Implicit { dofs, repeats } => {
+        BenchWhat::Implicit { dofs, repeats, threads } => {
             anyhow::ensure!(dofs.iter().all(|&d| d.is_finite() && (8.0..=1e8).contains(&d)), "--dofs: every value must be in [8, 1e8]");
-            let b = flem_plugins::check::bench::bench_implicit(&dofs, repeats)?;
+            anyhow::ensure!(threads.iter().all(|&t| (1..=1024).contains(&t)), "--threads: every value must be in [1, 1024]");
+            let b = flem_plugins::check::bench::bench_implicit(&dofs, repeats, &threads)?;
             println!("{}", serde_json::to_string_pretty(&b)?);
         }
         BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h } => bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h)?,

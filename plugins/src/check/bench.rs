@@ -7,12 +7,15 @@
 //! `ratio_cold` = our first solve / bare, `ratio_warm` = a second solve on the same topology
 //! (pattern, symbolic and numeric factorisations reused, as between the stages of a run without
 //! splits: only the right-hand side is new) / bare. Each time is
-//! the best of `repeats` runs.
+//! the best of `repeats` runs. Each size runs on every thread count asked (`threads`, a rayon
+//! pool of that size; faer's bare path gets the same `Par`). Ours orders by geometric nested
+//! dissection (`factor.rs`), faer's bare path by its own AMD: `nnz_factor` and
+//! `nnz_factor_bare` are the stored entries of each `L`.
 use std::time::Instant;
 
-use faer::prelude::*;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::Side;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymmetricOrdering};
+use faer::{Conj, MatMut, Par, Side};
 use flem_core::element::model::Model;
 use flem_core::element::Plane;
 use flem_core::mesh::{CellKind, Rectangle, ValidationOptions};
@@ -34,12 +37,17 @@ pub struct BareTimings {
 /// One mesh size.
 #[derive(Clone, Debug, Serialize)]
 pub struct ImplicitBenchRow {
+    /// Threads of the pool both paths ran in.
+    pub threads: usize,
     pub nx: usize,
     pub ny: usize,
     pub elements: usize,
     pub dofs: usize,
     /// Stored entries of the lower triangle of `K_ff`.
     pub nnz_lower: usize,
+    /// Stored entries of our factor `L` (nested dissection) and of faer's bare one (AMD).
+    pub nnz_factor: usize,
+    pub nnz_factor_bare: usize,
     pub ours_cold: Timings,
     pub ours_warm: Timings,
     pub bare: BareTimings,
@@ -80,33 +88,51 @@ fn problem(dofs: f64) -> Result<(Model, Vec<u8>, Vec<[f64; 2]>, usize, usize), F
     Ok((m, fix, f, nx, ny))
 }
 
-fn bare(a: &faer::sparse::SparseColMat<usize, f64>, rhs: &[f64]) -> Result<(Vec<f64>, BareTimings), FlemError> {
+/// faer's bare Cholesky (its default AMD ordering; what `SymbolicLlt::try_new` +
+/// `Llt::try_new_with_symbolic` + `solve` do, written with the low-level calls so that the
+/// factor size can be read and the parallelism set). Returns the solution, the times and the
+/// stored entries of `L`.
+fn bare(a: &faer::sparse::SparseColMat<usize, f64>, rhs: &[f64], par: Par) -> Result<(Vec<f64>, BareTimings, usize), FlemError> {
     let err = |e: String| FlemError::Solve(format!("bench: faer's bare Cholesky failed: {e}"));
     let t0 = Instant::now();
-    let sym = SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
+    let sym = factorize_symbolic_cholesky(a.symbolic(), Side::Lower, SymmetricOrdering::Amd, Default::default()).map_err(|e| err(format!("{e:?}")))?;
     let t1 = Instant::now();
-    let llt = Llt::try_new_with_symbolic(sym, a.as_ref(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
+    let mut l = vec![0.0; sym.len_val()];
+    let mut mem = MemBuffer::new(sym.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
+    sym.factorize_numeric_llt::<f64>(&mut l, a.as_ref(), Side::Lower, Default::default(), par, MemStack::new(&mut mem), Default::default()).map_err(|e| err(format!("{e:?}")))?;
     let t2 = Instant::now();
-    let x = llt.solve(Col::<f64>::from_fn(rhs.len(), |i| rhs[i]));
+    let mut x = rhs.to_vec();
+    let mut mem = MemBuffer::new(sym.solve_in_place_scratch::<f64>(1, par));
+    LltRef::new(&sym, &l).solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(&mut x, rhs.len(), 1), par, MemStack::new(&mut mem));
     let t3 = Instant::now();
-    let x: Vec<f64> = (0..rhs.len()).map(|i| x[i]).collect();
     let s = |a: Instant, b: Instant| (b - a).as_secs_f64();
-    Ok((x, BareTimings { symbolic: s(t0, t1), numeric: s(t1, t2), solve: s(t2, t3), total: s(t0, t3) }))
+    Ok((x, BareTimings { symbolic: s(t0, t1), numeric: s(t1, t2), solve: s(t2, t3), total: s(t0, t3) }, l.len()))
 }
 
 fn min_by_total<T: Copy>(v: &[T], total: impl Fn(&T) -> f64) -> T {
     *v.iter().min_by(|a, b| total(a).total_cmp(&total(b))).expect("repeats >= 1")
 }
 
-/// Runs the benchmark for each target number of dofs.
-pub fn bench_implicit(dofs: &[f64], repeats: usize) -> Result<ImplicitBench, FlemError> {
-    let repeats = repeats.max(1);
+/// Runs the benchmark for each target number of dofs and each thread count.
+pub fn bench_implicit(dofs: &[f64], repeats: usize, threads: &[usize]) -> Result<ImplicitBench, FlemError> {
     let mut rows = Vec::new();
     for &d in dofs {
+        for &t in threads {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build().map_err(|e| FlemError::Solve(format!("bench: thread pool of {t}: {e}")))?;
+            rows.push(pool.install(|| bench_one(d, repeats))?);
+        }
+    }
+    Ok(ImplicitBench { what: "implicit check solver vs faer bare sparse Cholesky", repeats: repeats.max(1), goal_ratio: 1.3, rows })
+}
+
+fn bench_one(d: f64, repeats: usize) -> Result<ImplicitBenchRow, FlemError> {
+    let repeats = repeats.max(1);
+    let par = super::factor::par(d as usize);
+    {
         let (m, fix, f, nx, ny) = problem(d)?;
         let zero = vec![[0.0; 2]; f.len()];
         let (mut cold, mut warm, mut bt) = (Vec::new(), Vec::new(), Vec::new());
-        let (mut u_ours, mut x) = (Vec::new(), Vec::new());
+        let (mut u_ours, mut x, mut nnz_bare) = (Vec::new(), Vec::new(), 0);
         let (a, rhs) = ImplicitSolver::assembled(&m, &fix, &f, &zero);
         // Ours and the bare Cholesky alternate, so that a change of load on a shared machine
         // falls on both sides of the ratio.
@@ -116,9 +142,10 @@ pub fn bench_implicit(dofs: &[f64], repeats: usize) -> Result<ImplicitBench, Fle
             cold.push(t);
             warm.push(solver.solve_timed(&m, &fix, &f, &zero)?.1);
             u_ours = u;
-            let (xb, t) = bare(&a, &rhs)?;
+            let (xb, t, nb) = bare(&a, &rhs, par)?;
             bt.push(t);
             x = xb;
+            nnz_bare = nb;
         }
         // Compare the solutions (free dofs in cluster order).
         let mut k = 0;
@@ -133,7 +160,15 @@ pub fn bench_implicit(dofs: &[f64], repeats: usize) -> Result<ImplicitBench, Fle
             }
         }
         let (c, w, b) = (min_by_total(&cold, |t| t.total), min_by_total(&warm, |t| t.total), min_by_total(&bt, |t| t.total));
-        rows.push(ImplicitBenchRow {
+        let nnz_factor = {
+            let (eq, n) = super::number_dofs(&fix);
+            let order = super::factor::nested_dissection(a.symbolic(), &super::dof_coords(&m, &eq, n));
+            super::factor::symbolic(a.symbolic(), &order).map_err(FlemError::Solve)?.len_val()
+        };
+        Ok(ImplicitBenchRow {
+            threads: rayon::current_num_threads(),
+            nnz_factor,
+            nnz_factor_bare: nnz_bare,
             nx,
             ny,
             elements: m.n_elems(),
@@ -145,9 +180,8 @@ pub fn bench_implicit(dofs: &[f64], repeats: usize) -> Result<ImplicitBench, Fle
             ratio_cold: c.total / b.total,
             ratio_warm: w.total / b.total,
             max_rel_difference: diff / scale.max(f64::MIN_POSITIVE),
-        });
+        })
     }
-    Ok(ImplicitBench { what: "implicit check solver vs faer bare sparse Cholesky", repeats, goal_ratio: 1.3, rows })
 }
 
 #[cfg(test)]
@@ -156,7 +190,7 @@ mod tests {
     /// agree to 1e-10 relative (reference: faer's bare Cholesky on the same matrix).
     #[test]
     fn bench_small_mesh_same_solution() {
-        let b = super::bench_implicit(&[2000.0], 1).unwrap();
+        let b = super::bench_implicit(&[2000.0], 1, &[1]).unwrap();
         let r = &b.rows[0];
         assert!(r.dofs > 1500 && r.dofs < 2500, "{r:?}");
         assert!(r.max_rel_difference < 1e-10, "{r:?}");

@@ -16,13 +16,20 @@
 //!
 //! faer 0.24 calls: the lower triangle of `K_ff` is assembled on a pattern built from the
 //! cluster graph (`assemble.rs`: `SymbolicSparseColMat::new_checked`, values scattered in place;
-//! not `try_new_from_triplets`, whose sort cost as much as the factorisation),
-//! `SymbolicLlt::try_new(a.symbolic(), Side::Lower)`; the pattern, the symbolic and the numeric
-//! factorisation are kept and reused while the fingerprint (clusters, fixities, connectivity,
-//! geometry, materials) is unchanged; `Llt::try_new_with_symbolic(sym.clone(), a.as_ref(),
-//! Side::Lower)` and `Llt::solve`. A later stage then costs one right-hand side from the force
-//! kernel and two triangular solves. Element `B^T D B` is written out per block (`assemble.rs`).
-//! `flem bench implicit` (`bench.rs`) times this path against faer's bare Cholesky.
+//! not `try_new_from_triplets`, whose sort cost as much as the factorisation). The fill-reducing
+//! ordering is a geometric nested dissection of the dofs (`factor.rs`, ours; faer's default AMD
+//! cost a quarter of the solve at 5e5 dofs and gives 6 % more fill there), handed to
+//! `cholesky::factorize_symbolic_cholesky(.., SymmetricOrdering::Custom(perm), ..)`; the numeric
+//! factorisation (`SymbolicCholesky::factorize_numeric_llt`) and the triangular solves run on the
+//! calling thread pool (`Par::rayon(n)`, bit-identical whatever `n`). The pattern, the ordering,
+//! the symbolic and the numeric factorisation are kept and reused while the fingerprint
+//! (clusters, fixities, connectivity, geometry, materials) is unchanged: a later stage then costs
+//! one right-hand side from the force kernel and two triangular solves. A fresh solve checks its
+//! residual and takes one step of iterative refinement only when the residual is above
+//! [`REFINE_RESIDUAL`] of the load. Element `B^T D B` is written out per block (`assemble.rs`).
+//! `flem bench implicit` (`bench.rs`) times this path against faer's bare Cholesky (AMD), on
+//! each thread count asked; `tools/peers/implicit_vs_peers.sh` runs it beside CHOLMOD and MKL
+//! Pardiso on the same problem (docs/perf/implicit.md).
 //!
 //! Selected in a scene by the `[check]` section (core/src/plugin/check.rs), which compares every
 //! stage's FLEM equilibrium with this solve:
@@ -36,17 +43,20 @@
 //! Singular systems: a fragment (elements joined through shared clusters, after separation)
 //! whose prescribed dofs cannot stop its three rigid motions (two translations, one rotation) is
 //! named before factorising (a rank test on its prescribed dofs). Other mechanisms (e.g. two
-//! parts joined at a single cluster, a hinge) show as `NonPositivePivot`; faer's `SymbolicLlt`
-//! does not expose its fill-reducing permutation, so the pivot index is not a dof number: the
-//! stiffness is block-diagonal by fragment, so each fragment's block is then factorised alone to
-//! find and name the one that fails. A non-finite solution is reported the same way, and so is a
-//! solution whose one step of iterative refinement changes it by more than 1e-6 relative (a
-//! hinge's pivot can round to a tiny positive value instead of failing: the correction is then
+//! parts joined at a single cluster, a hinge) show as `NonPositivePivot`, whose index counts in
+//! the supernodal elimination order, not dofs: the stiffness is block-diagonal by fragment, so
+//! each fragment's block is then factorised alone to find and name the one that fails. A non-finite solution is reported the same way, and so is a
+//! solution whose residual asks for refinement and whose one refinement step changes it by more
+//! than 1e-6 relative (a hinge's pivot can round to a tiny positive value instead of failing: the
+//! solution is then so large that the residual is of the order of the load and the correction
 //! O(1)).
 use std::sync::Mutex;
 use std::time::Instant;
 
+use std::sync::Arc;
+
 use faer::prelude::*;
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use faer::Side;
@@ -58,6 +68,7 @@ use serde::{Deserialize, Serialize};
 
 mod assemble;
 pub mod bench;
+pub mod factor;
 pub mod kept;
 pub mod woodbury;
 
@@ -67,10 +78,11 @@ struct Cache {
     /// Hash of (number of clusters, fixity bits, connectivity) the data below is for.
     fingerprint: u64,
     pattern: Option<SymbolicSparseColMat<usize>>,
-    symbolic: Option<SymbolicLlt<usize>>,
+    /// The nested-dissection ordering (`factor.rs`, `order[new] = old`) and the symbolic analysis.
+    symbolic: Option<(Vec<usize>, Arc<SymbolicCholesky<usize>>)>,
     /// The assembled `K_ff` and its numeric factor, kept after a successful solve: `K` depends
     /// only on what the fingerprint covers, so a later solve needs only a new right-hand side.
-    factor: Option<(SparseColMat<usize, f64>, Llt<usize, f64>)>,
+    factor: Option<(SparseColMat<usize, f64>, factor::Factor)>,
     symbolic_count: usize,
 }
 
@@ -288,12 +300,13 @@ impl ImplicitSolver {
             let t2 = Instant::now();
             tm.assembly = (t2 - t1).as_secs_f64();
             if cache.symbolic.is_none() {
-                let sym = SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e:?}")))?;
-                cache.symbolic = Some(sym);
+                let order = factor::nested_dissection(a.symbolic(), &dof_coords(model, &eq, n));
+                let sym = factor::symbolic(a.symbolic(), &order).map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e}")))?;
+                cache.symbolic = Some((order, sym));
                 cache.symbolic_count += 1;
                 tm.symbolic = t2.elapsed().as_secs_f64();
             }
-            let sym = cache.symbolic.clone().expect("set above");
+            let sym = cache.symbolic.as_ref().expect("set above").1.clone();
             let llt = match factor(sym, &a, &mut tm) {
                 Ok(l) => l,
                 Err(None) => return Err(locate_singular(model, fix, &eq, &fr, &a)),
@@ -355,10 +368,22 @@ fn sym_mul(a: &SparseColMat<usize, f64>, x: &[f64]) -> Vec<f64> {
     y
 }
 
+/// Reference coordinates of the free dofs (their cluster's), for the nested dissection.
+pub(crate) fn dof_coords(model: &Model, eq: &[usize], n: usize) -> Vec<[f64; 2]> {
+    let x0 = model.cluster_x0();
+    let mut xy = vec![[0.0; 2]; n];
+    for (k, &e) in eq.iter().enumerate() {
+        if e != usize::MAX {
+            xy[e] = x0[k / 2];
+        }
+    }
+    xy
+}
+
 /// Numeric LLT on a (reused) symbolic factorisation. `Err(None)`: a non-positive pivot.
-fn factor(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, tm: &mut Timings) -> Result<Llt<usize, f64>, Option<String>> {
+fn factor(sym: Arc<SymbolicCholesky<usize>>, a: &SparseColMat<usize, f64>, tm: &mut Timings) -> Result<factor::Factor, Option<String>> {
     let t0 = Instant::now();
-    let r = match Llt::try_new_with_symbolic(sym, a.as_ref(), Side::Lower) {
+    let r = match factor::Factor::new(sym, a, factor::par(a.nrows())) {
         Ok(l) => Ok(l),
         Err(faer::sparse::linalg::LltError::Numeric(_)) => Err(None),
         Err(e) => Err(Some(format!("{e:?}"))),
@@ -367,41 +392,67 @@ fn factor(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, tm: &mut Timing
     r
 }
 
-/// Solve and (`refine`) one step of iterative refinement. `None` when the matrix is (numerically)
-/// singular: a non-finite solution, or a refinement correction above 1e-6 of the solution (its
-/// size is about cond(K) x machine epsilon, so a mechanism whose pivot rounds to a tiny
-/// positive value is caught too).
-fn refined_solve(llt: &Llt<usize, f64>, a: &SparseColMat<usize, f64>, rhs: &[f64], refine: bool, tm: &mut Timings) -> Option<Vec<f64>> {
+/// Relative residual `|b - K x|_inf / |b|_inf` above which a solve on a fresh factor takes one
+/// step of iterative refinement (ours). Cholesky is backward stable, so on a sound factor the
+/// residual is a few ulps of `|K| |x|`; a mechanism whose pivot rounded to a tiny positive value
+/// instead of failing gives a solution so large that the residual is of the order of `b` itself.
+pub const REFINE_RESIDUAL: f64 = 1e-10;
+
+/// Solve and (`refine`) check the residual: when it is above [`REFINE_RESIDUAL`], one step of
+/// iterative refinement. `None` when the matrix is (numerically) singular: a non-finite solution,
+/// or a refinement correction above 1e-6 of the solution (its size is about cond(K) x machine
+/// epsilon, so a mechanism whose pivot rounds to a tiny positive value is caught).
+fn refined_solve(llt: &factor::Factor, a: &SparseColMat<usize, f64>, rhs: &[f64], refine: bool, tm: &mut Timings) -> Option<Vec<f64>> {
     let t1 = Instant::now();
+    let par = factor::par(rhs.len());
+    let x = refined_solve_with(|b| llt.solve(b, par), a, rhs, refine);
+    tm.solve = t1.elapsed().as_secs_f64();
+    x
+}
+
+/// [`refined_solve`] with any solve.
+fn refined_solve_with(solve: impl Fn(&[f64]) -> Vec<f64>, a: &SparseColMat<usize, f64>, rhs: &[f64], refine: bool) -> Option<Vec<f64>> {
     let n = rhs.len();
-    let x = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i]));
-    let mut x: Vec<f64> = (0..n).map(|i| x[i]).collect();
+    let mut x = solve(rhs);
     if !x.iter().all(|v| v.is_finite()) {
         return None;
     }
     if !refine {
-        tm.solve = t1.elapsed().as_secs_f64();
         return Some(x);
     }
     let kx = sym_mul(a, &x);
-    let dx = llt.solve(Col::<f64>::from_fn(n, |i| rhs[i] - kx[i]));
+    let r: Vec<f64> = (0..n).map(|i| rhs[i] - kx[i]).collect();
+    let (rn, bn) = (r.iter().fold(0.0f64, |m, v| m.max(v.abs())), rhs.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+    if rn.is_finite() && rn <= REFINE_RESIDUAL * bn {
+        return Some(x);
+    }
+    let dx = solve(&r);
     let (mut nd, mut nx) = (0.0f64, 0.0f64);
     for i in 0..n {
         nd = nd.max(dx[i].abs());
         x[i] += dx[i];
         nx = nx.max(x[i].abs());
     }
-    tm.solve = t1.elapsed().as_secs_f64();
     if !nd.is_finite() || nd > 1e-6 * nx {
         return None;
     }
     Some(x)
 }
 
-/// Factor, solve, refine; `Err(None)` when singular (see [`factor`], [`refined_solve`]).
-fn solve_checked(sym: SymbolicLlt<usize>, a: &SparseColMat<usize, f64>, rhs: &[f64], tm: &mut Timings) -> Result<Vec<f64>, Option<String>> {
-    let llt = factor(sym, a, tm)?;
-    refined_solve(&llt, a, rhs, true, tm).ok_or(None)
+/// Factor (faer's own AMD ordering: small fragment blocks), solve, refine; `None` when singular.
+fn solve_checked(a: &SparseColMat<usize, f64>, rhs: &[f64]) -> Option<Vec<f64>> {
+    let sym = SymbolicLlt::try_new(a.symbolic(), Side::Lower).ok()?;
+    let llt = Llt::try_new_with_symbolic(sym, a.as_ref(), Side::Lower).ok()?;
+    refined_solve_with(
+        |b| {
+            let mut x = b.to_vec();
+            llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut x, b.len(), 1));
+            x
+        },
+        a,
+        rhs,
+        true,
+    )
 }
 
 /// After a failed factorisation: factorise each fragment's block alone and name the first that
@@ -445,13 +496,7 @@ fn locate_singular(model: &Model, fix: &[u8], eq: &[usize], fr: &Fragments, a: &
             }
         }
         let m = local.len();
-        let ok = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip)
-            .ok()
-            .and_then(|b| {
-                let s = SymbolicLlt::try_new(b.symbolic(), Side::Lower).ok()?;
-                solve_checked(s, &b, &(0..m).map(|i| (i % 7) as f64 + 1.0).collect::<Vec<_>>(), &mut Timings::default()).ok()
-            })
-            .is_some();
+        let ok = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip).ok().and_then(|b| solve_checked(&b, &(0..m).map(|i| (i % 7) as f64 + 1.0).collect::<Vec<_>>())).is_some();
         if !ok {
             return singular(model, fr, f, "has no support that stops its rigid motion (or a mechanism inside it)");
         }
