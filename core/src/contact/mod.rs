@@ -107,6 +107,8 @@ pub use search::Contact;
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactCfg {
+    /// A built-in, or a loaded plugin's law (`plugin::dynload::de_contact`).
+    #[serde(deserialize_with = "crate::plugin::dynload::de_contact")]
     pub law: Box<dyn ContactLaw>,
     /// Edge sets that are contact surfaces (boundary faces; an interior edge gives both faces).
     #[serde(default)]
@@ -260,4 +262,9 @@ pub trait ContactLaw: Debug + Send + Sync {
     fn stiffness(&self) -> f64;
     /// Updates the history and returns the force of every pair (same order, same length).
     fn evaluate(&self, kin: &[PairKinematics], hist: &mut [PairState], out: &mut [PairForce]);
+    /// An error the law met in `evaluate` (a dynamic law that failed or returned a non-finite
+    /// force; it then returned NaN forces, which the divergence guard stops on).
+    fn fault(&self) -> Option<String> {
+        None
+    }
 }
