@@ -15,13 +15,15 @@ use flem_core::solver::{Observer, Simulation};
 use crate::common::root;
 
 /// The libraries built for these tests.
-struct Libs {
+pub(crate) struct Libs {
     /// plugins/example.
-    example: PathBuf,
+    pub(crate) example: PathBuf,
     /// plugins/testlib: a header for FLEM core "0.0.1-old".
-    stale: PathBuf,
+    pub(crate) stale: PathBuf,
     /// plugins/testlib/examples/no_entry.rs: no entry point.
-    no_entry: PathBuf,
+    pub(crate) no_entry: PathBuf,
+    /// plugins/testlib/examples/missing_fn.rs: a contact law without its evaluate function.
+    pub(crate) missing_fn: PathBuf,
 }
 
 /// Builds plugins/example and plugins/testlib once, with the cargo, target folder and profile
@@ -30,7 +32,7 @@ struct Libs {
 /// the dependencies the same features as `cargo test --workspace`, so their compiled artifacts
 /// are reused: only the two small crates compile (a few seconds), not a second copy of the
 /// dependency tree.
-fn libs() -> &'static Libs {
+pub(crate) fn libs() -> &'static Libs {
     static LIBS: OnceLock<Libs> = OnceLock::new();
     LIBS.get_or_init(|| {
         let exe = std::env::current_exe().unwrap();
@@ -63,12 +65,12 @@ fn libs() -> &'static Libs {
             }
         }
         let get = |n: &str| found.get(n).cloned().unwrap_or_else(|| panic!("cargo built no shared library for {n}: {found:?}"));
-        Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry") }
+        Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry"), missing_fn: get("missing_fn") }
     })
 }
 
 /// A scene from text whose relative paths resolve against `base`.
-fn scene_in(text: &str, base: &Path) -> flem_core::Result<Scene> {
+pub(crate) fn scene_in(text: &str, base: &Path) -> flem_core::Result<Scene> {
     flem_plugins::link();
     // These scenes are the tests' own: consent to their libraries (the refusal without it is
     // tested through the CLI, in its own process, by scene_plugins_load_only_with_consent).
@@ -85,12 +87,12 @@ fn tension_scene(plugins: &str, criterion: &str, separation: &str) -> String {
     format!("{}[cracking.criterion]\n{criterion}\n\n[cracking.separation]\n{separation}\n\n{}\n{plugins}", &base[..start], &base[end..])
 }
 
-fn load_line(lib: &Path) -> String {
+pub(crate) fn load_line(lib: &Path) -> String {
     format!("[plugins]\nload = [{:?}]\n", lib.display().to_string())
 }
 
 #[derive(Default)]
-struct Log(Vec<SplitEvent>);
+pub(crate) struct Log(pub(crate) Vec<SplitEvent>);
 impl Observer for Log {
     fn splits(&mut self, _s: &Simulation, _r: &SplitRecord, ev: &[SplitEvent]) -> flem_core::Result<()> {
         self.0.extend(ev.iter().cloned());

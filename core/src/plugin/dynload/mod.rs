@@ -168,6 +168,10 @@ fn elf_extents(path: &Path) -> std::result::Result<(), String> {
 /// Loads a plugin library (an explicit path: a bare name would search system folders) and
 /// registers its plugins. Loading the same file again returns its plugins without reloading.
 pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
+    // One load at a time: two threads loading the same file would both pass the "already
+    // loaded" check and the second would find its names taken.
+    static LOADING: Mutex<()> = Mutex::new(());
+    let _one = LOADING.lock().unwrap_or_else(|p| p.into_inner());
     let shown = path.display().to_string();
     let perr = |m: String| FlemError::Plugin { file: shown.clone(), msg: m };
     if let Ok(c) = path.canonicalize() {
