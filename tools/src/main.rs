@@ -21,6 +21,7 @@ mod bench_laws;
 mod chart;
 mod chart_crack;
 mod converge;
+mod dyncall_kinds;
 mod stability;
 mod sweep;
 

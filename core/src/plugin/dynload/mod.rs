@@ -403,6 +403,13 @@ pub fn de_damping<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Option
     Box::<dyn Damping>::deserialize(v).map(Some).map_err(|e| D::Error::custom(with_loaded_names(e.to_string(), KIND_DAMPING)))
 }
 
+/// A `[[material]] law` table naming a loaded material law, as its configuration (`None`: no
+/// loaded law has its `type`); `DynLawCfg::bind` gives a region's law (benchmarks, tests).
+pub fn material_law(v: &toml::Value) -> Option<DynLawCfg> {
+    let r = type_name(v).and_then(|n| find(KIND_MATERIAL, n))?;
+    Some(DynLawCfg::new(r.info, r.entry, v.clone()))
+}
+
 /// The hook of `element::law::de_law`: a `[[material]] law` table naming a loaded material law.
 fn law_from_table(v: &toml::Value) -> Option<Box<dyn LawCfg>> {
     let r = type_name(v).and_then(|n| find(KIND_MATERIAL, n))?;
