@@ -182,3 +182,48 @@ fn plugin_returning_nan_stops_the_run_with_its_name() {
         "{e}"
     );
 }
+
+/// The scene snippets of the new kinds (docs/plugins.md and the `//!` docs of
+/// plugins/example/src/{contact,damping,material}.rs) load the library by the name they show
+/// and validate: each contact law in the direct shear scene, each damping and material law in
+/// the strip footing (plane strain), the library loaded by its built path.
+#[test]
+fn new_kind_snippets_load_and_validate() {
+    let lib = &libs().example;
+    let read = |p: &str| std::fs::read_to_string(root().join(p)).unwrap();
+    let base_of = |p: &str| -> toml::Table { toml::from_str(&read(p)).unwrap() };
+    let mut n = 0;
+    for file in ["docs/plugins.md", "plugins/example/src/contact.rs", "plugins/example/src/damping.rs", "plugins/example/src/material.rs"] {
+        for b in crate::dynplug::blocks(&read(file), "toml").into_iter().filter(|b| !b.contains("[cracking")) {
+            let t: toml::Table = toml::from_str(&b).unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
+            if let Some(shown) = t.get("plugins").and_then(|p| p["load"][0].as_str()) {
+                assert!(shown.ends_with(lib.file_name().unwrap().to_str().unwrap()), "{file}: {shown}");
+            }
+            let mut scenes = Vec::new();
+            if let Some(law) = t.get("contact").and_then(|c| c.get("law")) {
+                let mut s = base_of("configs/paper/direct_shear.toml");
+                s["contact"].as_table_mut().unwrap().insert("law".into(), law.clone());
+                scenes.push((s, "configs/paper"));
+            }
+            if let Some(d) = t.get("solver").and_then(|c| c.get("damping")) {
+                let mut s = base_of("configs/verification/strip_footing.toml");
+                s["solver"].as_table_mut().unwrap().insert("damping".into(), d.clone());
+                scenes.push((s, "configs/verification"));
+            }
+            if let Some(m) = t.get("material") {
+                let mut s = base_of("configs/verification/strip_footing.toml");
+                s.insert("material".into(), m.clone());
+                scenes.push((s, "configs/verification"));
+            }
+            assert!(!scenes.is_empty(), "{file}: a snippet of no new kind:\n{b}");
+            for (mut s, dir) in scenes {
+                s.insert("plugins".into(), toml::Value::Table(toml::from_str(&load_line(lib)).unwrap()).get("plugins").unwrap().clone());
+                let text = toml::to_string(&s).unwrap();
+                let scene = scene_in(&text, &root().join(dir)).unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
+                flem_core::solver::Simulation::new(scene).unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
+                n += 1;
+            }
+        }
+    }
+    assert!(n >= 7, "only {n} snippets checked");
+}

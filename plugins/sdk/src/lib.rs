@@ -300,13 +300,14 @@ pub mod shim {
             if n == 0 {
                 return Ok(STATUS_OK);
             }
-            // SAFETY: the host passes an instance of T, n kinematics, n x STATE state, n outputs.
+            // SAFETY: the host passes an instance of T, n kinematics, 3 n state, n outputs.
             let (t, kin, out) = unsafe { (&*(instance as *const T), std::slice::from_raw_parts(kin, n), std::slice::from_raw_parts_mut(out, n)) };
-            let state: &mut [f64] = if T::STATE == 0 { &mut [] } else { unsafe { std::slice::from_raw_parts_mut(state, n * T::STATE) } };
+            // Stride CONTACT_STATE_MAX (the core's PairState slots), the first STATE the law's.
+            let state: &mut [f64] = unsafe { std::slice::from_raw_parts_mut(state, n * CONTACT_STATE_MAX) };
             for i in 0..n {
                 let c = &kin[i];
                 let k = PairKinematics { gap: c.gap, dgap: c.dgap, dslip: c.dslip, vn: c.vn, vs: c.vs, area: c.area, area_old: c.area_old, dt: c.dt, new: c.new != 0 };
-                let f = t.evaluate(&k, c.fresh != 0, &mut state[i * T::STATE..(i + 1) * T::STATE]);
+                let f = t.evaluate(&k, c.fresh != 0, &mut state[i * CONTACT_STATE_MAX..i * CONTACT_STATE_MAX + T::STATE]);
                 out[i] = CPairForce { normal: f.normal, tangential: f.tangential, stored: f.stored, dissipated: f.dissipated, active: f.active as u32 };
             }
             Ok(STATUS_OK)
@@ -511,5 +512,64 @@ mod tests {
             }
             unsafe { shim::destroy::<Strength>(inst) };
         }
+    }
+    /// A contact law with one f64 of history: the shim reads and writes pair i's history at
+    /// `3 i` (the core's stride), converts the kinematics and forces, and runs every pair.
+    #[derive(Deserialize)]
+    struct Counter {}
+    impl Contact for Counter {
+        const STATE: usize = 1;
+        fn stiffness(&self) -> f64 {
+            2.0
+        }
+        fn evaluate(&self, k: &PairKinematics, fresh: bool, state: &mut [f64]) -> PairForce {
+            state[0] += 1.0;
+            PairForce { normal: k.gap * 10.0 + fresh as u8 as f64, tangential: state[0], active: !k.new, stored: 0.0, dissipated: 0.0 }
+        }
+    }
+
+    /// Reference: the definitions above; exact.
+    #[test]
+    fn contact_shim_uses_the_core_stride() {
+        let kin = [CPairKin { gap: 1.0, ..Default::default() }, CPairKin { gap: 2.0, new: 1, fresh: 1, ..Default::default() }];
+        let mut state = [5.0, 7.0, 9.0, 10.0, 70.0, 90.0];
+        let mut out = [CPairForce::default(); 2];
+        let mut err = ErrorOut::default();
+        let t = Counter {};
+        let st = unsafe { shim::contact_evaluate::<Counter>(&t as *const Counter as *const c_void, 2, kin.as_ptr(), state.as_mut_ptr(), out.as_mut_ptr(), &mut err) };
+        assert_eq!(st, STATUS_OK);
+        assert_eq!(state, [6.0, 7.0, 9.0, 11.0, 70.0, 90.0]);
+        assert_eq!((out[0].normal, out[0].tangential, out[0].active), (10.0, 6.0, 1));
+        assert_eq!((out[1].normal, out[1].tangential, out[1].active), (21.0, 11.0, 0));
+    }
+
+    /// A material law whose update panics: the shim returns PANIC with the message.
+    #[derive(Deserialize)]
+    struct Boom {}
+    struct BoomLaw;
+    impl Law for Boom {
+        const STATE: usize = 0;
+        type Bound = BoomLaw;
+        fn bind(&self, _m: &Material) -> Result<BoomLaw, ParamError> {
+            Ok(BoomLaw)
+        }
+    }
+    impl BoundLaw for BoomLaw {
+        fn elastic(&self) -> Dmat {
+            Dmat { d11: 1.0, d12: 0.0, d33: 0.5 }
+        }
+        fn update(&self, s: &mut [f64; 4], _de: [f64; 4], _st: &mut [f64]) {
+            panic!("boom at sxx = {}", s[0])
+        }
+    }
+
+    #[test]
+    fn material_update_panics_are_caught() {
+        let law = BoomLaw;
+        let mut s = [3.0, 0.0, 0.0, 0.0];
+        let mut e = ErrorOut::default();
+        let st = unsafe { shim::law_update::<Boom>(&law as *const BoomLaw as *const c_void, s.as_mut_ptr(), [0.0; 4].as_ptr(), std::ptr::NonNull::dangling().as_ptr(), &mut e) };
+        assert_eq!(st, STATUS_PANIC);
+        assert_eq!(e.msg(), "boom at sxx = 3");
     }
 }

@@ -25,9 +25,10 @@
 //! - **Contact law** ([`KIND_CONTACT`]): `contact_stiffness(inst)` (largest stiffness per unit
 //!   area, the stable step) and `contact_evaluate(inst, n, kin, state, out, err)`: one call
 //!   per step on the batch of pairs (chunks of at most 256), `kin[i]` the pair's kinematics
-//!   in the master's frame ([`CPairKin`]), `state[i * n_state ..]` its history, updated in
-//!   place, `out[i]` its force ([`CPairForce`]). The core keeps a pair's history in
-//!   `PairState { en, es, max_open }`, so `n_state <= 3` ([`CONTACT_STATE_MAX`]): slots 0, 1
+//!   in the master's frame ([`CPairKin`]), `state[3 i .. 3 i + n_state]` its history, updated
+//!   in place (stride 3 whatever `n_state`: the pair's `PairState { en, es, max_open }`, where
+//!   the core keeps it, so `n_state <= 3`, [`CONTACT_STATE_MAX`]), `out[i]` its force
+//!   ([`CPairForce`]). Slots 0, 1
 //!   are the normal and tangential spring forces, which the core scales by
 //!   `sqrt(A_new / A_old)` when a split changes the pair's area (as for the built-ins).
 //! - **Damping** ([`KIND_DAMPING`]): `damping_info(inst, out)` (whether it reads the Rayleigh
@@ -138,7 +139,7 @@ pub type ProposeFn = unsafe extern "C" fn(instance: *const c_void, fan: *const C
 
 /// Contact law: the largest spring stiffness per unit area (stress / length).
 pub type ContactStiffnessFn = unsafe extern "C" fn(instance: *const c_void) -> f64;
-/// Contact law: `n` pairs; `state` holds `n x n_state` f64 (updated), `out` `n` forces (all
+/// Contact law: `n` pairs; `state` holds `3 n` f64 (pair i's history in `3 i ..`, updated), `out` `n` forces (all
 /// written on [`STATUS_OK`]).
 pub type ContactEvaluateFn = unsafe extern "C" fn(instance: *const c_void, n: usize, kin: *const CPairKin, state: *mut f64, out: *mut CPairForce, err: *mut ErrorOut) -> i32;
 /// Damping: what the scheme needs of the solver.

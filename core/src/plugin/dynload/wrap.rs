@@ -309,7 +309,7 @@ impl ContactLaw for DynContact {
     }
 
     fn evaluate(&self, kin: &[PairKinematics], hist: &mut [PairState], out: &mut [PairForce]) {
-        let ns = self.0.entry.n_state;
+        let ns = self.0.entry.n_state.min(3);
         let fail = |out: &mut [PairForce], msg: String| {
             self.0.record(msg);
             out.iter_mut().for_each(|o| *o = PairForce { normal: f64::NAN, tangential: f64::NAN, active: true, stored: f64::NAN, dissipated: f64::NAN });
@@ -329,11 +329,10 @@ impl ContactLaw for DynContact {
             for i in 0..m {
                 let (k, h) = (&kin[start + i], &hist[start + i]);
                 ck[i].write(CPairKin { gap: k.gap, dgap: k.dgap, dslip: k.dslip, vn: k.vn, vs: k.vs, area: k.area, area_old: k.area_old, dt: k.dt, new: k.new as u32, fresh: h.fresh as u32 });
-                let slots = [h.en, h.es, h.max_open];
-                cs[i * ns..(i + 1) * ns].copy_from_slice(&slots[..ns]);
+                (cs[3 * i], cs[3 * i + 1], cs[3 * i + 2]) = (h.en, h.es, h.max_open);
             }
             let mut err = err_slot();
-            // SAFETY: ABI call with m kinematics, m x ns state and m output slots.
+            // SAFETY: ABI call with m kinematics, m x 3 state and m output slots.
             let st = unsafe { f(inst, m, ck.as_ptr().cast(), cs.as_mut_ptr(), co.as_mut_ptr().cast(), err.as_mut_ptr()) };
             if st != STATUS_OK {
                 let (key, msg) = read_err(&err);
@@ -344,8 +343,7 @@ impl ContactLaw for DynContact {
                 // SAFETY: written by the plugin (STATUS_OK).
                 let c = unsafe { co[i].assume_init() };
                 let h = &mut hist[start + i];
-                let mut slots = [h.en, h.es, h.max_open];
-                slots[..ns].copy_from_slice(&cs[i * ns..(i + 1) * ns]);
+                let slots = [cs[3 * i], cs[3 * i + 1], cs[3 * i + 2]];
                 let sum = c.normal + c.tangential + c.stored + c.dissipated + slots[0] + slots[1] + slots[2];
                 if !sum.is_finite() {
                     let k = &kin[start + i];
