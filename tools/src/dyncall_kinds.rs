@@ -173,7 +173,7 @@ pub fn measure(lib: &Path, reps: usize, n: usize) -> Result<serde_json::Value> {
     anyhow::ensure!(fb == fd, "the footing's element updates differ between the built-in and the dynamic law");
     // Contact law.
     let cb: Box<dyn ContactLaw> = toml::from_str("type = \"spring_dashpot\"\nnormal_stiffness = 8.06e6\nshear_stiffness = 2.015e6\nfriction = 0.577")?;
-    let cd = flem_core::plugin::dynload::de_contact(toml::Value::Table(toml::from_str("type = \"example_spring_dashpot\"\nnormal_stiffness = 8.06e6\nshear_stiffness = 2.015e6\nfriction = 0.577")?))?;
+    let cd = flem_core::contact::dynlaw::de_contact(toml::Value::Table(toml::from_str("type = \"example_spring_dashpot\"\nnormal_stiffness = 8.06e6\nshear_stiffness = 2.015e6\nfriction = 0.577")?))?;
     let ((kb, ob), (kd, od)) = (contact_per_pair(cb.as_ref(), reps), contact_per_pair(cd.as_ref(), reps));
     anyhow::ensure!(ob == od, "the built-in and the dynamic contact law disagree");
     let (db_step, dd_step) = (direct_shear_step(lib, "spring_dashpot")?, direct_shear_step(lib, "example_spring_dashpot")?);

@@ -431,7 +431,8 @@ fn load_for_check(p: &Path) -> Result<(Scene, Vec<String>)> {
     // Contact laws, damping schemes and material laws of the libraries (issue 25).
     let mut stand_in = |t: &mut toml::Value, key: &str, kind: u32, with: Option<&str>| {
         let Some(ty) = t.get("type").and_then(|v| v.as_str()).map(str::to_string) else { return false };
-        if dynload::is_builtin(kind, &ty) {
+        let builtin = if kind == abi::KIND_CONTACT { flem_core::contact::dynlaw::is_builtin(&ty) } else { dynload::is_builtin(kind, &ty) };
+        if builtin {
             return false;
         }
         notes.push(format!("{name}: {key}.type = \"{ty}\" is not built in; it would come from the plugin libraries, so it and its parameters were not checked"));

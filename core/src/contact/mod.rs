@@ -92,6 +92,7 @@
 //! either sign; the explicit scheme's impact loss at contact), the area change above; the
 //! notched plate's residual went from 3.6e-2..4.8e-2 (lost) to 1e-5..8e-5 (breakdown in the
 //! test's comment).
+pub mod dynlaw;
 pub mod search;
 
 use std::fmt::Debug;
@@ -107,8 +108,8 @@ pub use search::Contact;
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactCfg {
-    /// A built-in, or a loaded plugin's law (`plugin::dynload::de_contact`).
-    #[serde(deserialize_with = "crate::plugin::dynload::de_contact")]
+    /// A built-in, or a loaded plugin's law (`dynlaw::de_contact`).
+    #[serde(deserialize_with = "crate::contact::dynlaw::de_contact")]
     pub law: Box<dyn ContactLaw>,
     /// Edge sets that are contact surfaces (boundary faces; an interior edge gives both faces).
     #[serde(default)]

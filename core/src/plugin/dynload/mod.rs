@@ -40,13 +40,13 @@ use std::sync::Mutex;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 
-use crate::contact::ContactLaw;
 use crate::element::law::LawCfg;
 use crate::error::{FlemError, Result};
 use crate::plugin::damping::Damping;
 use crate::plugin::traits::{FailureCriterion, SeparationRule};
 use abi::{Descriptor, PluginEntry, ABI_VERSION, CONTACT_STATE_MAX, CORE_VERSION, ENTRY_SYMBOL, KIND_CONTACT, KIND_CRITERION, KIND_DAMPING, KIND_MATERIAL, KIND_SEPARATION, RUSTC_VERSION};
-pub use wrap::{DynContact, DynCriterion, DynDamping, DynLaw, DynLawCfg, DynSeparation};
+pub(crate) use wrap::{err_slot, read_err, status_text, Instance, CHUNK};
+pub use wrap::{DynCriterion, DynDamping, DynLaw, DynLawCfg, DynSeparation};
 
 /// A plugin provided by a loaded library.
 #[derive(Clone, Debug, PartialEq)]
@@ -117,7 +117,9 @@ pub fn is_builtin(kind: u32, name: &str) -> bool {
     t.insert("type".into(), toml::Value::String(name.into()));
     let msg = match kind {
         KIND_CRITERION => Box::<dyn FailureCriterion>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
-        KIND_CONTACT => Box::<dyn ContactLaw>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
+        // Contact laws live in a layer above this one (`crate::contact::dynlaw::is_builtin`,
+        // which `[contact] law` consults when it meets a loaded name).
+        KIND_CONTACT => return false,
         KIND_DAMPING => Box::<dyn Damping>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
         KIND_MATERIAL => Box::<dyn LawCfg>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
         _ => Box::<dyn SeparationRule>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
@@ -241,6 +243,11 @@ pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
     Ok(infos)
 }
 
+/// The loaded plugin of a kind with this name: its info and its entry.
+pub(crate) fn find_entry(kind: u32, name: &str) -> Option<(PluginInfo, &'static PluginEntry)> {
+    find(kind, name).map(|r| (r.info, r.entry))
+}
+
 fn find(kind: u32, name: &str) -> Option<Registered> {
     REGISTRY.lock().unwrap_or_else(|p| p.into_inner()).iter().find(|r| r.entry.kind == kind && r.info.name == name).map(|r| Registered { info: r.info.clone(), entry: r.entry })
 }
@@ -353,7 +360,7 @@ fn names_of(kind: u32) -> Vec<&'static str> {
 
 /// Adds the loaded names of this kind to typetag's "unknown variant `x`, expected one of ..."
 /// so that the scene's "did you mean" hint considers them too.
-fn with_loaded_names(msg: String, kind: u32) -> String {
+pub(crate) fn with_loaded_names(msg: String, kind: u32) -> String {
     let names = names_of(kind);
     if names.is_empty() || !msg.contains("unknown variant") {
         return msg;
@@ -383,15 +390,6 @@ pub fn de_separation<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Box
         return Ok(Box::new(DynSeparation::new(r.info, r.entry, v)));
     }
     Box::<dyn SeparationRule>::deserialize(v).map_err(|e| D::Error::custom(with_loaded_names(e.to_string(), KIND_SEPARATION)))
-}
-
-/// `deserialize_with` for `[contact] law` (see [`de_criterion`]).
-pub fn de_contact<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Box<dyn ContactLaw>, D::Error> {
-    let v = toml::Value::deserialize(d)?;
-    if let Some(r) = type_name(&v).and_then(|n| find(KIND_CONTACT, n)) {
-        return Ok(Box::new(DynContact::new(r.info, r.entry, v)));
-    }
-    Box::<dyn ContactLaw>::deserialize(v).map_err(|e| D::Error::custom(with_loaded_names(e.to_string(), KIND_CONTACT)))
 }
 
 /// `deserialize_with` for `[solver] damping` (see [`de_criterion`]).

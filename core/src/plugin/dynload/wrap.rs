@@ -12,11 +12,10 @@ use std::sync::{Arc, OnceLock};
 use serde::{Serialize, Serializer};
 
 use super::abi::{
-    CDampingCoeffs, CDampingInfo, CFailureCheck, CFan, CLink, CMaterial, CPairForce, CPairKin, CPrincipal, CStepStats, ErrorOut, LawDestroyFn, LawOutputFn, LawUpdateFn, PluginEntry, RStr, KEY_CAP,
-    MSG_CAP, STATUS_ERROR, STATUS_NONE, STATUS_OK, STATUS_PANIC,
+    CDampingCoeffs, CDampingInfo, CFailureCheck, CFan, CLink, CMaterial, CPrincipal, CStepStats, ErrorOut, LawDestroyFn, LawOutputFn, LawUpdateFn, PluginEntry, RStr, KEY_CAP, MSG_CAP, STATUS_ERROR,
+    STATUS_NONE, STATUS_OK, STATUS_PANIC,
 };
 use super::PluginInfo;
-use crate::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use crate::element::block::Block;
 use crate::element::law::{LawCfg, MaterialLaw, RegionElems, StatefulOpts};
 use crate::element::{Dmat, Material};
@@ -25,16 +24,16 @@ use crate::plugin::damping::{Damping, DampingCoeffs, StepStats};
 use crate::plugin::traits::{FailureCheck, FailureCriterion, FanView, ParamError, Principal, Proposal, SeparationRule};
 
 /// One instance made by the plugin's `create`, or the parameter error it gave.
-struct Instance {
-    info: PluginInfo,
-    entry: &'static PluginEntry,
+pub(crate) struct Instance {
+    pub(crate) info: PluginInfo,
+    pub(crate) entry: &'static PluginEntry,
     /// The scene's table without `type` (serialised back as written).
     params: toml::Table,
     ptr: *mut c_void,
-    error: Option<ParamError>,
+    pub(crate) error: Option<ParamError>,
     /// The first error of a call that cannot return one (contact, damping): reported by the
     /// solver (`fault()` of the traits) when the NaN it returned stops the run.
-    fault: OnceLock<String>,
+    pub(crate) fault: OnceLock<String>,
 }
 
 // SAFETY: the SDK requires plugin types to be Send + Sync; the pointer is only used through
@@ -43,7 +42,7 @@ unsafe impl Send for Instance {}
 unsafe impl Sync for Instance {}
 
 impl Instance {
-    fn new(info: PluginInfo, entry: &'static PluginEntry, table: toml::Value) -> Instance {
+    pub(crate) fn new(info: PluginInfo, entry: &'static PluginEntry, table: toml::Value) -> Instance {
         let mut params = match table {
             toml::Value::Table(t) => t,
             _ => toml::Table::new(),
@@ -87,15 +86,15 @@ impl Instance {
     }
 
     /// Records the first fault (later ones are consequences).
-    fn record(&self, msg: String) {
+    pub(crate) fn record(&self, msg: String) {
         let _ = self.fault.set(msg);
     }
 
-    fn who(&self) -> String {
+    pub(crate) fn who(&self) -> String {
         format!("{} \"{}\" from {}", self.info.kind, self.info.name, self.info.file.display())
     }
 
-    fn live(&self) -> Result<*const c_void, String> {
+    pub(crate) fn live(&self) -> Result<*const c_void, String> {
         match &self.error {
             Some(e) => Err(format!("{} \"{}\" from {} was not created: {e}", self.info.kind, self.info.name, self.info.file.display())),
             None => Ok(self.ptr),
@@ -126,7 +125,7 @@ impl Serialize for Instance {
 
 /// Points per call into the plugin: the batch lives on the stack (no allocation), and one
 /// call costs ~10 ns, so per point the call is negligible.
-const CHUNK: usize = 256;
+pub(crate) const CHUNK: usize = 256;
 
 /// A plugin instance behind one of the core's traits: the newtype, its constructor and its
 /// library's info (the same for every plugin kind).
@@ -256,7 +255,7 @@ impl SeparationRule for DynSeparation {
 /// An [`ErrorOut`] for a hot call: only its two lengths are written (not its 600 bytes); the
 /// plugin writes text and lengths when it fails, and [`read_err`] reads no further than them.
 #[inline(always)]
-fn err_slot() -> MaybeUninit<ErrorOut> {
+pub(crate) fn err_slot() -> MaybeUninit<ErrorOut> {
     let mut e = MaybeUninit::<ErrorOut>::uninit();
     let p = e.as_mut_ptr();
     // SAFETY: writes to fields of a live allocation through raw pointers.
@@ -269,7 +268,7 @@ fn err_slot() -> MaybeUninit<ErrorOut> {
 
 /// `(key, message)` of an [`err_slot`] after a call, without reading unwritten bytes.
 #[cold]
-fn read_err(e: &MaybeUninit<ErrorOut>) -> (String, String) {
+pub(crate) fn read_err(e: &MaybeUninit<ErrorOut>) -> (String, String) {
     let p = e.as_ptr();
     // SAFETY: the lengths were written by `err_slot` or the plugin; the bytes below them by the
     // plugin (the ABI's contract for a failing call).
@@ -282,97 +281,12 @@ fn read_err(e: &MaybeUninit<ErrorOut>) -> (String, String) {
     }
 }
 
-fn status_text(st: i32) -> &'static str {
+pub(crate) fn status_text(st: i32) -> &'static str {
     match st {
         STATUS_OK => "returned a non-finite number",
         STATUS_PANIC => "panicked",
         STATUS_ERROR => "failed",
         _ => "returned an unknown status",
-    }
-}
-
-dyn_wrapper!(
-    /// A contact law from a loaded library: the pairs' history stays in the core's
-    /// [`PairState`] (slots `en`, `es`, `max_open`, the first `n_state` of them).
-    DynContact
-);
-
-impl ContactLaw for DynContact {
-    instance_methods!();
-
-    fn stiffness(&self) -> f64 {
-        match (self.0.live(), self.0.entry.contact_stiffness) {
-            // SAFETY: ABI call on a live instance.
-            (Ok(p), Some(f)) => unsafe { f(p) },
-            _ => f64::NAN,
-        }
-    }
-
-    fn evaluate(&self, kin: &[PairKinematics], hist: &mut [PairState], out: &mut [PairForce]) {
-        let ns = self.0.entry.n_state.min(3);
-        let fail = |out: &mut [PairForce], msg: String| {
-            self.0.record(msg);
-            out.iter_mut().for_each(|o| *o = PairForce { normal: f64::NAN, tangential: f64::NAN, active: true, stored: f64::NAN, dissipated: f64::NAN });
-        };
-        let (inst, f) = match (self.0.live(), self.0.entry.contact_evaluate) {
-            (Ok(p), Some(f)) => (p, f),
-            (Err(e), _) => return fail(out, e),
-            (_, None) => return fail(out, format!("{} has no contact_evaluate", self.0.who())),
-        };
-        let n = kin.len().min(hist.len()).min(out.len());
-        let mut ck = [const { MaybeUninit::<CPairKin>::uninit() }; CHUNK];
-        let mut cs = [0.0f64; CHUNK * 3];
-        let mut co = [const { MaybeUninit::<CPairForce>::uninit() }; CHUNK];
-        let mut start = 0;
-        while start < n {
-            let m = CHUNK.min(n - start);
-            for i in 0..m {
-                let (k, h) = (&kin[start + i], &hist[start + i]);
-                ck[i].write(CPairKin { gap: k.gap, dgap: k.dgap, dslip: k.dslip, vn: k.vn, vs: k.vs, area: k.area, area_old: k.area_old, dt: k.dt, new: k.new as u32, fresh: h.fresh as u32 });
-                (cs[3 * i], cs[3 * i + 1], cs[3 * i + 2]) = (h.en, h.es, h.max_open);
-            }
-            let mut err = err_slot();
-            // SAFETY: ABI call with m kinematics, m x 3 state and m output slots.
-            let st = unsafe { f(inst, m, ck.as_ptr().cast(), cs.as_mut_ptr(), co.as_mut_ptr().cast(), err.as_mut_ptr()) };
-            if st != STATUS_OK {
-                let (key, msg) = read_err(&err);
-                let key = if key.is_empty() { String::new() } else { format!(" ({key})") };
-                return fail(out, format!("{} {} in contact_evaluate{key}: {msg}", self.0.who(), status_text(st)));
-            }
-            for i in 0..m {
-                // SAFETY: written by the plugin (STATUS_OK).
-                let c = unsafe { co[i].assume_init() };
-                let h = &mut hist[start + i];
-                let slots = [cs[3 * i], cs[3 * i + 1], cs[3 * i + 2]];
-                let sum = c.normal + c.tangential + c.stored + c.dissipated + slots[0] + slots[1] + slots[2];
-                if !sum.is_finite() {
-                    let k = &kin[start + i];
-                    return fail(
-                        out,
-                        format!(
-                            "{} returned a non-finite force or history for a pair (gap {:e}, dgap {:e}, dslip {:e}, area {:e}): force ({}, {}), stored {}, dissipated {}, history {:?}",
-                            self.0.who(),
-                            k.gap,
-                            k.dgap,
-                            k.dslip,
-                            k.area,
-                            c.normal,
-                            c.tangential,
-                            c.stored,
-                            c.dissipated,
-                            &slots[..ns]
-                        ),
-                    );
-                }
-                (h.en, h.es, h.max_open) = (slots[0], slots[1], slots[2]);
-                out[start + i] = PairForce { normal: c.normal, tangential: c.tangential, active: c.active != 0, stored: c.stored, dissipated: c.dissipated };
-            }
-            start += m;
-        }
-    }
-
-    fn fault(&self) -> Option<String> {
-        self.0.fault.get().cloned()
     }
 }
 
