@@ -194,7 +194,7 @@ fn new_kind_snippets_load_and_validate() {
     let base_of = |p: &str| -> toml::Table { toml::from_str(&read(p)).unwrap() };
     let mut n = 0;
     for file in ["docs/plugins.md", "plugins/example/src/contact.rs", "plugins/example/src/damping.rs", "plugins/example/src/material.rs"] {
-        for b in crate::dynplug::blocks(&read(file), "toml").into_iter().filter(|b| !b.contains("[cracking")) {
+        for b in crate::dynplug::blocks(&read(file), "toml").into_iter().filter(|b| b.contains("[contact]") || b.contains("[solver.damping]") || b.contains("[[material]]")) {
             let t: toml::Table = toml::from_str(&b).unwrap_or_else(|e| panic!("{file}: {e}\n{b}"));
             if let Some(shown) = t.get("plugins").and_then(|p| p["load"][0].as_str()) {
                 assert!(shown.ends_with(lib.file_name().unwrap().to_str().unwrap()), "{file}: {shown}");

@@ -156,7 +156,18 @@ fn loaded_plugins_name_their_file() {
     let b = dynload::load_library(lib).unwrap();
     assert_eq!(a, b);
     let names: Vec<_> = a.iter().map(|p| (p.kind, p.name)).collect();
-    assert_eq!(names, [("criterion", "example_rankine"), ("separation", "example_sigma1_nearest"), ("criterion", "example_panic")]);
+    assert_eq!(
+        names,
+        [
+            ("criterion", "example_rankine"),
+            ("separation", "example_sigma1_nearest"),
+            ("criterion", "example_panic"),
+            ("contact law", "example_spring_dashpot"),
+            ("damping", "example_adaptive"),
+            ("material law", "example_mohr_coulomb"),
+            ("material law", "example_nan_law")
+        ]
+    );
     assert!(a.iter().all(|p| p.file == lib.canonicalize().unwrap() && p.core_version == abi::CORE_VERSION));
 }
 

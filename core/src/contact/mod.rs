@@ -109,7 +109,7 @@ pub use search::Contact;
 #[serde(deny_unknown_fields)]
 pub struct ContactCfg {
     /// A built-in, or a loaded plugin's law (`dynlaw::de_contact`).
-    #[serde(deserialize_with = "crate::contact::dynlaw::de_contact")]
+    #[serde(deserialize_with = "dynlaw::de_contact")]
     pub law: Box<dyn ContactLaw>,
     /// Edge sets that are contact surfaces (boundary faces; an interior edge gives both faces).
     #[serde(default)]

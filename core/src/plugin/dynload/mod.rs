@@ -1,6 +1,10 @@
-//! Dynamic plugins: failure criteria and separation rules loaded at run time from a shared
-//! library (`[plugins] load = ["path/to/libfoo.so"]`), then chosen by `type = "name"` exactly
-//! like a built-in.
+//! Dynamic plugins: failure criteria, separation rules, contact laws, damping schemes and
+//! material laws loaded at run time from a shared library (`[plugins] load =
+//! ["path/to/libfoo.so"]`), then chosen by `type = "name"` exactly like a built-in. The ABI of
+//! every kind, and where each keeps its state (core-owned arrays), is in [`abi`]'s docs; the
+//! contact law's wrapper lives in `crate::contact::dynlaw` (its trait's layer), the material
+//! law reaches `[[material]] law` through the hook `element::law::DYN_LAW` (set when a library
+//! loads), for the same reason.
 //!
 //! Why not typetag: typetag's registry is filled at link time and cannot see impls inside a
 //! library opened with `dlopen` (typetag issue #94; the library has its own registry). So the
