@@ -22,7 +22,7 @@ use crate::common::{root, scene};
 
 const FLEM: &str = env!("CARGO_BIN_EXE_flem");
 
-fn tmp(name: &str) -> PathBuf {
+pub(crate) fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("flem-ckpt-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     d
@@ -100,7 +100,7 @@ fn assert_same_results(reference: &Path, other: &Path, what: &str) {
 
 /// A run stopped after step `at` (checkpoint + snapshot), then resumed from its folder by a
 /// new `Simulation`, ends bit-identical to `reference` (final u and v, every result file).
-fn interrupt_and_resume(text: &str, at: u64, reference: &Simulation, ref_dir: &Path, tag: &str) {
+pub(crate) fn interrupt_and_resume(text: &str, at: u64, reference: &Simulation, ref_dir: &Path, tag: &str) {
     interrupt_and_resume_checked(text, at, reference, ref_dir, tag, |_| {});
 }
 

@@ -15,13 +15,15 @@ use flem_core::solver::{Observer, Simulation};
 use crate::common::root;
 
 /// The libraries built for these tests.
-struct Libs {
+pub(crate) struct Libs {
     /// plugins/example.
-    example: PathBuf,
+    pub(crate) example: PathBuf,
     /// plugins/testlib: a header for FLEM core "0.0.1-old".
-    stale: PathBuf,
+    pub(crate) stale: PathBuf,
     /// plugins/testlib/examples/no_entry.rs: no entry point.
-    no_entry: PathBuf,
+    pub(crate) no_entry: PathBuf,
+    /// plugins/testlib/examples/missing_fn.rs: a contact law without its evaluate function.
+    pub(crate) missing_fn: PathBuf,
 }
 
 /// Builds plugins/example and plugins/testlib once, with the cargo, target folder and profile
@@ -30,7 +32,7 @@ struct Libs {
 /// the dependencies the same features as `cargo test --workspace`, so their compiled artifacts
 /// are reused: only the two small crates compile (a few seconds), not a second copy of the
 /// dependency tree.
-fn libs() -> &'static Libs {
+pub(crate) fn libs() -> &'static Libs {
     static LIBS: OnceLock<Libs> = OnceLock::new();
     LIBS.get_or_init(|| {
         let exe = std::env::current_exe().unwrap();
@@ -63,12 +65,12 @@ fn libs() -> &'static Libs {
             }
         }
         let get = |n: &str| found.get(n).cloned().unwrap_or_else(|| panic!("cargo built no shared library for {n}: {found:?}"));
-        Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry") }
+        Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry"), missing_fn: get("missing_fn") }
     })
 }
 
 /// A scene from text whose relative paths resolve against `base`.
-fn scene_in(text: &str, base: &Path) -> flem_core::Result<Scene> {
+pub(crate) fn scene_in(text: &str, base: &Path) -> flem_core::Result<Scene> {
     flem_plugins::link();
     // These scenes are the tests' own: consent to their libraries (the refusal without it is
     // tested through the CLI, in its own process, by scene_plugins_load_only_with_consent).
@@ -85,12 +87,12 @@ fn tension_scene(plugins: &str, criterion: &str, separation: &str) -> String {
     format!("{}[cracking.criterion]\n{criterion}\n\n[cracking.separation]\n{separation}\n\n{}\n{plugins}", &base[..start], &base[end..])
 }
 
-fn load_line(lib: &Path) -> String {
+pub(crate) fn load_line(lib: &Path) -> String {
     format!("[plugins]\nload = [{:?}]\n", lib.display().to_string())
 }
 
 #[derive(Default)]
-struct Log(Vec<SplitEvent>);
+pub(crate) struct Log(pub(crate) Vec<SplitEvent>);
 impl Observer for Log {
     fn splits(&mut self, _s: &Simulation, _r: &SplitRecord, ev: &[SplitEvent]) -> flem_core::Result<()> {
         self.0.extend(ev.iter().cloned());
@@ -154,7 +156,18 @@ fn loaded_plugins_name_their_file() {
     let b = dynload::load_library(lib).unwrap();
     assert_eq!(a, b);
     let names: Vec<_> = a.iter().map(|p| (p.kind, p.name)).collect();
-    assert_eq!(names, [("criterion", "example_rankine"), ("separation", "example_sigma1_nearest"), ("criterion", "example_panic")]);
+    assert_eq!(
+        names,
+        [
+            ("criterion", "example_rankine"),
+            ("separation", "example_sigma1_nearest"),
+            ("criterion", "example_panic"),
+            ("contact law", "example_spring_dashpot"),
+            ("damping", "example_adaptive"),
+            ("material law", "example_mohr_coulomb"),
+            ("material law", "example_nan_law")
+        ]
+    );
     assert!(a.iter().all(|p| p.file == lib.canonicalize().unwrap() && p.core_version == abi::CORE_VERSION));
 }
 
@@ -240,7 +253,7 @@ fn cli_lists_loaded_plugins_and_survives_a_panic() {
 }
 
 /// The code blocks of a markdown text (or of a `//!` doc) in the given language.
-fn blocks(text: &str, lang: &str) -> Vec<String> {
+pub(crate) fn blocks(text: &str, lang: &str) -> Vec<String> {
     let mut out = Vec::new();
     let mut cur: Option<String> = None;
     for line in text.lines() {
@@ -266,10 +279,11 @@ fn blocks(text: &str, lang: &str) -> Vec<String> {
 fn docs_are_the_tested_example() {
     let doc = std::fs::read_to_string(root().join("docs/plugins.md")).unwrap();
     let src = std::fs::read_to_string(root().join("plugins/example/src/lib.rs")).unwrap();
+    let all: String = ["lib.rs", "contact.rs", "damping.rs", "material.rs"].iter().map(|f| std::fs::read_to_string(root().join("plugins/example/src").join(f)).unwrap()).collect();
     let rust = blocks(&doc, "rust");
     assert!(rust.len() >= 2);
     for b in &rust {
-        assert!(src.contains(b.as_str()), "docs/plugins.md shows code that plugins/example/src/lib.rs does not have:\n{b}");
+        assert!(all.contains(b.as_str()), "docs/plugins.md shows code that plugins/example/src/ does not have:\n{b}");
     }
     let lib = &libs().example;
     let mut n = 0;

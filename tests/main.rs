@@ -6,6 +6,7 @@ mod compare;
 mod configs;
 mod contact;
 mod cracking;
+mod dynkinds;
 mod dynplug;
 mod elements;
 mod events;

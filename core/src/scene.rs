@@ -93,8 +93,9 @@ pub struct SolverCfg {
     /// Accept a `dt` above the critical step with a warning instead of an error.
     #[serde(default)]
     pub allow_unstable_dt: bool,
-    /// Filled in by [`Scene::from_str`] with "adaptive" when the scene names none.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// Filled in by [`Scene::from_str`] with "adaptive" when the scene names none. A built-in
+    /// or a loaded plugin's scheme (`plugin::dynload::de_damping`).
+    #[serde(default, skip_serializing_if = "Option::is_none", deserialize_with = "crate::plugin::dynload::de_damping")]
     pub damping: Option<Box<dyn Damping>>,
     /// Unbalanced-force ratio at which a stage is in equilibrium.
     #[serde(default = "default_tol")]

@@ -10,6 +10,8 @@
 //!
 //! Printed as JSON; `dynamic_extra_per_check_over_step` is the extra cost of one dynamic check
 //! in units of one explicit step (checks run every `check_every` steps or at equilibrium).
+//! Then the contact law, damping and material law of issue 25 (`dyncall_kinds.rs`): keys
+//! `material_law`, `contact_law`, `damping`.
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -34,6 +36,9 @@ pub struct Args {
     /// Repetitions of each check measurement (the best is kept).
     #[arg(long, default_value_t = 30)]
     reps: usize,
+    /// Elements across the strip footing of the material-law measurement (x 3/4 down).
+    #[arg(long, default_value_t = 64)]
+    footing_n: usize,
 }
 
 fn scene_text(a: &Args, lib: &Path, criterion: &str) -> String {
@@ -155,6 +160,7 @@ pub fn run(a: &Args) -> Result<()> {
     anyhow::ensure!(ob == od, "the built-in and the dynamic criterion disagree");
     let (one_b, one_d) = (single_call_ns(cb, &b.p), single_call_ns(cd, &b.p));
     let step_ns = b.step_ns.min(d.step_ns);
+    let kinds = crate::dyncall_kinds::measure(&lib, a.reps.min(10), a.footing_n)?;
     let json = serde_json::json!({
         "bench": "dyncall",
         "library": lib.display().to_string(),
@@ -168,6 +174,9 @@ pub fn run(a: &Args) -> Result<()> {
         "dynamic_extra_per_check_ns": batch_d - batch_b,
         "dynamic_extra_per_check_over_step": (batch_d - batch_b) / step_ns,
         "failure_check_over_step": { "builtin": b.check_ns / step_ns, "dynamic": d.check_ns / step_ns },
+        "material_law": kinds["material_law"],
+        "contact_law": kinds["contact_law"],
+        "damping": kinds["damping"],
     });
     println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())

@@ -21,6 +21,7 @@ mod bench_laws;
 mod chart;
 mod chart_crack;
 mod converge;
+mod dyncall_kinds;
 mod stability;
 mod sweep;
 
@@ -427,6 +428,33 @@ fn load_for_check(p: &Path) -> Result<(Scene, Vec<String>)> {
             if !dynload::is_builtin(kind, &t) {
                 notes.push(format!("{name}: cracking.{key}.type = \"{t}\" is not built in; it would come from the plugin libraries, so it and its parameters were not checked"));
                 cr.insert(key.into(), toml::Value::Table(toml::from_str(stand_in).expect("a built-in table")));
+            }
+        }
+    }
+    // Contact laws, damping schemes and material laws of the libraries (issue 25).
+    let mut stand_in = |t: &mut toml::Value, key: &str, kind: u32, with: Option<&str>| {
+        let Some(ty) = t.get("type").and_then(|v| v.as_str()).map(str::to_string) else { return false };
+        let builtin = if kind == abi::KIND_CONTACT { flem_core::contact::dynlaw::is_builtin(&ty) } else { dynload::is_builtin(kind, &ty) };
+        if builtin {
+            return false;
+        }
+        notes.push(format!("{name}: {key}.type = \"{ty}\" is not built in; it would come from the plugin libraries, so it and its parameters were not checked"));
+        if let Some(w) = with {
+            *t = toml::Value::Table(toml::from_str(w).expect("a built-in table"));
+        }
+        true
+    };
+    if let Some(law) = doc.get_mut("contact").and_then(|c| c.get_mut("law")) {
+        stand_in(law, "contact.law", abi::KIND_CONTACT, Some("type = \"penalty\"\nnormal_stiffness = 1.0"));
+    }
+    if let Some(d) = doc.get_mut("solver").and_then(|c| c.get_mut("damping")) {
+        stand_in(d, "solver.damping", abi::KIND_DAMPING, Some("type = \"adaptive\""));
+    }
+    if let Some(mats) = doc.get_mut("material").and_then(|m| m.as_array_mut()) {
+        for (i, m) in mats.iter_mut().enumerate() {
+            let Some(tab) = m.as_table_mut() else { continue };
+            if tab.get_mut("law").is_some_and(|law| stand_in(law, &format!("material[{i}].law"), abi::KIND_MATERIAL, None)) {
+                tab.remove("law"); // linear elastic stands in
             }
         }
     }

@@ -92,6 +92,7 @@
 //! either sign; the explicit scheme's impact loss at contact), the area change above; the
 //! notched plate's residual went from 3.6e-2..4.8e-2 (lost) to 1e-5..8e-5 (breakdown in the
 //! test's comment).
+pub mod dynlaw;
 pub mod search;
 
 use std::fmt::Debug;
@@ -107,6 +108,8 @@ pub use search::Contact;
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactCfg {
+    /// A built-in, or a loaded plugin's law (`dynlaw::de_contact`).
+    #[serde(deserialize_with = "dynlaw::de_contact")]
     pub law: Box<dyn ContactLaw>,
     /// Edge sets that are contact surfaces (boundary faces; an interior edge gives both faces).
     #[serde(default)]
@@ -260,4 +263,9 @@ pub trait ContactLaw: Debug + Send + Sync {
     fn stiffness(&self) -> f64;
     /// Updates the history and returns the force of every pair (same order, same length).
     fn evaluate(&self, kin: &[PairKinematics], hist: &mut [PairState], out: &mut [PairForce]);
+    /// An error the law met in `evaluate` (a dynamic law that failed or returned a non-finite
+    /// force; it then returned NaN forces, which the divergence guard stops on).
+    fn fault(&self) -> Option<String> {
+        None
+    }
 }

@@ -100,6 +100,11 @@ pub trait Block: Send + Sync {
     fn point_stress(&self) -> Option<&[[f64; 4]]> {
         None
     }
+    /// An error of the block's material law (a dynamic law that failed or returned a
+    /// non-finite stress; issue 25): the solver reports it instead of a bare divergence.
+    fn fault(&self) -> Option<String> {
+        None
+    }
 }
 
 /// Blocks smaller than this run on the calling thread (waking the pool costs more than it

@@ -26,6 +26,17 @@ use crate::mesh::CellKind;
 pub trait MaterialLaw: Clone + Send + Sync + 'static {
     /// f64 of history per integration point, kept in core-owned arrays.
     const STATE: usize;
+    /// The same, as the block reads it: `STATE` for a compiled law (a constant after
+    /// inlining); a law loaded at run time declares its own.
+    #[inline(always)]
+    fn n_state(&self) -> usize {
+        Self::STATE
+    }
+    /// An error the law met in an update (a dynamic law that failed or returned a non-finite
+    /// stress; it then wrote NaN, which the divergence guard stops on): the solver reports it.
+    fn fault(&self) -> Option<String> {
+        None
+    }
     /// Elastic moduli (stable step, implicit check, initial tangent).
     fn elastic(&self) -> Dmat;
     /// Stress update: `stress` = [sxx, syy, sxy, szz] at the start of the step, `deps` =
@@ -136,6 +147,22 @@ pub trait LawCfg: Debug + Send + Sync {
     /// The blocks (one per element kind present) of a region with this law.
     fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>>;
     fn clone_box(&self) -> Box<dyn LawCfg>;
+}
+
+/// Builds a `[[material]] law` table naming a law from a loaded plugin library (`None`: no
+/// loaded law has its `type`). Set once by the plugin loader (`plugin::dynload`, a layer above
+/// this one), so that the scene's law tables reach the libraries without this layer knowing them.
+pub static DYN_LAW: std::sync::OnceLock<fn(&toml::Value) -> Option<Box<dyn LawCfg>>> = std::sync::OnceLock::new();
+
+/// `deserialize_with` for `[[material]] law`: a loaded plugin's law (see [`DYN_LAW`]), else a
+/// built-in (typetag).
+pub fn de_law<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Box<dyn LawCfg>>, D::Error> {
+    use serde::Deserialize;
+    let v = toml::Value::deserialize(d)?;
+    if let Some(law) = DYN_LAW.get().and_then(|f| f(&v)) {
+        return Ok(Some(law));
+    }
+    Box::<dyn LawCfg>::deserialize(v).map(Some).map_err(serde::de::Error::custom)
 }
 
 impl Clone for Box<dyn LawCfg> {

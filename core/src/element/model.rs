@@ -31,8 +31,9 @@ pub struct MaterialCfg {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub element: Option<String>,
     /// Material law (`crate::element::law`; built-ins in `flem-plugins/src/material/`).
-    /// Absent: linear elastic on the stateless blocked kernel.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// Absent: linear elastic on the stateless blocked kernel. A loaded plugin's law too
+    /// (`law::de_law`).
+    #[serde(default, skip_serializing_if = "Option::is_none", deserialize_with = "crate::element::law::de_law")]
     pub law: Option<Box<dyn LawCfg>>,
     /// Mean-dilatation B-bar on Q4 for stateful blocks (`element::stateful`; default true).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -61,7 +61,7 @@ pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
     u_prev: Vec<[[f64; 2]; N]>,
     /// Stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major).
     stress: Vec<[f64; 4]>,
-    /// `L::STATE` f64 per Gauss point.
+    /// `law.n_state()` f64 per Gauss point.
     hist: Vec<f64>,
     /// Internal work of each element so far.
     work: Vec<f64>,
@@ -253,7 +253,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         self.conn.push(conn);
         self.u_prev.push([[0.0; 2]; N]);
         self.stress.extend(std::iter::repeat_n([0.0; 4], ng));
-        self.hist.extend(std::iter::repeat_n(0.0, ng * L::STATE));
+        self.hist.extend(std::iter::repeat_n(0.0, ng * self.law.n_state()));
         self.work.push(0.0);
         self.omega_bound = std::sync::OnceLock::new();
     }
@@ -300,6 +300,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     fn update_elem(&self, i: usize, ue: &[[f64; 2]; N], st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[f64; 2]; N], work: &mut f64) -> [[f64; 2]; N] {
         const MAXG: usize = 4;
         let ng = S::GAUSS.len();
+        let ns = self.law.n_state();
         debug_assert!(ng <= MAXG);
         let du: [[f64; 2]; N] = std::array::from_fn(|a| [ue[a][0] - up[a][0], ue[a][1] - up[a][1]]);
         let bbar = self.bbar();
@@ -335,7 +336,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 s[2] = xy2;
                 let old = *s;
                 let de = [e[0], e[1], e[2], 0.0];
-                self.law.update(s, de, &mut hs[k * L::STATE..(k + 1) * L::STATE]);
+                self.law.update(s, de, &mut hs[k * ns..(k + 1) * ns]);
                 w_acc += wm[k] * t * 0.5 * ((old[0] + s[0]) * de[0] + (old[1] + s[1]) * de[1] + (old[2] + s[2]) * de[2]);
                 add_force(&ge[k], bbar.then_some(&gbe), [s[0], s[1], s[2]], we[k] * t, &mut f);
             }
@@ -353,7 +354,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 let s = &mut st[k];
                 let old = *s;
                 let de = [e[0], e[1], e[2], 0.0];
-                self.law.update(s, de, &mut hs[k * L::STATE..(k + 1) * L::STATE]);
+                self.law.update(s, de, &mut hs[k * ns..(k + 1) * ns]);
                 let c = self.gp_w[i * ng + k];
                 w_acc += c * 0.5 * ((old[0] + s[0]) * de[0] + (old[1] + s[1]) * de[1] + (old[2] + s[2]) * de[2]);
                 add_force(g, gb, [s[0], s[1], s[2]], c, &mut f);
@@ -373,13 +374,13 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces, st: Raw<[f64; 4]>, hs: Raw<f64>, up: Raw<[[f64; 2]; N]>, wk: Raw<f64>) {
         let ce = self.sched.chunk_packs * LANES;
         let (e0, e1) = (k * ce, ((k + 1) * ce).min(self.len()));
-        let ng = S::GAUSS.len();
+        let (ng, ns) = (S::GAUSS.len(), self.law.n_state());
         // SAFETY: chunks are disjoint element ranges; one chunk runs on one thread.
-        let (st, hs, up, wk) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * L::STATE, e1 * ng * L::STATE), up.range(e0, e1), wk.range(e0, e1)) };
+        let (st, hs, up, wk) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(e0, e1), wk.range(e0, e1)) };
         for i in e0..e1 {
             let j = i - e0;
             let ue = self.gather(i, u);
-            let fe = self.update_elem(i, &ue, &mut st[j * ng..(j + 1) * ng], &mut hs[j * ng * L::STATE..(j + 1) * ng * L::STATE], &mut up[j], &mut wk[j]);
+            let fe = self.update_elem(i, &ue, &mut st[j * ng..(j + 1) * ng], &mut hs[j * ng * ns..(j + 1) * ng * ns], &mut up[j], &mut wk[j]);
             let c = &self.conn[i];
             for a in 0..N {
                 // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
@@ -586,14 +587,15 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         true
     }
     fn plastic(&self, i: usize) -> Option<(f64, u8)> {
-        if L::STATE == 0 {
+        let ns = self.law.n_state();
+        if ns == 0 {
             return None;
         }
         let ng = S::GAUSS.len();
         let (mut gamma, mut wsum, mut flag) = (0.0, 0.0, 0u8);
         for (k, &(_, w)) in S::GAUSS.iter().enumerate() {
-            let j = (i * ng + k) * L::STATE;
-            let (g, f) = self.law.output(&self.hist[j..j + L::STATE]);
+            let j = (i * ng + k) * ns;
+            let (g, f) = self.law.output(&self.hist[j..j + ns]);
             gamma += w * g;
             wsum += w;
             flag = match (flag, f) {
@@ -607,5 +609,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
     /// The stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major).
     fn point_stress(&self) -> Option<&[[f64; 4]]> {
         Some(&self.stress)
+    }
+    fn fault(&self) -> Option<String> {
+        self.law.fault().map(|f| format!("region \"{}\": {f}", self.region))
     }
 }

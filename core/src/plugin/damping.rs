@@ -61,4 +61,9 @@ pub trait Damping: Debug + Send + Sync {
         Vec::new()
     }
     fn set_state(&mut self, _s: &[f64]) {}
+    /// An error the scheme met (a dynamic scheme that failed or returned non-finite
+    /// coefficients; it then returned NaN, which the divergence guard stops on).
+    fn fault(&self) -> Option<String> {
+        None
+    }
 }

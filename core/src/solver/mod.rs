@@ -1029,6 +1029,18 @@ impl Simulation {
     }
 
     fn diverged(&self, why: &str) -> FlemError {
+        // A dynamic plugin that failed or returned a non-finite number (it then wrote NaN):
+        // its error, naming it, instead of a bare divergence (issue 25).
+        let fault = self
+            .model
+            .blocks
+            .iter()
+            .find_map(|b| b.fault())
+            .or_else(|| self.scene.file.contact.as_ref().and_then(|c| c.law.fault()))
+            .or_else(|| self.scene.file.solver.damping.as_ref().and_then(|d| d.fault()));
+        if let Some(f) = fault {
+            return FlemError::Solve(format!("the run stopped at step {} (t = {:.6e}): {f}", self.state.step, self.state.time));
+        }
         FlemError::Diverged { step: self.state.step, time: self.state.time, dt: self.dt, dt_crit: self.stable.dt_crit, ratio: self.dt / self.stable.dt_crit, why: why.to_string() }
     }
 

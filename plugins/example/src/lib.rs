@@ -12,7 +12,12 @@
 //! - `example_sigma1_nearest` (separation): the paper's rule (paper section 2.2, figs. 3-5;
 //!   METHOD section 5), the same choices as the built-in `sigma1_nearest`;
 //! - `example_panic` (criterion): panics on purpose (in `create` or in `check`), to show that a
-//!   plugin panic becomes an error of the run, never an abort.
+//!   plugin panic becomes an error of the run, never an abort;
+//! - `example_spring_dashpot` (contact law, [`contact`]): the paper's law, a copy of the
+//!   built-in `spring_dashpot`;
+//! - `example_adaptive` (damping, [`damping`]): a copy of the built-in `adaptive`;
+//! - `example_mohr_coulomb` (material law, [`material`]): a copy of the built-in `mohr_coulomb`;
+//!   and `example_nan_law`, which returns NaN on purpose.
 //!
 //! A scene loads the library and names the plugins as it would a built-in (paths relative to
 //! the scene file):
@@ -28,6 +33,10 @@
 //! [cracking.separation]
 //! type = "example_sigma1_nearest"
 //! ```
+pub mod contact;
+pub mod damping;
+pub mod material;
+
 use std::f64::consts::{FRAC_PI_2, PI};
 
 use flem_plugin_sdk::{line_angle, ray_angle, Criterion, EdgeId, FailureCheck, FailureMode, FanView, LinkGeom, ParamError, Principal, Proposal, Separation};
@@ -150,4 +159,8 @@ flem_plugin_sdk::export_plugins!(
     criterion "example_rankine" => ExampleRankine,
     separation "example_sigma1_nearest" => ExampleSigma1Nearest,
     criterion "example_panic" => ExamplePanic,
+    contact "example_spring_dashpot" => contact::ExampleSpringDashpot,
+    damping "example_adaptive" => damping::ExampleAdaptive,
+    material "example_mohr_coulomb" => material::ExampleMohrCoulomb,
+    material "example_nan_law" => material::ExampleNanLaw,
 );

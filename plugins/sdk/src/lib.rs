@@ -1,13 +1,20 @@
-//! `flem-plugin-sdk`: write a FLEM failure criterion or separation rule in your own crate, build
-//! it as a shared library (`crate-type = ["cdylib"]`) and load it from a scene with
+//! `flem-plugin-sdk`: write a FLEM failure criterion, separation rule, contact law, damping
+//! scheme or material law (a UMAT of FLEM) in your own crate, build it as a shared library
+//! (`crate-type = ["cdylib"]`) and load it from a scene with
 //! `[plugins] load = ["path/to/libyours.so"]`, without rebuilding FLEM.
 //!
-//! A plugin author writes one trait impl ([`Criterion`] or [`Separation`]) on a
-//! `serde::Deserialize` parameter struct, and one registration line:
+//! A plugin author writes one trait impl ([`Criterion`], [`Separation`], [`Contact`],
+//! [`DampingScheme`], or [`Law`] with its [`BoundLaw`]) on a `serde::Deserialize` parameter
+//! struct, and one registration line:
 //!
 //! ```ignore
-//! flem_plugin_sdk::export_plugins!(criterion "my_rankine" => MyRankine);
+//! flem_plugin_sdk::export_plugins!(criterion "my_rankine" => MyRankine, material "my_law" => MyLaw);
 //! ```
+//!
+//! State that a contact law, damping scheme or material law keeps (its `STATE` f64 per pair,
+//! per scheme, per integration point) is handed to each call as a `&mut [f64]` that the core
+//! owns: checkpoints, resume and threads need nothing from the plugin, and the plugin's own
+//! structs stay immutable after they are made.
 //!
 //! The macro exports the C entry point `flem_plugin_entry_v1` (see
 //! [`flem_core::plugin::dynload::abi`]) with the FLEM core version and compiler this SDK was built with;
@@ -25,14 +32,17 @@ use std::any::Any;
 use std::ffi::c_void;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+pub use flem_core::contact::{PairForce, PairKinematics};
+pub use flem_core::element::{Dmat, Material, Plane};
 pub use flem_core::ids::{ClusterId, EdgeId, PointId};
+pub use flem_core::plugin::damping::{DampingCoeffs, StepStats};
 pub use flem_core::plugin::dynload::abi;
 pub use flem_core::plugin::traits::{line_angle, principal, ray_angle, FailureCheck, FailureMode, FanView, LinkGeom, ParamError, Principal, Proposal};
 pub use serde;
 
 use abi::{
-    CFailureCheck, CFan, CPrincipal, Descriptor, ErrorOut, PluginEntry, RStr, ABI_VERSION, CORE_VERSION, KIND_CRITERION, KIND_SEPARATION, RUSTC_VERSION, STATUS_ERROR, STATUS_NONE, STATUS_OK,
-    STATUS_PANIC,
+    CDampingCoeffs, CDampingInfo, CFailureCheck, CFan, CMaterial, CPairForce, CPairKin, CPrincipal, CStepStats, Descriptor, ErrorOut, PluginEntry, RStr, ABI_VERSION, CONTACT_STATE_MAX, CORE_VERSION,
+    KIND_CONTACT, KIND_CRITERION, KIND_DAMPING, KIND_MATERIAL, KIND_SEPARATION, RUSTC_VERSION, STATUS_ERROR, STATUS_NONE, STATUS_OK, STATUS_PANIC,
 };
 use serde::de::DeserializeOwned;
 
@@ -55,8 +65,70 @@ pub trait Separation: DeserializeOwned + Send + Sync + 'static {
     fn propose(&self, fan: &FanView, failure: &FailureCheck) -> Option<Proposal>;
 }
 
-/// Exports the plugins of this library: `kind "name" => Type`, with kind `criterion` or
-/// `separation`. Use it once per library.
+/// A contact law (the dynamic twin of [`flem_core::contact::ContactLaw`]), one pair per call of
+/// `evaluate` (the shim loops over the batch, monomorphised).
+pub trait Contact: DeserializeOwned + Send + Sync + 'static {
+    /// f64 of history per pair, at most 3. The core keeps them in the pair's `PairState`
+    /// (`en`, `es`, `max_open`): slots 0 and 1 are read as the normal and tangential spring
+    /// forces, which the core scales by `sqrt(A_new / A_old)` when a split changes the area.
+    const STATE: usize;
+    fn validate(&self) -> Result<(), ParamError> {
+        Ok(())
+    }
+    /// The largest spring stiffness per unit area (stress / length), for the stable step.
+    fn stiffness(&self) -> f64;
+    /// The force on the slave of one pair; updates its history `state` (`STATE` f64, zeros for
+    /// a pair never seen). `fresh`: the pair joins the faces of an edge split during the run.
+    fn evaluate(&self, kin: &PairKinematics, fresh: bool, state: &mut [f64]) -> PairForce;
+}
+
+/// A damping scheme (the dynamic twin of [`flem_core::plugin::damping::Damping`]).
+pub trait DampingScheme: DeserializeOwned + Send + Sync + 'static {
+    /// f64 of state (checkpointed by the core).
+    const STATE: usize = 0;
+    fn validate(&self) -> Result<(), ParamError> {
+        Ok(())
+    }
+    /// Start of a stage.
+    fn reset(&self, _state: &mut [f64]) {}
+    /// Coefficients of the next step from the statistics of the last one.
+    fn coeffs(&self, stats: &StepStats, state: &mut [f64]) -> DampingCoeffs;
+    /// Whether `coeffs` reads `u_f_int` and `u_m_u` (the solver then sums them every step).
+    fn uses_rayleigh_stats(&self) -> bool {
+        true
+    }
+    /// Factor (<= 1) on the critical time step.
+    fn stability_factor(&self) -> f64 {
+        1.0
+    }
+}
+
+/// A material law's parameters (the dynamic twin of [`flem_core::element::law::LawCfg`]):
+/// `bind` makes the law of one region from them and the region's elastic material.
+pub trait Law: DeserializeOwned + Send + Sync + 'static {
+    /// f64 of history per integration point (zeros at the start).
+    const STATE: usize;
+    /// The law of a region; the error names the key (relative to `law`).
+    type Bound: BoundLaw;
+    fn bind(&self, mat: &Material) -> Result<Self::Bound, ParamError>;
+}
+
+/// A material law bound to a region (the dynamic twin of
+/// [`flem_core::element::law::MaterialLaw`]). Conventions: stress `[sxx, syy, sxy, szz]`
+/// tension positive, strain increment `[dexx, deyy, dgxy, dezz]` (engineering shear).
+pub trait BoundLaw: Send + Sync + 'static {
+    /// Elastic moduli (stable step, implicit check, initial tangent).
+    fn elastic(&self) -> Dmat;
+    /// Stress update of one point, in place; `state` its `STATE` f64 of history.
+    fn update(&self, stress: &mut [f64; 4], deps: [f64; 4], state: &mut [f64]);
+    /// `(plastic shear strain, state 0 never / 1 last update / 2 past)` for the output.
+    fn output(&self, _state: &[f64]) -> (f64, u8) {
+        (0.0, 0)
+    }
+}
+
+/// Exports the plugins of this library: `kind "name" => Type`, with kind `criterion`,
+/// `separation`, `contact`, `damping` or `material`. Use it once per library.
 #[macro_export]
 macro_rules! export_plugins {
     ($($kind:ident $name:literal => $ty:ty),+ $(,)?) => {
@@ -79,6 +151,15 @@ macro_rules! __entry {
     (separation $name:literal $ty:ty) => {
         $crate::separation_entry::<$ty>($name)
     };
+    (contact $name:literal $ty:ty) => {
+        $crate::contact_entry::<$ty>($name)
+    };
+    (damping $name:literal $ty:ty) => {
+        $crate::damping_entry::<$ty>($name)
+    };
+    (material $name:literal $ty:ty) => {
+        $crate::material_entry::<$ty>($name)
+    };
 }
 
 /// The descriptor of a library providing `plugins`, stamped with this SDK's versions.
@@ -88,12 +169,47 @@ pub const fn descriptor(plugins: &'static [PluginEntry]) -> Descriptor {
 
 /// The table entry of criterion `T` named `name`.
 pub const fn criterion_entry<T: Criterion>(name: &'static str) -> PluginEntry {
-    PluginEntry { kind: KIND_CRITERION, name: RStr::new(name), create: shim::criterion_create::<T>, destroy: shim::destroy::<T>, check_batch: Some(shim::criterion_check::<T>), propose: None }
+    PluginEntry { check_batch: Some(shim::criterion_check::<T>), ..PluginEntry::empty(KIND_CRITERION, name, shim::criterion_create::<T>, shim::destroy::<T>) }
 }
 
 /// The table entry of separation rule `T` named `name`.
 pub const fn separation_entry<T: Separation>(name: &'static str) -> PluginEntry {
-    PluginEntry { kind: KIND_SEPARATION, name: RStr::new(name), create: shim::separation_create::<T>, destroy: shim::destroy::<T>, check_batch: None, propose: Some(shim::separation_propose::<T>) }
+    PluginEntry { propose: Some(shim::separation_propose::<T>), ..PluginEntry::empty(KIND_SEPARATION, name, shim::separation_create::<T>, shim::destroy::<T>) }
+}
+
+/// The table entry of contact law `T` named `name`.
+pub const fn contact_entry<T: Contact>(name: &'static str) -> PluginEntry {
+    assert!(T::STATE <= CONTACT_STATE_MAX, "a contact law keeps at most 3 f64 per pair");
+    PluginEntry {
+        n_state: T::STATE,
+        contact_stiffness: Some(shim::contact_stiffness::<T>),
+        contact_evaluate: Some(shim::contact_evaluate::<T>),
+        ..PluginEntry::empty(KIND_CONTACT, name, shim::contact_create::<T>, shim::destroy::<T>)
+    }
+}
+
+/// The table entry of damping scheme `T` named `name`.
+pub const fn damping_entry<T: DampingScheme>(name: &'static str) -> PluginEntry {
+    PluginEntry {
+        n_state: T::STATE,
+        damping_info: Some(shim::damping_info::<T>),
+        damping_reset: Some(shim::damping_reset::<T>),
+        damping_coeffs: Some(shim::damping_coeffs::<T>),
+        ..PluginEntry::empty(KIND_DAMPING, name, shim::damping_create::<T>, shim::destroy::<T>)
+    }
+}
+
+/// The table entry of material law `T` named `name`.
+pub const fn material_entry<T: Law>(name: &'static str) -> PluginEntry {
+    PluginEntry {
+        n_state: T::STATE,
+        law_bind: Some(shim::law_bind::<T>),
+        law_destroy: Some(shim::destroy::<T::Bound>),
+        law_elastic: Some(shim::law_elastic::<T>),
+        law_update: Some(shim::law_update::<T>),
+        law_output: Some(shim::law_output::<T>),
+        ..PluginEntry::empty(KIND_MATERIAL, name, shim::material_create::<T>, shim::destroy::<T>)
+    }
 }
 
 /// The C functions behind each entry. Public for the macro and the tests; not an API.
@@ -119,10 +235,8 @@ pub mod shim {
             Ok(Err((k, m))) => (STATUS_ERROR, k, m),
             Err(p) => (STATUS_PANIC, String::new(), panic_text(p.as_ref())),
         };
-        // SAFETY: the host passes a valid ErrorOut (or null).
-        if let Some(e) = unsafe { err.as_mut() } {
-            e.set(&key, &msg);
-        }
+        // SAFETY: the host passes a valid ErrorOut (or null); written through raw pointers.
+        unsafe { abi::write_err(err, &key, &msg) };
         st
     }
 
@@ -162,6 +276,121 @@ pub mod shim {
 
     pub unsafe extern "C" fn separation_create<T: Separation>(params: RStr, out: *mut *mut c_void, err: *mut ErrorOut) -> i32 {
         create::<T>(params, out, err, T::validate)
+    }
+
+    pub unsafe extern "C" fn contact_create<T: Contact>(params: RStr, out: *mut *mut c_void, err: *mut ErrorOut) -> i32 {
+        create::<T>(params, out, err, T::validate)
+    }
+
+    pub unsafe extern "C" fn damping_create<T: DampingScheme>(params: RStr, out: *mut *mut c_void, err: *mut ErrorOut) -> i32 {
+        create::<T>(params, out, err, T::validate)
+    }
+
+    pub unsafe extern "C" fn material_create<T: Law>(params: RStr, out: *mut *mut c_void, err: *mut ErrorOut) -> i32 {
+        create::<T>(params, out, err, |_| Ok(()))
+    }
+
+    pub unsafe extern "C" fn contact_stiffness<T: Contact>(instance: *const c_void) -> f64 {
+        // SAFETY: the host passes an instance of T.
+        catch_unwind(AssertUnwindSafe(|| unsafe { &*(instance as *const T) }.stiffness())).unwrap_or(f64::NAN)
+    }
+
+    pub unsafe extern "C" fn contact_evaluate<T: Contact>(instance: *const c_void, n: usize, kin: *const CPairKin, state: *mut f64, out: *mut CPairForce, err: *mut ErrorOut) -> i32 {
+        guard(err, || {
+            if n == 0 {
+                return Ok(STATUS_OK);
+            }
+            // SAFETY: the host passes an instance of T, n kinematics, 3 n state, n outputs.
+            let (t, kin, out) = unsafe { (&*(instance as *const T), std::slice::from_raw_parts(kin, n), std::slice::from_raw_parts_mut(out, n)) };
+            // Stride CONTACT_STATE_MAX (the core's PairState slots), the first STATE the law's.
+            let state: &mut [f64] = unsafe { std::slice::from_raw_parts_mut(state, n * CONTACT_STATE_MAX) };
+            for i in 0..n {
+                let c = &kin[i];
+                let k = PairKinematics { gap: c.gap, dgap: c.dgap, dslip: c.dslip, vn: c.vn, vs: c.vs, area: c.area, area_old: c.area_old, dt: c.dt, new: c.new != 0 };
+                let f = t.evaluate(&k, c.fresh != 0, &mut state[i * CONTACT_STATE_MAX..i * CONTACT_STATE_MAX + T::STATE]);
+                out[i] = CPairForce { normal: f.normal, tangential: f.tangential, stored: f.stored, dissipated: f.dissipated, active: f.active as u32 };
+            }
+            Ok(STATUS_OK)
+        })
+    }
+
+    pub unsafe extern "C" fn damping_info<T: DampingScheme>(instance: *const c_void, out: *mut CDampingInfo) {
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            // SAFETY: the host passes an instance of T and an output slot.
+            let t = unsafe { &*(instance as *const T) };
+            unsafe { *out = CDampingInfo { uses_rayleigh_stats: t.uses_rayleigh_stats() as u32, stability_factor: t.stability_factor() } };
+        }));
+    }
+
+    fn state_slice<'a>(state: *mut f64, n: usize) -> &'a mut [f64] {
+        if n == 0 {
+            &mut []
+        } else {
+            // SAFETY: the host passes n state slots for the duration of the call.
+            unsafe { std::slice::from_raw_parts_mut(state, n) }
+        }
+    }
+
+    pub unsafe extern "C" fn damping_reset<T: DampingScheme>(instance: *const c_void, state: *mut f64, err: *mut ErrorOut) -> i32 {
+        guard(err, || {
+            // SAFETY: the host passes an instance of T.
+            unsafe { &*(instance as *const T) }.reset(state_slice(state, T::STATE));
+            Ok(STATUS_OK)
+        })
+    }
+
+    pub unsafe extern "C" fn damping_coeffs<T: DampingScheme>(instance: *const c_void, stats: *const CStepStats, state: *mut f64, out: *mut CDampingCoeffs, err: *mut ErrorOut) -> i32 {
+        guard(err, || {
+            // SAFETY: the host passes an instance of T and valid pointers.
+            let (t, s) = unsafe { (&*(instance as *const T), *stats) };
+            let st = StepStats { step: s.step, dt: s.dt, omega_max: s.omega_max, kinetic: s.kinetic, u_f_int: s.u_f_int, u_m_u: s.u_m_u };
+            let c = t.coeffs(&st, state_slice(state, T::STATE));
+            unsafe { *out = CDampingCoeffs { viscous: c.viscous, local: c.local, eta: c.eta } };
+            Ok(STATUS_OK)
+        })
+    }
+
+    pub unsafe extern "C" fn law_bind<T: Law>(instance: *const c_void, mat: *const CMaterial, out: *mut *mut c_void, err: *mut ErrorOut) -> i32 {
+        guard(err, || {
+            // SAFETY: the host passes an instance of T and a material.
+            let (t, m) = unsafe { (&*(instance as *const T), *mat) };
+            let law = t.bind(&Material::from(m)).map_err(|e| (e.key, e.msg))?;
+            if out.is_null() {
+                return Err((String::new(), "null output pointer".into()));
+            }
+            // SAFETY: checked non-null; the host owns the slot.
+            unsafe { *out = Box::into_raw(Box::new(law)) as *mut c_void };
+            Ok(STATUS_OK)
+        })
+    }
+
+    pub unsafe extern "C" fn law_elastic<T: Law>(law: *const c_void, out: *mut f64) {
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            // SAFETY: the host passes a law of T::Bound and 3 slots.
+            let d = unsafe { &*(law as *const T::Bound) }.elastic();
+            unsafe { std::ptr::copy_nonoverlapping([d.d11, d.d12, d.d33].as_ptr(), out, 3) };
+        }));
+    }
+
+    /// The stress update of one point: called once per Gauss point per step (the hot path).
+    #[inline]
+    pub unsafe extern "C" fn law_update<T: Law>(law: *const c_void, stress: *mut f64, deps: *const f64, state: *mut f64, err: *mut ErrorOut) -> i32 {
+        guard(err, || {
+            // SAFETY: the host passes a law of T::Bound, 4 stress slots, 4 increments and STATE
+            // history slots, for the duration of the call.
+            let (l, s, de) = unsafe { (&*(law as *const T::Bound), &mut *(stress as *mut [f64; 4]), *(deps as *const [f64; 4])) };
+            l.update(s, de, state_slice(state, T::STATE));
+            Ok(STATUS_OK)
+        })
+    }
+
+    pub unsafe extern "C" fn law_output<T: Law>(law: *const c_void, state: *const f64, gamma: *mut f64, flag: *mut u8) {
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            // SAFETY: as law_update; the state is read only.
+            let l = unsafe { &*(law as *const T::Bound) };
+            let (g, f) = l.output(state_slice(state as *mut f64, T::STATE));
+            unsafe { (*gamma, *flag) = (g, f) };
+        }));
     }
 
     pub unsafe extern "C" fn destroy<T>(instance: *mut c_void) {
@@ -283,5 +512,64 @@ mod tests {
             }
             unsafe { shim::destroy::<Strength>(inst) };
         }
+    }
+    /// A contact law with one f64 of history: the shim reads and writes pair i's history at
+    /// `3 i` (the core's stride), converts the kinematics and forces, and runs every pair.
+    #[derive(Deserialize)]
+    struct Counter {}
+    impl Contact for Counter {
+        const STATE: usize = 1;
+        fn stiffness(&self) -> f64 {
+            2.0
+        }
+        fn evaluate(&self, k: &PairKinematics, fresh: bool, state: &mut [f64]) -> PairForce {
+            state[0] += 1.0;
+            PairForce { normal: k.gap * 10.0 + fresh as u8 as f64, tangential: state[0], active: !k.new, stored: 0.0, dissipated: 0.0 }
+        }
+    }
+
+    /// Reference: the definitions above; exact.
+    #[test]
+    fn contact_shim_uses_the_core_stride() {
+        let kin = [CPairKin { gap: 1.0, ..Default::default() }, CPairKin { gap: 2.0, new: 1, fresh: 1, ..Default::default() }];
+        let mut state = [5.0, 7.0, 9.0, 10.0, 70.0, 90.0];
+        let mut out = [CPairForce::default(); 2];
+        let mut err = ErrorOut::default();
+        let t = Counter {};
+        let st = unsafe { shim::contact_evaluate::<Counter>(&t as *const Counter as *const c_void, 2, kin.as_ptr(), state.as_mut_ptr(), out.as_mut_ptr(), &mut err) };
+        assert_eq!(st, STATUS_OK);
+        assert_eq!(state, [6.0, 7.0, 9.0, 11.0, 70.0, 90.0]);
+        assert_eq!((out[0].normal, out[0].tangential, out[0].active), (10.0, 6.0, 1));
+        assert_eq!((out[1].normal, out[1].tangential, out[1].active), (21.0, 11.0, 0));
+    }
+
+    /// A material law whose update panics: the shim returns PANIC with the message.
+    #[derive(Deserialize)]
+    struct Boom {}
+    struct BoomLaw;
+    impl Law for Boom {
+        const STATE: usize = 0;
+        type Bound = BoomLaw;
+        fn bind(&self, _m: &Material) -> Result<BoomLaw, ParamError> {
+            Ok(BoomLaw)
+        }
+    }
+    impl BoundLaw for BoomLaw {
+        fn elastic(&self) -> Dmat {
+            Dmat { d11: 1.0, d12: 0.0, d33: 0.5 }
+        }
+        fn update(&self, s: &mut [f64; 4], _de: [f64; 4], _st: &mut [f64]) {
+            panic!("boom at sxx = {}", s[0])
+        }
+    }
+
+    #[test]
+    fn material_update_panics_are_caught() {
+        let law = BoomLaw;
+        let mut s = [3.0, 0.0, 0.0, 0.0];
+        let mut e = ErrorOut::default();
+        let st = unsafe { shim::law_update::<Boom>(&law as *const BoomLaw as *const c_void, s.as_mut_ptr(), [0.0; 4].as_ptr(), std::ptr::NonNull::dangling().as_ptr(), &mut e) };
+        assert_eq!(st, STATUS_PANIC);
+        assert_eq!(e.msg(), "boom at sxx = 3");
     }
 }

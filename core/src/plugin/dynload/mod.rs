@@ -1,6 +1,10 @@
-//! Dynamic plugins: failure criteria and separation rules loaded at run time from a shared
-//! library (`[plugins] load = ["path/to/libfoo.so"]`), then chosen by `type = "name"` exactly
-//! like a built-in.
+//! Dynamic plugins: failure criteria, separation rules, contact laws, damping schemes and
+//! material laws loaded at run time from a shared library (`[plugins] load =
+//! ["path/to/libfoo.so"]`), then chosen by `type = "name"` exactly like a built-in. The ABI of
+//! every kind, and where each keeps its state (core-owned arrays), is in [`abi`]'s docs; the
+//! contact law's wrapper lives in `crate::contact::dynlaw` (its trait's layer), the material
+//! law reaches `[[material]] law` through the hook `element::law::DYN_LAW` (set when a library
+//! loads), for the same reason.
 //!
 //! Why not typetag: typetag's registry is filled at link time and cannot see impls inside a
 //! library opened with `dlopen` (typetag issue #94; the library has its own registry). So the
@@ -40,15 +44,18 @@ use std::sync::Mutex;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 
+use crate::element::law::LawCfg;
 use crate::error::{FlemError, Result};
+use crate::plugin::damping::Damping;
 use crate::plugin::traits::{FailureCriterion, SeparationRule};
-use abi::{Descriptor, PluginEntry, ABI_VERSION, CORE_VERSION, ENTRY_SYMBOL, KIND_CRITERION, KIND_SEPARATION, RUSTC_VERSION};
-pub use wrap::{DynCriterion, DynSeparation};
+use abi::{Descriptor, PluginEntry, ABI_VERSION, CONTACT_STATE_MAX, CORE_VERSION, ENTRY_SYMBOL, KIND_CONTACT, KIND_CRITERION, KIND_DAMPING, KIND_MATERIAL, KIND_SEPARATION, RUSTC_VERSION};
+pub(crate) use wrap::{err_slot, read_err, status_text, Instance, CHUNK};
+pub use wrap::{DynCriterion, DynDamping, DynLaw, DynLawCfg, DynSeparation};
 
 /// A plugin provided by a loaded library.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PluginInfo {
-    /// "criterion" or "separation".
+    /// "criterion", "separation", "contact law", "damping" or "material law".
     pub kind: &'static str,
     pub name: &'static str,
     /// The library it came from (canonical path).
@@ -72,6 +79,9 @@ fn kind_name(kind: u32) -> Option<&'static str> {
     match kind {
         KIND_CRITERION => Some("criterion"),
         KIND_SEPARATION => Some("separation"),
+        KIND_CONTACT => Some("contact law"),
+        KIND_DAMPING => Some("damping"),
+        KIND_MATERIAL => Some("material law"),
         _ => None,
     }
 }
@@ -111,6 +121,11 @@ pub fn is_builtin(kind: u32, name: &str) -> bool {
     t.insert("type".into(), toml::Value::String(name.into()));
     let msg = match kind {
         KIND_CRITERION => Box::<dyn FailureCriterion>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
+        // Contact laws live in a layer above this one (`crate::contact::dynlaw::is_builtin`,
+        // which `[contact] law` consults when it meets a loaded name).
+        KIND_CONTACT => return false,
+        KIND_DAMPING => Box::<dyn Damping>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
+        KIND_MATERIAL => Box::<dyn LawCfg>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
         _ => Box::<dyn SeparationRule>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
     };
     !msg.is_some_and(|m| m.contains("unknown variant"))
@@ -159,6 +174,10 @@ fn elf_extents(path: &Path) -> std::result::Result<(), String> {
 /// Loads a plugin library (an explicit path: a bare name would search system folders) and
 /// registers its plugins. Loading the same file again returns its plugins without reloading.
 pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
+    // One load at a time: two threads loading the same file would both pass the "already
+    // loaded" check and the second would find its names taken.
+    static LOADING: Mutex<()> = Mutex::new(());
+    let _one = LOADING.lock().unwrap_or_else(|p| p.into_inner());
     let shown = path.display().to_string();
     let perr = |m: String| FlemError::Plugin { file: shown.clone(), msg: m };
     if let Ok(c) = path.canonicalize() {
@@ -197,11 +216,18 @@ pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
     };
     let mut new = Vec::new();
     for e in entries {
-        let kind = kind_name(e.kind).ok_or_else(|| perr(format!("provides a plugin of unknown kind {} (this flem knows criterion and separation)", e.kind)))?;
+        let kind = kind_name(e.kind).ok_or_else(|| perr(format!("provides a plugin of unknown kind {} (this flem knows criterion, separation, contact law, damping and material law)", e.kind)))?;
         // SAFETY: a static of the library.
         let name: &'static str = unsafe { e.name.as_str() }.map_err(|_| perr("has a plugin name that is not UTF-8".into()))?;
-        if (e.kind == KIND_CRITERION && e.check_batch.is_none()) || (e.kind == KIND_SEPARATION && e.propose.is_none()) {
-            return Err(perr(format!("{kind} \"{name}\" has no {} function", if e.kind == KIND_CRITERION { "check_batch" } else { "propose" })));
+        let missing = e.missing();
+        if !missing.is_empty() {
+            return Err(perr(format!("{kind} \"{name}\" lacks the function(s) {} that a {kind} must provide (nothing of the library was used)", missing.join(", "))));
+        }
+        if e.kind == KIND_CONTACT && e.n_state > CONTACT_STATE_MAX {
+            return Err(perr(format!("{kind} \"{name}\" declares {} f64 of history per pair; the core keeps at most {CONTACT_STATE_MAX} (PairState en, es, max_open)", e.n_state)));
+        }
+        if e.n_state > 1 << 16 {
+            return Err(perr(format!("{kind} \"{name}\" declares {} f64 of state (at most 65536)", e.n_state)));
         }
         if is_builtin(e.kind, name) {
             return Err(perr(format!("{kind} \"{name}\" has the name of a built-in {kind}; rename it")));
@@ -215,9 +241,15 @@ pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
         new.push(Registered { info: PluginInfo { kind, name, file: file.clone(), core_version: core.clone(), rustc_version: rustc.clone() }, entry: e });
     }
     let infos = new.iter().map(|r| r.info.clone()).collect();
+    let _ = crate::element::law::DYN_LAW.set(law_from_table);
     REGISTRY.lock().unwrap_or_else(|p| p.into_inner()).extend(new);
     LIBRARIES.lock().unwrap_or_else(|p| p.into_inner()).push(file);
     Ok(infos)
+}
+
+/// The loaded plugin of a kind with this name: its info and its entry.
+pub(crate) fn find_entry(kind: u32, name: &str) -> Option<(PluginInfo, &'static PluginEntry)> {
+    find(kind, name).map(|r| (r.info, r.entry))
 }
 
 fn find(kind: u32, name: &str) -> Option<Registered> {
@@ -332,7 +364,7 @@ fn names_of(kind: u32) -> Vec<&'static str> {
 
 /// Adds the loaded names of this kind to typetag's "unknown variant `x`, expected one of ..."
 /// so that the scene's "did you mean" hint considers them too.
-fn with_loaded_names(msg: String, kind: u32) -> String {
+pub(crate) fn with_loaded_names(msg: String, kind: u32) -> String {
     let names = names_of(kind);
     if names.is_empty() || !msg.contains("unknown variant") {
         return msg;
@@ -362,6 +394,28 @@ pub fn de_separation<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Box
         return Ok(Box::new(DynSeparation::new(r.info, r.entry, v)));
     }
     Box::<dyn SeparationRule>::deserialize(v).map_err(|e| D::Error::custom(with_loaded_names(e.to_string(), KIND_SEPARATION)))
+}
+
+/// `deserialize_with` for `[solver] damping` (see [`de_criterion`]).
+pub fn de_damping<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Option<Box<dyn Damping>>, D::Error> {
+    let v = toml::Value::deserialize(d)?;
+    if let Some(r) = type_name(&v).and_then(|n| find(KIND_DAMPING, n)) {
+        return Ok(Some(Box::new(DynDamping::new(r.info, r.entry, v))));
+    }
+    Box::<dyn Damping>::deserialize(v).map(Some).map_err(|e| D::Error::custom(with_loaded_names(e.to_string(), KIND_DAMPING)))
+}
+
+/// A `[[material]] law` table naming a loaded material law, as its configuration (`None`: no
+/// loaded law has its `type`); `DynLawCfg::bind` gives a region's law (benchmarks, tests).
+pub fn material_law(v: &toml::Value) -> Option<DynLawCfg> {
+    let r = type_name(v).and_then(|n| find(KIND_MATERIAL, n))?;
+    Some(DynLawCfg::new(r.info, r.entry, v.clone()))
+}
+
+/// The hook of `element::law::de_law`: a `[[material]] law` table naming a loaded material law.
+fn law_from_table(v: &toml::Value) -> Option<Box<dyn LawCfg>> {
+    let r = type_name(v).and_then(|n| find(KIND_MATERIAL, n))?;
+    Some(Box::new(DynLawCfg::new(r.info, r.entry, v.clone())))
 }
 
 #[cfg(test)]
