@@ -36,6 +36,9 @@ pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts:
     out
 }
 
+// A material law from a plugin library (core's `DynLaw`) gets its blocks here too.
+inventory::submit! { flem_core::plugin::dynload::DynLawBlocks(build_stateful::<flem_core::plugin::dynload::DynLaw>) }
+
 /// The integrand at one Gauss point: strain from the displacement derivatives along the
 /// parent axes, stress, and the stress pulled back to the parent axes (unscaled by 1/det J,
 /// which cancels against the Gauss weight's det J): `(P_x,s, P_x,e, P_y,s, P_y,e)`.

@@ -50,7 +50,7 @@ use crate::plugin::damping::Damping;
 use crate::plugin::traits::{FailureCriterion, SeparationRule};
 use abi::{Descriptor, PluginEntry, ABI_VERSION, CONTACT_STATE_MAX, CORE_VERSION, ENTRY_SYMBOL, KIND_CONTACT, KIND_CRITERION, KIND_DAMPING, KIND_MATERIAL, KIND_SEPARATION, RUSTC_VERSION};
 pub(crate) use wrap::{err_slot, read_err, status_text, Instance, CHUNK};
-pub use wrap::{DynCriterion, DynDamping, DynLaw, DynLawCfg, DynSeparation};
+pub use wrap::{DynCriterion, DynDamping, DynLaw, DynLawBlocks, DynLawCfg, DynSeparation};
 
 /// A plugin provided by a loaded library.
 #[derive(Clone, Debug, PartialEq)]

@@ -454,12 +454,23 @@ impl LawCfg for DynLawCfg {
         // `validate` ran on this material when the scene was read: binding again cannot fail
         // but for a plugin that is not deterministic, which is a defect of the plugin.
         let law = self.bind(&mat).unwrap_or_else(|(k, m)| panic!("region \"{region}\": the material law's {k} {m} (it validated before)"));
-        crate::element::stateful::build_stateful(law, region, mat, opts, elems)
+        match inventory::iter::<DynLawBlocks>.into_iter().next() {
+            Some(b) => (b.0)(law, region, mat, opts, elems),
+            // No element kinds linked (a core-only binary): `Model::new` then refuses the
+            // region naming its element key, as for any law without blocks.
+            None => Vec::new(),
+        }
     }
     fn clone_box(&self) -> Box<dyn LawCfg> {
         Box::new(self.clone())
     }
 }
+
+/// The stateful blocks of a dynamic law for a region: the element kinds live in the plugins
+/// crate, which submits this constructor (`flem_plugins::elements`: one `StatefulBlock<S,
+/// DynLaw, N>` per kind, monomorphised there, like a built-in law's).
+pub struct DynLawBlocks(pub fn(DynLaw, &str, Material, StatefulOpts, &RegionElems) -> Vec<Box<dyn Block>>);
+inventory::collect!(DynLawBlocks);
 
 /// A region's material law from a loaded library: one call through a function pointer per
 /// integration point per step, inside the core's stateful block (monomorphised for this type,
