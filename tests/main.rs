@@ -16,4 +16,5 @@ mod nonlocal;
 mod paper;
 mod parallel;
 mod plasticity;
+mod slope;
 mod verification;
