@@ -187,3 +187,21 @@ fn slope_fos_by_strength_reduction_against_bishop() {
     let (t, _) = flem_core::solver::fos::trial(&text, &scene, base, fb2 * 0.95, 0.1).unwrap();
     assert!(!t.flows, "c = 20 kPa at 0.95 of Bishop's factor {fb2} flows: {t:?}");
 }
+
+/// `flem fos` refuses, naming the key, a scene without a law that has a strength and a bad
+/// bracket; nothing is run.
+#[test]
+fn fos_refuses_what_it_cannot_judge() {
+    flem_plugins::link();
+    use flem_core::solver::fos::{factor_of_safety, FosOptions};
+    let opts = FosOptions::default();
+    let cant = root().join("configs/verification/cantilever.toml");
+    let text = std::fs::read_to_string(&cant).unwrap();
+    let e = factor_of_safety(&text, &cant, cant.parent().unwrap(), &opts, &mut |_| {}).err().expect("refused").to_string();
+    assert!(e.contains("material") && e.contains("strength"), "{e}");
+    let slope = root().join("configs/verification/slope.toml");
+    let text = std::fs::read_to_string(&slope).unwrap();
+    let bad = FosOptions { lo: 2.0, hi: 1.0, ..FosOptions::default() };
+    let e = factor_of_safety(&text, &slope, slope.parent().unwrap(), &bad, &mut |_| {}).err().expect("refused").to_string();
+    assert!(e.contains("bracket"), "{e}");
+}
