@@ -1,5 +1,6 @@
 //! The one integration-test binary (cargo/ripgrep style: `autotests = false`, links once).
 //! Every verification test names its reference and tolerance.
+mod cavity;
 mod ckpt;
 mod common;
 mod compare;
@@ -18,4 +19,5 @@ mod paper;
 mod parallel;
 mod plasticity;
 mod skip;
+mod slope;
 mod verification;

@@ -22,6 +22,7 @@ mod chart;
 mod chart_crack;
 mod converge;
 mod dyncall_kinds;
+mod fos;
 mod stability;
 mod sweep;
 
@@ -46,6 +47,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
+    /// Factor of safety by strength reduction (c and tan(phi) divided by F, bisection on F;
+    /// ours, docs/materials.md): DIR/fos.json and the mechanism picture.
+    Fos(fos::Args),
     /// Run a scene: stages to equilibrium, results (VTU/PVD, history.csv, summary.json) into --out.
     Run {
         scene: PathBuf,
@@ -279,6 +283,7 @@ fn main() -> ExitCode {
         Some(Cmd::Sweep { sweep, workers }) => sweep::run(&sweep, workers, cli.allow_plugins),
         Some(Cmd::SweepTask { scene, task, out, threads, params }) => sweep::task(&scene, task, &out, threads, &params),
         Some(Cmd::Converge(a)) => converge::run(a),
+        Some(Cmd::Fos(a)) => fos::run(a),
         Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
     };
     match r {

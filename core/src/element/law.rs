@@ -144,6 +144,12 @@ pub trait LawCfg: Debug + Send + Sync {
     fn is_linear_elastic(&self) -> bool {
         false
     }
+    /// The law with its strength divided by `f` (strength reduction, `solver::fos`): `c / f`
+    /// and `tan(phi) / f`, as the law defines them; `None` (the default) for a law without a
+    /// strength to reduce, which `flem fos` leaves as it is.
+    fn strength_reduced(&self, _f: f64) -> Option<Box<dyn LawCfg>> {
+        None
+    }
     /// The blocks (one per element kind present) of a region with this law.
     fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>>;
     fn clone_box(&self) -> Box<dyn LawCfg>;

@@ -60,6 +60,7 @@
 //! Results leave through the [`Observer`] trait, which the output writer and the comparer
 //! (`crate::output`) implement: the solver never depends on them.
 pub mod events;
+pub mod fos;
 pub mod loads;
 
 use crate::cracking::Cracking;

@@ -333,6 +333,13 @@ impl LawCfg for MohrCoulombCfg {
         }
         Ok(())
     }
+    /// Strength reduction (`flem fos`): `c / f`, `tan(phi) / f`, the dilation angle capped at
+    /// the reduced friction angle (`psi <= phi`); the tension cut-off is kept (the apex
+    /// `c cot(phi)` does not change).
+    fn strength_reduced(&self, f: f64) -> Option<Box<dyn LawCfg>> {
+        let phi = (self.friction_angle_deg.to_radians().tan() / f).atan().to_degrees();
+        Some(Box::new(MohrCoulombCfg { cohesion: self.cohesion / f, friction_angle_deg: phi, dilation_angle_deg: self.dilation_angle_deg.min(phi), tension_cutoff: self.tension_cutoff }))
+    }
     fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
         build_stateful(self.law(&mat), region, mat, opts, elems)
     }

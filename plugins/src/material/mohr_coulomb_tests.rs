@@ -220,3 +220,21 @@ fn validate_names_the_key() {
     let ok = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 0.0, tension_cutoff: None };
     assert!(ok.validate(&ps).is_err());
 }
+
+/// Strength reduction (`flem fos`): c / F and tan(phi) / F, psi capped at the reduced phi, the
+/// tension cut-off kept; the reduced law validates. Reference: the definition; 1e-12.
+#[test]
+fn strength_reduced_divides_c_and_tan_phi() {
+    let cfg = MohrCoulombCfg { cohesion: 10.0, friction_angle_deg: 30.0, dilation_angle_deg: 30.0, tension_cutoff: Some(5.0) };
+    let r = cfg.strength_reduced(2.0).expect("a strength");
+    let v = toml::Value::try_from(&r).unwrap();
+    let t = |k: &str| v.get(k).and_then(|x| x.as_float()).unwrap();
+    assert!((t("cohesion") - 5.0).abs() < 1e-12);
+    assert!((t("friction_angle_deg").to_radians().tan() - 30f64.to_radians().tan() / 2.0).abs() < 1e-12);
+    assert!((t("dilation_angle_deg") - t("friction_angle_deg")).abs() < 1e-12);
+    assert!((t("tension_cutoff") - 5.0).abs() < 1e-12);
+    r.validate(&mat()).unwrap();
+    let psi0 = MohrCoulombCfg { dilation_angle_deg: 0.0, ..cfg };
+    let v = toml::Value::try_from(&psi0.strength_reduced(1.5).unwrap()).unwrap();
+    assert_eq!(v.get("dilation_angle_deg").and_then(|x| x.as_float()), Some(0.0));
+}

@@ -33,6 +33,7 @@
 //! `configs/paper/`, `docs/paper.md`, `tests/paper.rs`.
 pub mod charts;
 pub mod draw;
+pub mod field;
 pub mod run;
 
 use std::path::{Path, PathBuf};
