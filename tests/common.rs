@@ -22,3 +22,20 @@ pub fn sim(text: &str) -> Simulation {
 pub fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
 }
+
+/// One step's internal forces of a stateless model (`a`, the reference) and of a stateful one
+/// (`b`) for the same pseudo-random displacement agree to `tol` relative to the largest force.
+pub fn assert_same_forces(a: &Simulation, b: &mut Simulation, tol: f64) {
+    let n = a.state.u.len();
+    let u: Vec<[f64; 2]> = (0..n).map(|i| [1e-4 * ((i * 7919) % 13) as f64, -1e-4 * ((i * 104729) % 11) as f64]).collect();
+    let (mut f1, mut f2) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
+    a.model.internal_forces(&u, &mut f1);
+    b.model.update_internal_forces(&u, &mut f2);
+    let scale = f1.iter().map(|f| f[0].abs().max(f[1].abs())).fold(0.0, f64::max);
+    assert!(scale > 0.0, "the reference force is zero");
+    for c in 0..n {
+        for d in 0..2 {
+            assert!((f1[c][d] - f2[c][d]).abs() < tol * scale, "{c} {d}: {:?} {:?}", f1[c], f2[c]);
+        }
+    }
+}

@@ -54,17 +54,7 @@ fn stateful_elastic_block_matches_the_linear_kernel() {
     let lin = sim(&base.replace("LAW", ""));
     let mut st = sim(&base.replace("LAW", "bbar = false\nlaw = { type = \"mohr_coulomb\", cohesion = 1e9, friction_angle_deg = 0.0 }"));
     assert!(st.model.stateful && !lin.model.stateful);
-    let n = lin.state.u.len();
-    let u: Vec<[f64; 2]> = (0..n).map(|i| [1e-4 * ((i * 7919) % 13) as f64, -1e-4 * ((i * 104729) % 11) as f64]).collect();
-    let (mut f1, mut f2) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
-    lin.model.internal_forces(&u, &mut f1);
-    st.model.update_internal_forces(&u, &mut f2);
-    let scale = f1.iter().map(|f| f[0].abs().max(f[1].abs())).fold(0.0, f64::max);
-    for c in 0..n {
-        for d in 0..2 {
-            assert!((f1[c][d] - f2[c][d]).abs() < 1e-12 * scale, "{c} {d}: {:?} {:?}", f1[c], f2[c]);
-        }
-    }
+    crate::common::assert_same_forces(&lin, &mut st, 1e-12);
 }
 
 /// A plastic run is bit-identical with one and two threads (footing scene, 1500 steps, 3072

@@ -22,7 +22,8 @@ fn scene(strips: usize) -> String {
     )
 }
 
-fn slope(xs: &[f64], ys: &[f64]) -> f64 {
+/// Least-squares slope of `ln y` against `ln x` (the growth exponent).
+pub(crate) fn slope(xs: &[f64], ys: &[f64]) -> f64 {
     let n = xs.len() as f64;
     let (lx, ly): (Vec<f64>, Vec<f64>) = (xs.iter().map(|x| x.ln()).collect(), ys.iter().map(|y| y.ln()).collect());
     let (mx, my) = (lx.iter().sum::<f64>() / n, ly.iter().sum::<f64>() / n);

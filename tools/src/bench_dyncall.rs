@@ -88,7 +88,7 @@ tolerance = 1e-300
 }
 
 /// Best of `reps` runs of `f`, in nanoseconds.
-fn best(reps: usize, mut f: impl FnMut()) -> f64 {
+pub(crate) fn best(reps: usize, mut f: impl FnMut()) -> f64 {
     (0..reps.max(1))
         .map(|_| {
             let t = Instant::now();

@@ -103,12 +103,9 @@ pub fn run(dofs: &[f64], events: u64, refactor_every: usize) -> Result<()> {
         });
         eprintln!("{} dofs: {} events, {:.3e} s per event", rows.last().unwrap().dofs, ev.events, wall / ev.events as f64);
     }
-    let (lx, ly): (Vec<f64>, Vec<f64>) = rows.iter().map(|r| ((r.dofs as f64).ln(), r.seconds_per_event.ln())).unzip();
-    let n = lx.len() as f64;
-    let (mx, my) = (lx.iter().sum::<f64>() / n, ly.iter().sum::<f64>() / n);
-    let sxx: f64 = lx.iter().map(|x| (x - mx) * (x - mx)).sum();
-    let sxy: f64 = lx.iter().zip(&ly).map(|(x, y)| (x - mx) * (y - my)).sum();
-    let exponent = if sxx > 0.0 { sxy / sxx } else { f64::NAN };
+    let (xs, ys): (Vec<f64>, Vec<f64>) = rows.iter().map(|r| (r.dofs as f64, r.seconds_per_event)).unzip();
+    // One size gives no slope (0 / 0 = NaN, as before).
+    let exponent = crate::bench_contact::slope(&xs, &ys);
     let out = serde_json::json!({
         "what": "events solver: wall time per crack event against dofs (side-notched Q4 plate, Rankine)",
         "refactor_every": refactor_every,

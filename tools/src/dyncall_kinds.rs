@@ -26,15 +26,7 @@ use flem_core::plugin::damping::{Damping, StepStats};
 use flem_core::scene::Scene;
 use flem_core::solver::Simulation;
 
-fn best(reps: usize, mut f: impl FnMut()) -> f64 {
-    (0..reps.max(1))
-        .map(|_| {
-            let t = Instant::now();
-            f();
-            t.elapsed().as_nanos() as f64
-        })
-        .fold(f64::INFINITY, f64::min)
-}
+use crate::bench_dyncall::best;
 
 /// A deterministic pseudo-random sequence in [0, 1).
 struct Lcg(u64);

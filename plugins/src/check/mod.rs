@@ -258,6 +258,11 @@ impl ImplicitSolver {
         self.cache.lock().unwrap_or_else(|e| e.into_inner()).symbolic_count
     }
 
+    /// Stored entries of the kept factor `L` (`None` before a successful solve).
+    pub fn factor_nnz(&self) -> Option<usize> {
+        self.cache.lock().unwrap_or_else(|e| e.into_inner()).factor.as_ref().map(|(_, l)| l.nnz())
+    }
+
     /// Solves `K u = f_ext` with the dofs flagged in `fix` (bit 1 = x, bit 2 = y) prescribed to
     /// `u_prescribed`. Returns the displacement of every cluster.
     pub fn solve(&self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]]) -> Result<Vec<[f64; 2]>, FlemError> {
