@@ -11,6 +11,7 @@ pub use qm6::Qm6;
 pub use t3::T3;
 
 use flem_core::element::block::Block;
+use flem_core::element::kernel::Blocked;
 use flem_core::element::law::{MaterialLaw, RegionElems, StatefulOpts};
 use flem_core::element::registry::stateful_block;
 use flem_core::element::Material;
@@ -26,9 +27,9 @@ pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts:
     let mut out = Vec::new();
     for cell in [CellKind::Q4, CellKind::T3] {
         let b = match elems.kind_of(cell) {
-            "q4" => stateful_block::<Q4, L, 4>(law.clone(), region, mat, opts, elems),
-            "t3" => stateful_block::<T3, L, 3>(law.clone(), region, mat, opts, elems),
-            "qm6" => qm6::stateful::<L>(law.clone(), region, mat, opts, elems),
+            k if k == <Q4 as Blocked<4>>::NAME => stateful_block::<Q4, L, 4>(law.clone(), region, mat, opts, elems),
+            k if k == <T3 as Blocked<3>>::NAME => stateful_block::<T3, L, 3>(law.clone(), region, mat, opts, elems),
+            k if k == <qm6::Qm6 as Blocked<4>>::NAME => qm6::stateful::<L>(law.clone(), region, mat, opts, elems),
             _ => None,
         };
         out.extend(b);

@@ -454,7 +454,10 @@ impl LawCfg for DynLawCfg {
         // `validate` ran on this material when the scene was read: binding again cannot fail
         // but for a plugin that is not deterministic, which is a defect of the plugin.
         let law = self.bind(&mat).unwrap_or_else(|(k, m)| panic!("region \"{region}\": the material law's {k} {m} (it validated before)"));
-        match inventory::iter::<DynLawBlocks>.into_iter().next() {
+        let mut builders = inventory::iter::<DynLawBlocks>.into_iter();
+        let first = builders.next();
+        debug_assert!(builders.next().is_none(), "more than one DynLawBlocks submitted: the choice between them would be arbitrary");
+        match first {
             Some(b) => (b.0)(law, region, mat, opts, elems),
             // No element kinds linked (a core-only binary): `Model::new` then refuses the
             // region naming its element key, as for any law without blocks.
