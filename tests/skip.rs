@@ -26,8 +26,8 @@ impl Observer for Log {
 }
 
 /// (splits, failure indices at history rows and at the end, final u and v bits, checks
-/// evaluated in full, checks skipped).
-type Run = (Vec<String>, Vec<u64>, Vec<u64>, u64, u64);
+/// evaluated in full, checks skipped, skipped by the node tier and by the element pass).
+type Run = (Vec<String>, Vec<u64>, Vec<u64>, u64, u64, (u64, u64));
 
 fn run(text: &str, skip: bool, factor: f64) -> Run {
     let mut sim = common::sim(text);
@@ -39,26 +39,28 @@ fn run(text: &str, skip: bool, factor: f64) -> Run {
     let (cr, cfg) = (sim.cracking.as_ref().unwrap(), sim.scene.file.cracking.as_ref().unwrap());
     log.1.extend(cr.failure_index(cfg, &sim.model, &sim.state.u).iter().map(|x| x.to_bits()));
     let state = sim.state.u.iter().chain(&sim.state.v).flat_map(|x| x.map(f64::to_bits)).collect();
-    (log.0, log.1, state, cr.n_full, cr.n_skipped)
+    (log.0, log.1, state, cr.n_full, cr.n_skipped, cr.skip_tiers())
 }
 
 /// The skipped run equals the every-point run bit for bit, skips most checks, and an unsafe
 /// bound (margins times `unsafe_factor`) changes the splits (the comparison has teeth).
-fn same_with_skip(text: &str, min_splits: usize, unsafe_factor: Option<f64>) {
+fn same_with_skip(text: &str, min_splits: usize, unsafe_factor: Option<f64>) -> (u64, u64) {
     let every = run(text, false, 1.0);
     assert!(every.0.len() >= min_splits, "the reference run must crack: {} splits", every.0.len());
     assert_eq!(every.4, 0);
     let skip = run(text, true, 1.0);
     assert!(skip.4 > 0, "no check was skipped ({} full)", skip.3);
+    assert_eq!(skip.5 .0 + skip.5 .1, skip.4, "every skipped check is certified by one tier");
     assert_eq!(every.3, skip.3 + skip.4, "the same number of checks");
     assert_eq!(every.0, skip.0, "splits differ with the certified skip");
     assert_eq!(every.1, skip.1, "failure index (output) differs with the certified skip");
     assert_eq!(every.2, skip.2, "final state differs with the certified skip");
-    eprintln!("skip: {} splits, {} of {} checks skipped", skip.0.len(), skip.4, skip.3 + skip.4);
+    eprintln!("skip: {} splits, {} of {} checks skipped ({} by the node tier, {} by the element pass)", skip.0.len(), skip.4, skip.3 + skip.4, skip.5 .0, skip.5 .1);
     if let Some(f) = unsafe_factor {
         let bad = run(text, true, f);
         assert_ne!(every.0, bad.0, "margins x {f} (an unsafe bound) still gave the same splits: the test has no teeth");
     }
+    skip.5
 }
 
 /// The peers' notched plate (configs/bench/notch_q4_h0.25.toml: gen_meshes.py notch, h = 0.25,
@@ -67,7 +69,8 @@ fn same_with_skip(text: &str, min_splits: usize, unsafe_factor: Option<f64>) {
 fn certified_skip_gives_the_same_splits_on_the_notched_plate() {
     let text = std::fs::read_to_string(common::root().join("configs/bench/notch_q4_h0.25.toml")).unwrap();
     let text = text.replace("../meshes/", "meshes/").replace("max_steps = 4000", "max_steps = 2500");
-    same_with_skip(&text, 4, Some(4.0));
+    let tiers = same_with_skip(&text, 4, Some(4.0));
+    assert!(tiers.0 > 0 && tiers.1 > 0, "both tiers of the skip certify some check here: {tiers:?}");
 }
 
 /// The paper's opening model (configs/paper/opening.toml: Mohr-Coulomb, tension only), with
@@ -76,7 +79,8 @@ fn certified_skip_gives_the_same_splits_on_the_notched_plate() {
 fn certified_skip_gives_the_same_splits_on_the_opening_model() {
     let text = std::fs::read_to_string(common::root().join("configs/paper/opening.toml")).unwrap();
     let text = text.replace("check_every = 10", "check_every = 1").replace("plots = true", "plots = false");
-    same_with_skip(&text, 4, Some(100.0));
+    let tiers = same_with_skip(&text, 4, Some(100.0));
+    assert!(tiers.0 > 0 && tiers.1 > 0, "both tiers of the skip certify some check here: {tiers:?}");
     // Checks every 3 steps, history rows every 10: the failure index written between checks
     // is that of a skipped check, from the displacement kept for it (`Cracking::before_step`).
     same_with_skip(&text.replace("check_every = 1\n", "check_every = 3\n"), 4, None);

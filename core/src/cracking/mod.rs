@@ -151,6 +151,11 @@ impl Cracking {
         std::borrow::Cow::Owned(checks.iter().map(|c| c.index).collect())
     }
 
+    /// Checks certified by the skip's node tier and by its element pass (`skip.rs`).
+    pub fn skip_tiers(&self) -> (u64, u64) {
+        (self.skip.n_node_tier, self.skip.n_element_tier)
+    }
+
     /// Called by the solver before a step changes `u`: after a skipped check whose failure
     /// index may be read before the next check, keeps that check's `u`. `check_follows`: the
     /// next check comes right after this step, before anything reads the index (the stage loop
