@@ -31,6 +31,10 @@
 //! this covers the rounding of the nodal stress (`~1e-15 L |u|`), of the translation the
 //! gradients do not annihilate exactly, and of the principal values (`~1e-15 |sigma|`).
 //!
+//! Two tiers test `rho < rho_c` ([`Skip::certified`]): a streaming pass over the clusters
+//! (`max |u - u_ref|` against the smallest allowance: no gather, a few bytes per cluster) and,
+//! when it fails, the element pass (each element's half range against its own allowance).
+//!
 //! The failure index of a skipped check (VTU output, checkpoints) is computed on demand from the
 //! displacement of that check ([`super::Cracking::failure_index`]), so the output is the same.
 use crate::element::model::Model;
