@@ -54,10 +54,16 @@ pub struct Skip {
     at: (usize, usize),
     /// Corners of every element when all have as many (4, 3), else 0.
     uniform: u8,
-    /// `min_e allowed[e]`: the allowance of the node tier (see [`Skip::certified`]).
+    /// `min_e allowed[e]`: the node tier's allowance against `u_ref` (see [`Skip::certified`]).
     allowed_min: f64,
-    /// Whether the node tier is still tried for this reference (off after it first fails).
-    node_tier: bool,
+    /// The node tier's base when it is not `u_ref`: the `u` of the last element pass that
+    /// certified, and the smallest slack it left (`slack`, margin factor included).
+    u_base: Vec<[f64; 2]>,
+    base_is_ref: bool,
+    slack: f64,
+    /// Back-off of the node tier after it fails: checks to wait, and the exponent.
+    wait: u32,
+    backoff: u32,
     /// Checks certified by the node tier and by the element pass (diagnostics, tests).
     pub n_node_tier: u64,
     pub n_element_tier: u64,
@@ -173,7 +179,8 @@ impl Skip {
         }
         // A NaN allowance propagates (never certified).
         self.allowed_min = self.allowed.iter().fold(f64::INFINITY, |m, &a| if a.is_nan() || m.is_nan() { f64::NAN } else { m.min(a) });
-        self.node_tier = true;
+        self.base_is_ref = true;
+        (self.wait, self.backoff) = (0, 0);
         self.u_ref.clear();
         self.u_ref.extend_from_slice(u);
         self.at = (nc, cuts);
@@ -185,29 +192,38 @@ impl Skip {
     /// model's pool (a logical and: the answer does not depend on the threads).
     ///
     /// Two tiers, both exact consequences of the bound:
-    /// 1. **Node tier**: `D = max_c |u_c - u_ref,c|_inf` over all clusters, one streaming pass
-    ///    over two arrays (no gather). Every element's half range and largest change are at
-    ///    most `D`, so `D (1 + 2 ROUND) < min_e allowed_e` certifies every element at once
-    ///    (`2 ROUND` covers the rounding of `hi - lo` in the element pass). It ignores the
-    ///    translation an element may share with its neighbours, so it is weaker than the
-    ///    element pass: once it fails for a reference it is not tried again until the next one.
-    /// 2. **Element pass**: each element's half range against its own allowance.
+    /// 1. **Node tier**: `D = max_c |u_c - b_c|_inf` over all clusters against a base `b`, one
+    ///    streaming pass over two arrays (no gather). The base is `u_ref` with the smallest
+    ///    allowance, or the `u` of the last element pass that certified with the smallest
+    ///    slack `S = min_e (allowed_e - half_e - ROUND big_e)` it left: the half range is a
+    ///    seminorm and the largest change a norm, so `half_e(u - u_ref) <= half_e(b - u_ref) + D`
+    ///    and `big_e(u - u_ref) <= big_e(b - u_ref) + D`, and `D (1 + ROUND)(1 + 2 ROUND) < S`
+    ///    certifies every element at once (the `ROUND` factors cover the rounding of the
+    ///    passes). It ignores the translation an element shares with its neighbours, so it is
+    ///    weaker than the element pass: after it fails it waits 1, 3, 7, ... up to 63 checks.
+    /// 2. **Element pass**: each element's half range against its own allowance; when the node
+    ///    tier is due at the next check, it keeps `u` and the slack as the node tier's base.
     pub fn certified(&mut self, model: &Model, u: &[[f64; 2]], cuts: usize, margin_factor: f64) -> bool {
         let topo = &model.topo;
         if !self.valid || self.at != (topo.n_clusters(), cuts) || u.len() != self.u_ref.len() {
             return false;
         }
         let pool = model.pool.as_deref();
-        if self.node_tier {
-            if self.node_pass(u, pool) * (1.0 + 2.0 * Self::ROUND) < self.allowed_min * margin_factor {
+        if self.wait > 0 {
+            self.wait -= 1;
+        } else {
+            let (base, allowance) = if self.base_is_ref { (&self.u_ref[..], self.allowed_min * margin_factor) } else { (&self.u_base[..], self.slack) };
+            if Self::node_pass(u, base, pool) * ((1.0 + Self::ROUND) * (1.0 + 2.0 * Self::ROUND)) < allowance {
                 self.n_node_tier += 1;
+                self.backoff = 0;
                 return true;
             }
-            self.node_tier = false;
+            self.backoff = (self.backoff + 1).min(6);
+            self.wait = (1 << self.backoff) - 1;
         }
         const CHUNK: usize = 8192;
         let ne = self.allowed.len();
-        let chunk = |k: usize| -> bool {
+        let chunk = |k: usize| -> f64 {
             let r = k * CHUNK..((k + 1) * CHUNK).min(ne);
             match self.uniform {
                 4 => self.pass::<4>(topo, u, r, margin_factor),
@@ -215,25 +231,33 @@ impl Skip {
                 _ => self.pass::<0>(topo, u, r, margin_factor),
             }
         };
+        // The smallest slack, or a value <= 0 (not certified); min is exact, so any split of
+        // the chunks over threads gives the same value.
         let n_chunks = ne.div_ceil(CHUNK);
-        let ok = match pool {
+        let slack = match pool {
             Some(pool) if n_chunks > 1 => {
                 use rayon::prelude::*;
-                pool.install(|| (0..n_chunks).into_par_iter().all(chunk))
+                pool.install(|| (0..n_chunks).into_par_iter().map(chunk).reduce(|| f64::INFINITY, f64::min))
             }
-            _ => (0..n_chunks).all(chunk),
+            _ => (0..n_chunks).map(chunk).fold(f64::INFINITY, f64::min),
         };
-        if ok {
-            self.n_element_tier += 1;
+        if !(slack > 0.0) {
+            return false;
         }
-        ok
+        self.n_element_tier += 1;
+        if self.wait == 0 {
+            self.u_base.clear();
+            self.u_base.extend_from_slice(u);
+            self.base_is_ref = false;
+            self.slack = slack * (1.0 - Self::ROUND);
+        }
+        true
     }
 
-    /// `max_c |u_c - u_ref,c|_inf`, or infinity when a change is not finite. Fixed chunks, a
+    /// `max_c |u_c - base_c|_inf`, or infinity when a change is not finite. Fixed chunks, a
     /// max per chunk, the max of those: the same value on any number of threads.
-    fn node_pass(&self, u: &[[f64; 2]], pool: Option<&rayon::ThreadPool>) -> f64 {
+    fn node_pass(u: &[[f64; 2]], ur: &[[f64; 2]], pool: Option<&rayon::ThreadPool>) -> f64 {
         const CHUNK: usize = 16384;
-        let ur = &self.u_ref[..];
         let chunk = |k: usize| -> f64 {
             let r = k * CHUNK..((k + 1) * CHUNK).min(u.len());
             // Branch-free and in lanes of 4 (vectorised); a NaN is caught by the sum.
@@ -273,11 +297,12 @@ impl Skip {
         }
     }
 
-    /// The elements `r`: all within their allowance? `N`: the corners of every element (0:
-    /// read them from the topology). Branch-free min/max (`a < b ? a : b`, one instruction);
-    /// a NaN is caught by the sum of the changes instead.
+    /// The elements `r`: the smallest slack `allowed_e - half_e - ROUND big_e`, or a value
+    /// <= 0 at the first element beyond its allowance (not certified). `N`: the corners of
+    /// every element (0: read them from the topology). Branch-free min/max (`a < b ? a : b`,
+    /// one instruction); a NaN is caught by the sum of the changes instead.
     #[inline(always)]
-    fn pass<const N: usize>(&self, topo: &crate::mesh::topology::Topology, u: &[[f64; 2]], r: std::ops::Range<usize>, margin_factor: f64) -> bool {
+    fn pass<const N: usize>(&self, topo: &crate::mesh::topology::Topology, u: &[[f64; 2]], r: std::ops::Range<usize>, margin_factor: f64) -> f64 {
         let (first, cl, ur) = (&topo.elem_first_copy, &topo.copy_cluster, &self.u_ref[..]);
         #[inline(always)]
         fn mn(a: f64, b: f64) -> f64 {
@@ -295,6 +320,7 @@ impl Skip {
                 b
             }
         }
+        let mut least = f64::INFINITY;
         for e in r {
             let ks = if N == 0 { first[e] as usize..first[e + 1] as usize } else { N * e..N * e + N };
             let (mut lo, mut hi, mut sum) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2], 0.0f64);
@@ -307,11 +333,14 @@ impl Skip {
             }
             let half = 0.5 * mx(hi[0] - lo[0], hi[1] - lo[1]);
             let big = mx(mx(hi[0], hi[1]), mx(-lo[0], -lo[1]));
-            // A NaN (or infinite) displacement, or a NaN allowance, is never certified.
-            if !sum.is_finite() || !(half + Self::ROUND * big < self.allowed[e] * margin_factor) {
-                return false;
+            // A NaN (or infinite) displacement, or a NaN allowance, is never certified
+            // (`b - a > 0` is `a < b` for floats).
+            let s = self.allowed[e] * margin_factor - (half + Self::ROUND * big);
+            if !sum.is_finite() || !(s > 0.0) {
+                return 0.0;
             }
+            least = mn(s, least);
         }
-        true
+        least
     }
 }
