@@ -364,7 +364,7 @@ impl LawCfg for MohrCoulombCfg {
     /// same way (the residual strength too), the strains kept.
     fn strength_reduced(&self, f: f64) -> Option<Box<dyn LawCfg>> {
         let phi = (self.friction_angle_deg.to_radians().tan() / f).atan().to_degrees();
-        let softening = self.softening.as_ref().map(|sc| sc.reduced(f, self.dilation_angle_deg));
+        let softening = self.softening.as_ref().map(|sc| sc.reduced(f, self.dilation_angle_deg, phi));
         Some(Box::new(MohrCoulombCfg { cohesion: self.cohesion / f, friction_angle_deg: phi, dilation_angle_deg: self.dilation_angle_deg.min(phi), tension_cutoff: self.tension_cutoff, softening }))
     }
     fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {

@@ -116,13 +116,14 @@ impl SofteningCfg {
     }
 
     /// Strength reduction: every entry `c / f`, `tan(phi) / f`, `psi` capped at the reduced
-    /// `phi`. `psi0` is the law's constant dilation angle (used when there is no psi table).
-    pub fn reduced(&self, f: f64, psi0: f64) -> SofteningCfg {
+    /// `phi`. `psi0` is the law's constant dilation angle (used when there is no psi table),
+    /// `phi0` its reduced constant friction angle (caps a psi table without a phi one).
+    pub fn reduced(&self, f: f64, psi0: f64, phi0: f64) -> SofteningCfg {
         let phi: Option<Vec<f64>> = self.friction_angle_deg.as_ref().map(|t| t.iter().map(|p| (p.to_radians().tan() / f).atan().to_degrees()).collect());
         let psi = match (&self.dilation_angle_deg, &phi) {
             (Some(t), Some(p)) => Some(t.iter().zip(p).map(|(a, b)| a.min(*b)).collect()),
             (None, Some(p)) => Some(p.iter().map(|b| psi0.min(*b)).collect()),
-            (Some(t), None) => Some(t.clone()), // capped by the reduced constant phi in the law's min
+            (Some(t), None) => Some(t.iter().map(|a| a.min(phi0)).collect()),
             (None, None) => None,
         };
         SofteningCfg { eps_ps: self.eps_ps.clone(), cohesion: self.cohesion.as_ref().map(|t| t.iter().map(|c| c / f).collect()), friction_angle_deg: phi, dilation_angle_deg: psi }
