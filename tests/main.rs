@@ -20,4 +20,5 @@ mod parallel;
 mod plasticity;
 mod skip;
 mod slope;
+mod softening;
 mod verification;

@@ -18,7 +18,7 @@ mod tests {
     use flem_core::element::{Material, Plane};
     use flem_core::scene::MaterialCfg;
 
-    const SOURCES: &[(&str, &str)] = &[("mohr_coulomb.rs", include_str!("mohr_coulomb.rs"))];
+    const SOURCES: &[(&str, &str)] = &[("mohr_coulomb.rs", include_str!("mohr_coulomb.rs")), ("mohr_coulomb_softening.rs", include_str!("mohr_coulomb_softening.rs"))];
 
     /// Every ```toml snippet of the law docs parses as a `[[material]]` and its law validates.
     #[test]

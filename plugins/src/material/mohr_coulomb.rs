@@ -31,7 +31,9 @@
 //! `de1p - de3p` (largest minus smallest principal plastic strain increment, an engineering
 //! shear strain), the state is 1 when the last update was plastic, 2 when a past one was.
 //! Plane strain only (the out-of-plane stress is a principal stress of the return); angles
-//! in degrees in the config.
+//! in degrees in the config. Optional strain softening of c, phi, psi against FLAC's plastic
+//! shear strain (`softening = { eps_ps = [...], ... }`): the submodule [`softening`]; without
+//! it this law is perfectly plastic.
 //!
 //! ```toml
 //! [[material]]
@@ -55,6 +57,10 @@ use flem_core::element::block::Block;
 use flem_core::element::law::{LawCfg, MaterialLaw, RegionElems, StatefulOpts};
 use flem_core::element::{Dmat, Material, Plane};
 
+#[path = "mohr_coulomb_softening.rs"]
+pub mod softening;
+pub use softening::{MohrCoulombSoftening, SofteningCfg};
+
 /// `law = { type = "mohr_coulomb", ... }` (see the module docs).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -69,6 +75,10 @@ pub struct MohrCoulombCfg {
     /// Tension cut-off (stress), in [0, c / tan(phi)]; default the apex (none when phi = 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tension_cutoff: Option<f64>,
+    /// Optional strain softening (or hardening) of c, phi, psi against FLAC's plastic shear
+    /// strain parameter (`softening::SofteningCfg`); absent: perfectly plastic.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub softening: Option<SofteningCfg>,
 }
 
 /// The law with its constants in the form the return uses.
@@ -132,6 +142,14 @@ impl MohrCoulomb {
     /// returned stresses and the plastic strain increment (principal), or `None` when the
     /// trial is elastic.
     pub fn return_principal(&self, s: [f64; 3]) -> Option<([f64; 3], [f64; 3])> {
+        self.return_parts(s).map(|(out, dep, _)| (out, dep))
+    }
+
+    /// [`Self::return_principal`] with, third, the part of the plastic strain increment that
+    /// flows on the shear planes (the strain-softening law's hardening parameter counts it
+    /// alone, as FLAC's does); the same arithmetic for the first two.
+    #[inline(always)]
+    pub fn return_parts(&self, s: [f64; 3]) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
         let tol = 1e-12 * (self.scale + s[0].abs().max(s[2].abs()));
         let viol = (0..6).filter(|&k| self.used & (1 << k) != 0).any(|k| self.f(k, &s) > tol);
         if !viol {
@@ -149,7 +167,7 @@ impl MohrCoulomb {
         let planes = &planes[..np];
         let check = 1e-9 * (self.scale + s[0].abs().max(s[2].abs()));
         // Active sets of 1, 2, 3 planes in a fixed order; the first consistent one is the return.
-        let mut best: Option<([f64; 3], [f64; 3])> = None;
+        let mut best: Option<([f64; 3], [f64; 3], [f64; 3])> = None;
         'size: for size in 1..=3usize {
             let mut idx = [0usize; 3];
             // Combinations of `size` planes in lexicographic order.
@@ -162,15 +180,19 @@ impl MohrCoulomb {
                     if dl[..size].iter().all(|&x| x >= -1e-14 * (1.0 + x.abs())) {
                         let mut out = s;
                         let mut dep = [0.0; 3];
+                        let mut dep_shear = [0.0; 3];
                         for t in 0..size {
                             let j = act[t];
                             for d in 0..3 {
                                 out[d] -= dl[t] * self.dm[j][d];
                                 dep[d] += dl[t] * self.m[j][d];
+                                if j < 3 {
+                                    dep_shear[d] += dl[t] * self.m[j][d];
+                                }
                             }
                         }
                         if planes.iter().all(|&k| self.f(k, &out) <= check) {
-                            best = Some((out, dep));
+                            best = Some((out, dep, dep_shear));
                             break 'size;
                         }
                     }
@@ -195,7 +217,7 @@ impl MohrCoulomb {
         // Every admissible point is reached by some set; this guards round-off at the apex.
         Some(best.unwrap_or_else(|| {
             let p = if self.r[3].is_finite() { self.r[3] } else { (s[0] + s[1] + s[2]) / 3.0 };
-            ([p; 3], [0.0; 3])
+            ([p; 3], [0.0; 3], [0.0; 3])
         }))
     }
 
@@ -328,6 +350,9 @@ impl LawCfg for MohrCoulombCfg {
             let apex = if phi > 0.0 { self.cohesion / phi.tan() } else { 1e100 };
             range("tension_cutoff", t, 0.0, apex, true)?;
         }
+        if let Some(sc) = &self.softening {
+            sc.validate(self)?;
+        }
         if mat.plane != Plane::Strain {
             return Err(("type".into(), "= \"mohr_coulomb\" needs plane strain (model.plane = \"strain\"): its return uses the out-of-plane stress".into()));
         }
@@ -335,13 +360,18 @@ impl LawCfg for MohrCoulombCfg {
     }
     /// Strength reduction (`flem fos`): `c / f`, `tan(phi) / f`, the dilation angle capped at
     /// the reduced friction angle (`psi <= phi`); the tension cut-off is kept (the apex
-    /// `c cot(phi)` does not change).
+    /// `c cot(phi)` does not change). With softening, every entry of the tables is reduced the
+    /// same way (the residual strength too), the strains kept.
     fn strength_reduced(&self, f: f64) -> Option<Box<dyn LawCfg>> {
         let phi = (self.friction_angle_deg.to_radians().tan() / f).atan().to_degrees();
-        Some(Box::new(MohrCoulombCfg { cohesion: self.cohesion / f, friction_angle_deg: phi, dilation_angle_deg: self.dilation_angle_deg.min(phi), tension_cutoff: self.tension_cutoff }))
+        let softening = self.softening.as_ref().map(|sc| sc.reduced(f, self.dilation_angle_deg, phi));
+        Some(Box::new(MohrCoulombCfg { cohesion: self.cohesion / f, friction_angle_deg: phi, dilation_angle_deg: self.dilation_angle_deg.min(phi), tension_cutoff: self.tension_cutoff, softening }))
     }
     fn build(&self, region: &str, mat: Material, opts: StatefulOpts, elems: &RegionElems) -> Vec<Box<dyn Block>> {
-        build_stateful(self.law(&mat), region, mat, opts, elems)
+        match &self.softening {
+            None => build_stateful(self.law(&mat), region, mat, opts, elems),
+            Some(sc) => build_stateful(MohrCoulombSoftening::new(self, sc, &mat), region, mat, opts, elems),
+        }
     }
     fn clone_box(&self) -> Box<dyn LawCfg> {
         Box::new(self.clone())

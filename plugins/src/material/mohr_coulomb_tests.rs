@@ -9,7 +9,7 @@ fn mat() -> Material {
 }
 
 fn law(c: f64, phi_deg: f64, psi_deg: f64, st: Option<f64>) -> MohrCoulomb {
-    MohrCoulombCfg { cohesion: c, friction_angle_deg: phi_deg, dilation_angle_deg: psi_deg, tension_cutoff: st }.law(&mat())
+    MohrCoulombCfg { cohesion: c, friction_angle_deg: phi_deg, dilation_angle_deg: psi_deg, tension_cutoff: st, softening: None }.law(&mat())
 }
 
 /// Principal elastic compliance applied to a stress difference: `D^-1 ds`.
@@ -212,12 +212,12 @@ fn update_is_objective_in_plane() {
 /// Bad parameters are refused with the key.
 #[test]
 fn validate_names_the_key() {
-    let bad = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 40.0, tension_cutoff: None };
+    let bad = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 40.0, tension_cutoff: None, softening: None };
     assert_eq!(bad.validate(&mat()).unwrap_err().0, "dilation_angle_deg");
-    let bad = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 0.0, tension_cutoff: Some(5.0) };
+    let bad = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 0.0, tension_cutoff: Some(5.0), softening: None };
     assert_eq!(bad.validate(&mat()).unwrap_err().0, "tension_cutoff");
     let ps = Material { plane: Plane::Stress, ..mat() };
-    let ok = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 0.0, tension_cutoff: None };
+    let ok = MohrCoulombCfg { cohesion: 1.0, friction_angle_deg: 30.0, dilation_angle_deg: 0.0, tension_cutoff: None, softening: None };
     assert!(ok.validate(&ps).is_err());
 }
 
@@ -225,7 +225,7 @@ fn validate_names_the_key() {
 /// tension cut-off kept; the reduced law validates. Reference: the definition; 1e-12.
 #[test]
 fn strength_reduced_divides_c_and_tan_phi() {
-    let cfg = MohrCoulombCfg { cohesion: 10.0, friction_angle_deg: 30.0, dilation_angle_deg: 30.0, tension_cutoff: Some(5.0) };
+    let cfg = MohrCoulombCfg { cohesion: 10.0, friction_angle_deg: 30.0, dilation_angle_deg: 30.0, tension_cutoff: Some(5.0), softening: None };
     let r = cfg.strength_reduced(2.0).expect("a strength");
     let v = toml::Value::try_from(&r).unwrap();
     let t = |k: &str| v.get(k).and_then(|x| x.as_float()).unwrap();
