@@ -176,6 +176,49 @@ fn geometry<S: Shape<N>, const N: usize>(x: &[[f64; 2]; N], g: &mut [[[f64; 2]; 
     gb
 }
 
+/// Gauss points of an element kind at most (Q4).
+const MAXG: usize = 4;
+
+/// `geometry` of the `LANES` elements of a pack at once (`x[a][dim][lane]`): the same
+/// operations lane by lane (`element::gradients`, then the mean), so the same bits.
+#[inline(always)]
+fn geometry_lanes<S: Shape<N>, const N: usize>(x: &[[[f64; LANES]; 2]; N], g: &mut [[[[f64; LANES]; 2]; N]; MAXG], w: &mut [[f64; LANES]; MAXG]) -> [[[f64; LANES]; 2]; N] {
+    let mut gb = [[[0.0; LANES]; 2]; N];
+    let mut area = [0.0; LANES];
+    for (k, &(xi, wk)) in S::GAUSS.iter().enumerate() {
+        let dn = S::dn(xi);
+        for l in 0..LANES {
+            let (mut j11, mut j12, mut j21, mut j22) = (0.0, 0.0, 0.0, 0.0);
+            for a in 0..N {
+                j11 += dn[a][0] * x[a][0][l];
+                j12 += dn[a][0] * x[a][1][l];
+                j21 += dn[a][1] * x[a][0][l];
+                j22 += dn[a][1] * x[a][1][l];
+            }
+            let det = j11 * j22 - j12 * j21;
+            let inv = 1.0 / det;
+            let wl = wk * det;
+            w[k][l] = wl;
+            area[l] += wl;
+            for a in 0..N {
+                let (gx, gy) = (inv * (j22 * dn[a][0] - j12 * dn[a][1]), inv * (-j21 * dn[a][0] + j11 * dn[a][1]));
+                g[k][a][0][l] = gx;
+                g[k][a][1][l] = gy;
+                gb[a][0][l] += wl * gx;
+                gb[a][1][l] += wl * gy;
+            }
+        }
+    }
+    for l in 0..LANES {
+        let inv = 1.0 / area[l];
+        for a in 0..N {
+            gb[a][0][l] *= inv;
+            gb[a][1][l] *= inv;
+        }
+    }
+    gb
+}
+
 /// `[exx, eyy, gxy]` of `u` with the B-bar correction when `gb` is given.
 #[inline(always)]
 fn strain_bar<const N: usize>(g: &[[f64; 2]; N], gb: Option<&[[f64; 2]; N]>, u: &[[f64; 2]; N]) -> [f64; 3] {
@@ -320,7 +363,6 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// then its forces. `st`, `hs` are its points' stress and history, `up` its last displacements.
     #[inline(always)]
     fn update_elem(&self, i: usize, ue: &[[f64; 2]; N], st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[f64; 2]; N], work: &mut f64) -> [[f64; 2]; N] {
-        const MAXG: usize = 4;
         let ng = S::GAUSS.len();
         let ns = self.law.n_state();
         debug_assert!(ng <= MAXG);
@@ -482,8 +524,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         }
     }
 
-    /// Small strain: the packs of elements `e0..e1` (`e0` a multiple of `LANES`; `st`, `hs`,
-    /// `up`, `wk` start at `e0`).
+    /// The packs of elements `e0..e1` (`e0` a multiple of `LANES`; `st`, `hs`, `up`, `wk`
+    /// start at `e0`).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn packs(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64]) {
@@ -492,10 +534,121 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         for p in e0 / LANES..e1.div_ceil(LANES) {
             let (j, n) = (p * LANES - e0, (e1 - p * LANES).min(LANES));
             let (st, hs, up, wk) = (&mut st[j * ng..], &mut hs[j * ng * ns..], &mut up[j..], &mut wk[j..]);
-            if bbar {
-                self.update_pack::<true>(p, n, u, st, hs, up, wk, f);
-            } else {
-                self.update_pack::<false>(p, n, u, st, hs, up, wk, f);
+            match (self.opts.large_strain, bbar) {
+                (false, true) => self.update_pack::<true>(p, n, u, st, hs, up, wk, f),
+                (false, false) => self.update_pack::<false>(p, n, u, st, hs, up, wk, f),
+                (true, true) => self.update_pack_large::<true>(p, n, u, st, hs, up, wk, f),
+                (true, false) => self.update_pack_large::<false>(p, n, u, st, hs, up, wk, f),
+            }
+        }
+    }
+
+    /// `update_pack` with large strain: `update_elem`'s large-strain branch lane by lane (the
+    /// same bits), the geometry of the mid-step and current configurations of the pack's
+    /// elements computed together (`geometry_lanes`).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn update_pack_large<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], f: SharedForces) {
+        let ng = S::GAUSS.len();
+        let ns = self.law.n_state();
+        let t = self.mat.thickness;
+        let i0 = p * LANES;
+        let conn = &self.conn[i0..i0 + n];
+        let (st, up, wk) = (&mut st[..n * ng], &mut up[..n], &mut wk[..n]);
+        let mut du = [[[0.0; LANES]; 2]; N];
+        let (mut xm, mut xe) = ([[[0.0; LANES]; 2]; N], [[[0.0; LANES]; 2]; N]);
+        for l in 0..LANES {
+            // Lanes past the block's end repeat its first element (finite geometry, unused).
+            let (x0, lu) = (&self.x[i0 + if l < n { l } else { 0 }], if l < n { l } else { 0 });
+            for a in 0..N {
+                let v = u[conn[lu][a] as usize];
+                let o = up[lu][a];
+                for d in 0..2 {
+                    du[a][d][l] = if l < n { v[d] - o[d] } else { 0.0 };
+                    xm[a][d][l] = x0[a][d] + 0.5 * (o[d] + v[d]);
+                    xe[a][d][l] = x0[a][d] + v[d];
+                }
+            }
+        }
+        for l in 0..n {
+            for a in 0..N {
+                up[l][a] = u[conn[l][a] as usize];
+            }
+        }
+        let (mut gm, mut wm) = ([[[[0.0; LANES]; 2]; N]; MAXG], [[0.0; LANES]; MAXG]);
+        let (mut ge, mut we) = ([[[[0.0; LANES]; 2]; N]; MAXG], [[0.0; LANES]; MAXG]);
+        let gbm = geometry_lanes::<S, N>(&xm, &mut gm, &mut wm);
+        let gbe = geometry_lanes::<S, N>(&xe, &mut ge, &mut we);
+        let mut ev = [0.0; LANES];
+        if BBAR {
+            for l in 0..LANES {
+                for a in 0..N {
+                    ev[l] += gbm[a][0][l] * du[a][0][l] + gbm[a][1][l] * du[a][1][l];
+                }
+            }
+        }
+        let mut fe = [[[0.0; LANES]; 2]; N];
+        let mut w_acc = [0.0; LANES];
+        for k in 0..ng {
+            let (g, h) = (&gm[k], &ge[k]);
+            let mut de = [[0.0; LANES]; 4];
+            let mut s = [[0.0; LANES]; 4];
+            for l in 0..n {
+                let x = st[l * ng + k];
+                (s[0][l], s[1][l], s[2][l], s[3][l]) = (x[0], x[1], x[2], x[3]);
+            }
+            for l in 0..LANES {
+                let (mut e0, mut e1, mut e2) = (0.0, 0.0, 0.0);
+                let mut om = 0.0;
+                for a in 0..N {
+                    e0 += g[a][0][l] * du[a][0][l];
+                    e1 += g[a][1][l] * du[a][1][l];
+                    e2 += g[a][1][l] * du[a][0][l] + g[a][0][l] * du[a][1][l];
+                }
+                if BBAR {
+                    let cc = 0.5 * (ev[l] - (e0 + e1));
+                    e0 += cc;
+                    e1 += cc;
+                }
+                (de[0][l], de[1][l], de[2][l]) = (e0, e1, e2);
+                // Spin of the increment at the mid-step configuration, Hughes-Winget rotation.
+                for a in 0..N {
+                    om += 0.5 * (g[a][0][l] * du[a][1][l] - g[a][1][l] * du[a][0][l]);
+                }
+                let hh = 0.5 * om;
+                let (ct, sn) = ((1.0 - hh * hh) / (1.0 + hh * hh), 2.0 * hh / (1.0 + hh * hh));
+                let (c2, s2) = (ct * ct - sn * sn, 2.0 * sn * ct);
+                let (m, dd, xy) = (0.5 * (s[0][l] + s[1][l]), 0.5 * (s[0][l] - s[1][l]), s[2][l]);
+                let (dd2, xy2) = (c2 * dd - s2 * xy, s2 * dd + c2 * xy);
+                (s[0][l], s[1][l], s[2][l]) = (m + dd2, m - dd2, xy2);
+            }
+            let old = s;
+            self.law.update_lanes(&mut s, &de, &mut hs[k * ns..], ng * ns, n);
+            for l in 0..n {
+                st[l * ng + k] = [s[0][l], s[1][l], s[2][l], s[3][l]];
+            }
+            for l in 0..LANES {
+                let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
+                w_acc[l] += wm[k][l] * t * 0.5 * ((old[0][l] + s0) * de[0][l] + (old[1][l] + s1) * de[1][l] + (old[2][l] + s2) * de[2][l]);
+                let c = we[k][l] * t;
+                let hp = 0.5 * (s0 + s1);
+                for a in 0..N {
+                    let (g0, g1) = (h[a][0][l], h[a][1][l]);
+                    let (mut fx, mut fy) = (g0 * s0 + g1 * s2, g0 * s2 + g1 * s1);
+                    if BBAR {
+                        fx += (gbe[a][0][l] - g0) * hp;
+                        fy += (gbe[a][1][l] - g1) * hp;
+                    }
+                    fe[a][0][l] += c * fx;
+                    fe[a][1][l] += c * fy;
+                }
+            }
+        }
+        for l in 0..n {
+            wk[l] += w_acc[l];
+            for a in 0..N {
+                // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
+                unsafe { f.add(conn[l][a] as usize, [fe[a][0][l], fe[a][1][l]]) };
             }
         }
     }
@@ -516,7 +669,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let (ng, ns) = (S::GAUSS.len(), self.law.n_state());
         // SAFETY: chunks are disjoint element ranges; one chunk runs on one thread.
         let (st, hs, up, wk) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(e0, e1), wk.range(e0, e1)) };
-        if !self.opts.large_strain && self.enh.is_empty() {
+        if self.enh.is_empty() {
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU has AVX2 (checked just above).
