@@ -323,11 +323,13 @@ impl MaterialLaw for MohrCoulomb {
     /// arithmetic as `update` on each lane, so the same bits.
     #[inline(always)]
     fn update_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], state: &mut [f64], stride: usize, n: usize) {
-        let mut ts = [[0.0; LANES]; 4];
+        let z = [0.0; LANES];
+        let (mut ts, mut half, mut rad, mut pa, mut pb, mut pz) = ([z; 4], z, z, z, z, z);
         let mut inside = [false; LANES];
         for l in 0..LANES {
             let t = self.trial(&[s[0][l], s[1][l], s[2][l], s[3][l]], [de[0][l], de[1][l], de[2][l], de[3][l]]);
             (ts[0][l], ts[1][l], ts[2][l], ts[3][l]) = (t.s[0], t.s[1], t.s[2], t.s[3]);
+            (half[l], rad[l], pa[l], pb[l], pz[l]) = (t.half, t.rad, t.pa, t.pb, t.pz);
             inside[l] = t.inside;
         }
         let n = n.min(LANES);
@@ -344,6 +346,56 @@ impl MaterialLaw for MohrCoulomb {
             }
             return;
         }
+        // The main-face return of every lane at once: `return_principal`'s first active set
+        // (plane 0 alone, always the first tried) and `plastic_update`'s rotation back, the
+        // same operations. A lane takes it when the scalar return would (violated, multiplier
+        // >= 0, no plane violated after); any other lane goes through `plastic_update`.
+        let (d0, big) = (self.a[0][0], self.a[0][0].abs().max(self.a[3][3].abs()));
+        let solvable = d0.abs() > 1e-12 * big;
+        let (mut fs, mut gam) = ([z; 4], z);
+        let mut face = [false; LANES];
+        for l in 0..LANES {
+            let (za, zb) = (pz[l] >= pa[l], pz[l] >= pb[l]);
+            // Sorted `s1 >= s2 >= s3` over (pa, pb, pz), as `plastic_update` sorts them.
+            let q = if za {
+                [pz[l], pa[l], pb[l]]
+            } else if zb {
+                [pa[l], pz[l], pb[l]]
+            } else {
+                [pa[l], pb[l], pz[l]]
+            };
+            let tol = 1e-12 * (self.scale + q[0].abs().max(q[2].abs()));
+            let mut viol = false;
+            for k in 0..6 {
+                viol |= self.used & (1 << k) != 0 && self.f(k, &q) > tol;
+            }
+            let dl = self.f(0, &q) / d0;
+            let ok = dl >= -1e-14 * (1.0 + dl.abs());
+            let mut out = q;
+            let mut dep = [0.0; 3];
+            for d in 0..3 {
+                out[d] -= dl * self.dm[0][d];
+                dep[d] += dl * self.m[0][d];
+            }
+            let check = 1e-9 * (self.scale + q[0].abs().max(q[2].abs()));
+            let mut adm = true;
+            for k in 0..6 {
+                adm &= self.used & (1 << k) == 0 || self.f(k, &out) <= check;
+            }
+            face[l] = solvable && viol && ok && adm;
+            let (na, nb, nz) = if za {
+                (out[1], out[2], out[0])
+            } else if zb {
+                (out[0], out[2], out[1])
+            } else {
+                (out[0], out[1], out[2])
+            };
+            let (c2, s2) = if rad[l] > 0.0 { (half[l] / rad[l], ts[2][l] / rad[l]) } else { (1.0, 0.0) };
+            let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
+            (fs[0][l], fs[1][l], fs[2][l], fs[3][l]) = (m + h * c2, m - h * c2, h * s2, nz);
+            let (mx, mn) = (dep[0].max(dep[1]).max(dep[2]), dep[0].min(dep[1]).min(dep[2]));
+            gam[l] = mx - mn;
+        }
         for l in 0..n {
             let h = &mut state[l * stride..l * stride + 2];
             if inside[l] {
@@ -351,9 +403,13 @@ impl MaterialLaw for MohrCoulomb {
                 if h[1] == 1.0 {
                     h[1] = 2.0;
                 }
+            } else if face[l] {
+                (s[0][l], s[1][l], s[2][l], s[3][l]) = (fs[0][l], fs[1][l], fs[2][l], fs[3][l]);
+                h[0] += gam[l];
+                h[1] = 1.0;
             } else {
-                let mut sl = [s[0][l], s[1][l], s[2][l], s[3][l]];
-                let t = self.trial(&sl, [de[0][l], de[1][l], de[2][l], de[3][l]]);
+                let t = Trial { s: [ts[0][l], ts[1][l], ts[2][l], ts[3][l]], half: half[l], rad: rad[l], pa: pa[l], pb: pb[l], pz: pz[l], inside: false };
+                let mut sl = t.s;
                 self.plastic_update(&mut sl, &t, h);
                 (s[0][l], s[1][l], s[2][l], s[3][l]) = (sl[0], sl[1], sl[2], sl[3]);
             }
