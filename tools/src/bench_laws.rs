@@ -5,13 +5,20 @@
 //! - `elastic`: the default linear elastic law on the stateless blocked kernel (the reference);
 //! - `mohr_coulomb_elastic`: the plastic law while every point stays elastic (cohesion far
 //!   above the stress): the cost of the stateful block and of the yield check;
-//! - `mohr_coulomb_plastic`: every point returns to the surface at every update (cohesion
-//!   far below the stress, the displacement alternating in sign);
-//! - `large_strain_elastic`, `large_strain_mohr_coulomb`: the same with `large_strain`
-//!   (geometry and spin recomputed every update).
+//! - `mohr_coulomb_plastic`: every point returns at every update, to an edge or a corner of
+//!   the tension cut-off (cohesion far below the stress, a shear with a stretch alternating in
+//!   sign, `tension_cutoff = 0`): the return's worst case, several active sets tried per point;
+//! - `mohr_coulomb_plastic_face`: every point returns to the main (shear) face at every update
+//!   (a compression with a shear alternating in sign, no cut-off below the apex): the usual
+//!   return of a plastic zone in compression (the footing, the slope);
+//! - `large_strain_elastic`, `large_strain_mohr_coulomb_elastic`, `large_strain_mohr_coulomb`:
+//!   the same with `large_strain` (geometry and spin recomputed every update).
 //!
 //! Each case alternates between two displacement fields, so every update sees a real
-//! strain increment. The ratios divide by the `elastic` figure of the same run.
+//! strain increment. `plastic_fraction` is the fraction of the elements whose points were
+//! plastic in the last update (the cases say what they measure). `over_elastic` divides by the
+//! `elastic` figure of the same run; `ratios` gives the must-show quotients of issue 21 (plastic
+//! law against the elastic kernel, large strain against small strain).
 use anyhow::Result;
 use flem_core::element::model::{Model, ModelOpts};
 use flem_core::element::Plane;
@@ -28,23 +35,48 @@ fn model(n: usize, law: &str, large: bool) -> Result<Model> {
     Ok(Model::new_with(mesh, &[mat], Plane::Strain, ModelOpts { large_strain: large }, "<bench>")?)
 }
 
+/// The two displacement fields a case alternates between.
+#[derive(Clone, Copy)]
+enum Motion {
+    /// A shear and a stretch of 1e-3, and the opposite.
+    ShearStretch,
+    /// A compression of 1e-3 with a shear of 2e-3, and the same compression with the opposite
+    /// shear: the increments are pure shear, the stress stays compressive.
+    CompressedShear,
+}
+
 pub fn run(n: usize, min_time: f64) -> Result<()> {
+    let mc_el = "law = { type = \"mohr_coulomb\", cohesion = 1e6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0 }";
+    let mc_pl = "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0, tension_cutoff = 0.0 }";
+    let mc_face = "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0 }";
+    use Motion::*;
     let cases = [
-        ("elastic", "", false),
-        ("mohr_coulomb_elastic", "law = { type = \"mohr_coulomb\", cohesion = 1e6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0 }", false),
-        ("mohr_coulomb_plastic", "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0, tension_cutoff = 0.0 }", false),
-        ("large_strain_elastic", "", true),
-        ("large_strain_mohr_coulomb", "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0, tension_cutoff = 0.0 }", true),
+        ("elastic", "", false, ShearStretch),
+        ("mohr_coulomb_elastic", mc_el, false, ShearStretch),
+        ("mohr_coulomb_plastic", mc_pl, false, ShearStretch),
+        ("mohr_coulomb_plastic_face", mc_face, false, CompressedShear),
+        ("large_strain_elastic", "", true, ShearStretch),
+        ("large_strain_mohr_coulomb_elastic", mc_el, true, ShearStretch),
+        ("large_strain_mohr_coulomb", mc_pl, true, ShearStretch),
     ];
     let mut rows = Vec::new();
+    let mut ns_of = std::collections::BTreeMap::new();
     let mut base = 0.0;
-    for (name, law, large) in cases {
+    for (name, law, large, motion) in cases {
         let mut m = model(n, law, large)?;
         let x0 = m.cluster_x0();
         let nc = x0.len();
-        // A shear and a stretch of 1e-3, and the opposite: every update is a real increment.
-        let ua: Vec<[f64; 2]> = x0.iter().map(|p| [1e-3 * (p[1] + 0.3 * p[0]), -1e-3 * 0.5 * p[1]]).collect();
-        let ub: Vec<[f64; 2]> = ua.iter().map(|v| [-v[0], -v[1]]).collect();
+        let (ua, ub): (Vec<[f64; 2]>, Vec<[f64; 2]>) = match motion {
+            ShearStretch => {
+                let ua: Vec<[f64; 2]> = x0.iter().map(|p| [1e-3 * (p[1] + 0.3 * p[0]), -1e-3 * 0.5 * p[1]]).collect();
+                let ub = ua.iter().map(|v| [-v[0], -v[1]]).collect();
+                (ua, ub)
+            }
+            CompressedShear => {
+                let f = |p: &[f64; 2], g: f64| [-1e-3 * p[0] + 0.5 * g * p[1], -1e-3 * p[1] + 0.5 * g * p[0]];
+                (x0.iter().map(|p| f(p, 4e-3)).collect(), x0.iter().map(|p| f(p, -4e-3)).collect())
+            }
+        };
         let mut f = vec![[0.0; 2]; nc];
         let mut flip = false;
         let (s, cpu) = crate::bench::time_per_call(min_time, || {
@@ -56,9 +88,21 @@ pub fn run(n: usize, min_time: f64) -> Result<()> {
         if name == "elastic" {
             base = ns;
         }
-        rows.push(json!({"law": name, "elements": ne, "ns_per_elem_update": ns, "cpu_ns_per_elem_update": cpu * 1e9 / ne, "over_elastic": ns / base}));
+        let plastic = m.blocks.iter().flat_map(|b| (0..b.len()).map(move |i| b.plastic(i))).filter(|p| matches!(p, Some((_, 1)))).count();
+        ns_of.insert(name, ns);
+        rows.push(json!({"law": name, "elements": ne, "ns_per_elem_update": ns, "cpu_ns_per_elem_update": cpu * 1e9 / ne, "over_elastic": ns / base, "plastic_fraction": plastic as f64 / ne}));
         eprintln!("bench laws: {name} {ns:.1} ns per element-update");
     }
-    println!("{}", serde_json::to_string_pretty(&json!({"bench": "laws", "kind": "Q4", "threads": 1, "cases": rows}))?);
+    let r = |a: &str, b: &str| ns_of[a] / ns_of[b];
+    let ratios = json!({
+        "plastic_law_elastic_regime_over_elastic": r("mohr_coulomb_elastic", "elastic"),
+        "plastic_regime_over_elastic": r("mohr_coulomb_plastic", "elastic"),
+        "plastic_face_over_elastic": r("mohr_coulomb_plastic_face", "elastic"),
+        "large_over_small_elastic": r("large_strain_elastic", "elastic"),
+        "large_over_small_mohr_coulomb_elastic": r("large_strain_mohr_coulomb_elastic", "mohr_coulomb_elastic"),
+        "large_over_small_mohr_coulomb_plastic": r("large_strain_mohr_coulomb", "mohr_coulomb_plastic"),
+    });
+    eprintln!("bench laws: ratios {ratios}");
+    println!("{}", serde_json::to_string_pretty(&json!({"bench": "laws", "kind": "Q4", "threads": 1, "cases": rows, "ratios": ratios}))?);
     Ok(())
 }

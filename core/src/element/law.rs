@@ -18,6 +18,7 @@
 use std::fmt::Debug;
 
 use crate::element::block::Block;
+use crate::element::kernel::LANES;
 use crate::element::{Dmat, Material, Plane};
 use crate::ids::ElemId;
 use crate::mesh::CellKind;
@@ -42,6 +43,23 @@ pub trait MaterialLaw: Clone + Send + Sync + 'static {
     /// Stress update: `stress` = [sxx, syy, sxy, szz] at the start of the step, `deps` =
     /// [dexx, deyy, dgxy, dezz] the strain increment; updates both in place.
     fn update(&self, stress: &mut [f64; 4], deps: [f64; 4], state: &mut [f64]);
+    /// `update` of lanes `0..n` of a pack of points (structure of arrays: `s[c][l]` is stress
+    /// component `c` of lane `l`, `de[c][l]` its strain increment; lane `l`'s history is
+    /// `state[l * stride..l * stride + n_state()]`). Must give bit for bit what `update` gives
+    /// on each lane (the stateful block calls this in its vectorised path and `update` in the
+    /// others). The default calls `update` lane by lane; a law overrides it with a vectorised
+    /// elastic trial and calls `update` only for the lanes that yield (`mohr_coulomb`).
+    #[inline(always)]
+    fn update_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], state: &mut [f64], stride: usize, n: usize) {
+        let ns = self.n_state();
+        for l in 0..n.min(LANES) {
+            let mut sl = [s[0][l], s[1][l], s[2][l], s[3][l]];
+            self.update(&mut sl, [de[0][l], de[1][l], de[2][l], de[3][l]], &mut state[l * stride..l * stride + ns]);
+            for c in 0..4 {
+                s[c][l] = sl[c];
+            }
+        }
+    }
     /// What the output shows of a point's history: `(plastic shear strain, plastic state)`,
     /// the state 0 never plastic, 1 plastic in the last update, 2 plastic in the past only.
     fn output(&self, _state: &[f64]) -> (f64, u8) {
@@ -80,6 +98,21 @@ impl MaterialLaw for LinearElastic {
         s[2] += d.d33 * de[2];
         if self.plane == Plane::Strain {
             s[3] += self.lambda * (de[0] + de[1]) + (self.lambda + 2.0 * self.g) * de[3];
+        }
+    }
+    /// `update` on every lane at once (no history, no branch per lane).
+    #[inline(always)]
+    fn update_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], _state: &mut [f64], _stride: usize, _n: usize) {
+        let d = &self.d;
+        let strain = self.plane == Plane::Strain;
+        let (l, l2g) = (self.lambda, self.lambda + 2.0 * self.g);
+        for k in 0..LANES {
+            s[0][k] += d.d11 * de[0][k] + d.d12 * de[1][k];
+            s[1][k] += d.d12 * de[0][k] + d.d11 * de[1][k];
+            s[2][k] += d.d33 * de[2][k];
+            if strain {
+                s[3][k] += l * (de[0][k] + de[1][k]) + l2g * de[3][k];
+            }
         }
     }
 }

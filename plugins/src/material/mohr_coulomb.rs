@@ -54,6 +54,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::elements::build_stateful;
 use flem_core::element::block::Block;
+use flem_core::element::kernel::LANES;
 use flem_core::element::law::{LawCfg, MaterialLaw, RegionElems, StatefulOpts};
 use flem_core::element::{Dmat, Material, Plane};
 
@@ -79,6 +80,22 @@ pub struct MohrCoulombCfg {
     /// strain parameter (`softening::SofteningCfg`); absent: perfectly plastic.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub softening: Option<SofteningCfg>,
+}
+
+/// An elastic trial (`MohrCoulomb::trial`).
+#[derive(Clone, Copy, Debug)]
+struct Trial {
+    /// Trial stress `[sxx, syy, sxy, szz]`.
+    s: [f64; 4],
+    /// Half the in-plane stress difference `(sxx - syy) / 2` and Mohr's radius.
+    half: f64,
+    rad: f64,
+    /// In-plane principal stresses (`pa >= pb`) and the out-of-plane one.
+    pa: f64,
+    pb: f64,
+    pz: f64,
+    /// True when the trial passes the quick test (the trial is the answer).
+    inside: bool,
 }
 
 /// The law with its constants in the form the return uses.
@@ -130,6 +147,56 @@ impl MohrCoulomb {
         let used = if sigma_t.is_finite() { 0b11_1111 } else { 0b00_0111 };
         let d = Material { plane: Plane::Strain, ..*mat }.dmat();
         MohrCoulomb { d, lambda, g, n, m, r, a, dm, used, scale: c.max(if sigma_t.is_finite() { sigma_t.abs() } else { 0.0 }) }
+    }
+
+    /// The elastic trial of an update (3D isotropic law, plane strain): the trial stress, its
+    /// in-plane principal stresses, and the quick test on the main face and the first tension
+    /// plane, which most points pass in most steps (then the trial is the answer).
+    #[inline(always)]
+    fn trial(&self, st: &[f64; 4], de: [f64; 4]) -> Trial {
+        let (l, g2) = (self.lambda, 2.0 * self.g);
+        let tr = de[0] + de[1] + de[3];
+        let s = [st[0] + l * tr + g2 * de[0], st[1] + l * tr + g2 * de[1], st[2] + self.g * de[2], st[3] + l * tr + g2 * de[3]];
+        // In-plane principal stresses and direction, then the three sorted.
+        let (mid, half) = (0.5 * (s[0] + s[1]), 0.5 * (s[0] - s[1]));
+        let rad = (half * half + s[2] * s[2]).sqrt();
+        let (pa, pb, pz) = (mid + rad, mid - rad, s[3]);
+        let (hi, lo) = (pa.max(pz), pb.min(pz));
+        let f13 = self.f(0, &[hi, 0.0, lo]);
+        let t1 = if self.used & 8 != 0 { hi - self.r[3] } else { f64::NEG_INFINITY };
+        Trial { s, half, rad, pa, pb, pz, inside: f13 <= 0.0 && t1 <= 0.0 }
+    }
+
+    /// The rest of `update` when the trial fails the quick test: the return in principal
+    /// stresses (out of line: the elastic path stays small enough to inline and vectorise).
+    #[inline(never)]
+    fn plastic_update(&self, st: &mut [f64; 4], t: &Trial, state: &mut [f64]) {
+        let Trial { s, half, rad, pa, pb, pz, .. } = *t;
+        // Sort (pa >= pb always): z first, middle or last.
+        let (sorted, pos) = if pz >= pa {
+            ([pz, pa, pb], [1usize, 2, 0]) // pos[a, b, z] in sorted
+        } else if pz >= pb {
+            ([pa, pz, pb], [0, 2, 1])
+        } else {
+            ([pa, pb, pz], [0, 1, 2])
+        };
+        match self.return_principal(sorted) {
+            None => {
+                *st = s;
+                if state[1] == 1.0 {
+                    state[1] = 2.0;
+                }
+            }
+            Some((r, dep)) => {
+                let (na, nb, nz) = (r[pos[0]], r[pos[1]], r[pos[2]]);
+                let (c2, s2) = if rad > 0.0 { (half / rad, s[2] / rad) } else { (1.0, 0.0) };
+                let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
+                *st = [m + h * c2, m - h * c2, h * s2, nz];
+                let (mx, mn) = (dep[0].max(dep[1]).max(dep[2]), dep[0].min(dep[1]).min(dep[2]));
+                state[0] += mx - mn;
+                state[1] = 1.0;
+            }
+        }
     }
 
     /// `f_k(s)` of plane `k`.
@@ -261,50 +328,112 @@ impl MaterialLaw for MohrCoulomb {
     fn elastic(&self) -> Dmat {
         self.d
     }
-    #[inline]
+    #[inline(always)]
     fn update(&self, st: &mut [f64; 4], de: [f64; 4], state: &mut [f64]) {
-        // Elastic trial (3D isotropic law, plane strain).
-        let (l, g2) = (self.lambda, 2.0 * self.g);
-        let tr = de[0] + de[1] + de[3];
-        let s = [st[0] + l * tr + g2 * de[0], st[1] + l * tr + g2 * de[1], st[2] + self.g * de[2], st[3] + l * tr + g2 * de[3]];
-        // In-plane principal stresses and direction, then the three sorted.
-        let (mid, half) = (0.5 * (s[0] + s[1]), 0.5 * (s[0] - s[1]));
-        let rad = (half * half + s[2] * s[2]).sqrt();
-        let (pa, pb, pz) = (mid + rad, mid - rad, s[3]);
-        // Quick elastic check on the face and the tension plane (most points, most steps).
-        let (hi, lo) = (pa.max(pz), pb.min(pz));
-        let f13 = self.f(0, &[hi, 0.0, lo]);
-        let t1 = if self.used & 8 != 0 { hi - self.r[3] } else { f64::NEG_INFINITY };
-        if f13 <= 0.0 && t1 <= 0.0 {
-            *st = s;
+        let t = self.trial(st, de);
+        if t.inside {
+            *st = t.s;
             if state[1] == 1.0 {
                 state[1] = 2.0;
             }
             return;
         }
-        // Sort (pa >= pb always): z first, middle or last.
-        let (sorted, pos) = if pz >= pa {
-            ([pz, pa, pb], [1usize, 2, 0]) // pos[a, b, z] in sorted
-        } else if pz >= pb {
-            ([pa, pz, pb], [0, 2, 1])
-        } else {
-            ([pa, pb, pz], [0, 1, 2])
-        };
-        match self.return_principal(sorted) {
-            None => {
-                *st = s;
-                if state[1] == 1.0 {
-                    state[1] = 2.0;
+        self.plastic_update(st, &t, state);
+    }
+    /// `update` of a pack of points: the elastic trial and its quick test for every lane at
+    /// once (vectorised), `update`'s return only for the lanes that fail the test. The same
+    /// arithmetic as `update` on each lane, so the same bits.
+    #[inline(always)]
+    fn update_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], state: &mut [f64], stride: usize, n: usize) {
+        let z = [0.0; LANES];
+        let (mut ts, mut half, mut rad, mut pa, mut pb, mut pz) = ([z; 4], z, z, z, z, z);
+        let mut inside = [false; LANES];
+        for l in 0..LANES {
+            let t = self.trial(&[s[0][l], s[1][l], s[2][l], s[3][l]], [de[0][l], de[1][l], de[2][l], de[3][l]]);
+            (ts[0][l], ts[1][l], ts[2][l], ts[3][l]) = (t.s[0], t.s[1], t.s[2], t.s[3]);
+            (half[l], rad[l], pa[l], pb[l], pz[l]) = (t.half, t.rad, t.pa, t.pb, t.pz);
+            inside[l] = t.inside;
+        }
+        let n = n.min(LANES);
+        if inside[..n].iter().all(|&i| i) {
+            // Every lane elastic (most packs, most steps): no branch per lane but the history's.
+            for c in 0..4 {
+                s[c] = ts[c];
+            }
+            for l in 0..n {
+                let h = &mut state[l * stride + 1];
+                if *h == 1.0 {
+                    *h = 2.0;
                 }
             }
-            Some((r, dep)) => {
-                let (na, nb, nz) = (r[pos[0]], r[pos[1]], r[pos[2]]);
-                let (c2, s2) = if rad > 0.0 { (half / rad, s[2] / rad) } else { (1.0, 0.0) };
-                let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
-                *st = [m + h * c2, m - h * c2, h * s2, nz];
-                let (mx, mn) = (dep[0].max(dep[1]).max(dep[2]), dep[0].min(dep[1]).min(dep[2]));
-                state[0] += mx - mn;
-                state[1] = 1.0;
+            return;
+        }
+        // The main-face return of every lane at once: `return_principal`'s first active set
+        // (plane 0 alone, always the first tried) and `plastic_update`'s rotation back, the
+        // same operations. A lane takes it when the scalar return would (violated, multiplier
+        // >= 0, no plane violated after); any other lane goes through `plastic_update`.
+        let (d0, big) = (self.a[0][0], self.a[0][0].abs().max(self.a[3][3].abs()));
+        let solvable = d0.abs() > 1e-12 * big;
+        let (mut fs, mut gam) = ([z; 4], z);
+        let mut face = [false; LANES];
+        for l in 0..LANES {
+            let (za, zb) = (pz[l] >= pa[l], pz[l] >= pb[l]);
+            // Sorted `s1 >= s2 >= s3` over (pa, pb, pz), as `plastic_update` sorts them.
+            let q = if za {
+                [pz[l], pa[l], pb[l]]
+            } else if zb {
+                [pa[l], pz[l], pb[l]]
+            } else {
+                [pa[l], pb[l], pz[l]]
+            };
+            let tol = 1e-12 * (self.scale + q[0].abs().max(q[2].abs()));
+            let mut viol = false;
+            for k in 0..6 {
+                viol |= self.used & (1 << k) != 0 && self.f(k, &q) > tol;
+            }
+            let dl = self.f(0, &q) / d0;
+            let ok = dl >= -1e-14 * (1.0 + dl.abs());
+            let mut out = q;
+            let mut dep = [0.0; 3];
+            for d in 0..3 {
+                out[d] -= dl * self.dm[0][d];
+                dep[d] += dl * self.m[0][d];
+            }
+            let check = 1e-9 * (self.scale + q[0].abs().max(q[2].abs()));
+            let mut adm = true;
+            for k in 0..6 {
+                adm &= self.used & (1 << k) == 0 || self.f(k, &out) <= check;
+            }
+            face[l] = solvable && viol && ok && adm;
+            let (na, nb, nz) = if za {
+                (out[1], out[2], out[0])
+            } else if zb {
+                (out[0], out[2], out[1])
+            } else {
+                (out[0], out[1], out[2])
+            };
+            let (c2, s2) = if rad[l] > 0.0 { (half[l] / rad[l], ts[2][l] / rad[l]) } else { (1.0, 0.0) };
+            let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
+            (fs[0][l], fs[1][l], fs[2][l], fs[3][l]) = (m + h * c2, m - h * c2, h * s2, nz);
+            let (mx, mn) = (dep[0].max(dep[1]).max(dep[2]), dep[0].min(dep[1]).min(dep[2]));
+            gam[l] = mx - mn;
+        }
+        for l in 0..n {
+            let h = &mut state[l * stride..l * stride + 2];
+            if inside[l] {
+                (s[0][l], s[1][l], s[2][l], s[3][l]) = (ts[0][l], ts[1][l], ts[2][l], ts[3][l]);
+                if h[1] == 1.0 {
+                    h[1] = 2.0;
+                }
+            } else if face[l] {
+                (s[0][l], s[1][l], s[2][l], s[3][l]) = (fs[0][l], fs[1][l], fs[2][l], fs[3][l]);
+                h[0] += gam[l];
+                h[1] = 1.0;
+            } else {
+                let t = Trial { s: [ts[0][l], ts[1][l], ts[2][l], ts[3][l]], half: half[l], rad: rad[l], pa: pa[l], pb: pb[l], pz: pz[l], inside: false };
+                let mut sl = t.s;
+                self.plastic_update(&mut sl, &t, h);
+                (s[0][l], s[1][l], s[2][l], s[3][l]) = (sl[0], sl[1], sl[2], sl[3]);
             }
         }
     }

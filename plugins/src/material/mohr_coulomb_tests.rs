@@ -238,3 +238,64 @@ fn strength_reduced_divides_c_and_tan_phi() {
     let v = toml::Value::try_from(&psi0.strength_reduced(1.5).unwrap()).unwrap();
     assert_eq!(v.get("dilation_angle_deg").and_then(|x| x.as_float()), Some(0.0));
 }
+
+/// `update_lanes` (the stateful block's vectorised path: elastic trial, main-face return)
+/// gives bit for bit what `update` gives point by point (the contract of
+/// `MaterialLaw::update_lanes`), on stresses and increments spread over every return region
+/// (elastic, face, edges, apex, tension cut-off), with full and partial packs.
+/// Reference: `update` itself; tolerance: none (bitwise).
+#[test]
+fn update_lanes_is_update_bit_for_bit() {
+    use flem_core::element::kernel::LANES;
+    let laws = [law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(1.0, 0.0, 0.0, None), law(0.0, 35.0, 35.0, Some(0.0))];
+    // A small deterministic generator (xorshift), values in [-1, 1).
+    let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut rnd = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    };
+    let (mut n_pl, mut n_el) = (0, 0);
+    for law in &laws {
+        for round in 0..400 {
+            let n = if round % 5 == 4 { 1 + round % LANES } else { LANES };
+            let mut s = [[0.0; LANES]; 4];
+            let mut de = [[0.0; LANES]; 4];
+            let mut hist = vec![0.0; LANES * 6];
+            for l in 0..LANES {
+                // Stress within a few cohesions, increments from tiny (elastic) to large.
+                let scale = [0.01, 0.1, 1.0, 5.0][(round + l) % 4];
+                for c in 0..4 {
+                    s[c][l] = 2.0 * rnd() - 1.0;
+                    de[c][l] = if c == 3 { 0.0 } else { scale * 0.01 * rnd() };
+                }
+                hist[l * 6] = rnd().abs();
+                hist[l * 6 + 1] = [0.0, 1.0, 2.0][(round + 2 * l) % 3];
+            }
+            let (mut s_ref, mut h_ref) = (s, hist.clone());
+            for l in 0..n {
+                let mut sl = [s_ref[0][l], s_ref[1][l], s_ref[2][l], s_ref[3][l]];
+                law.update(&mut sl, [de[0][l], de[1][l], de[2][l], de[3][l]], &mut h_ref[l * 6..l * 6 + 2]);
+                for c in 0..4 {
+                    s_ref[c][l] = sl[c];
+                }
+                if h_ref[l * 6 + 1] == 1.0 {
+                    n_pl += 1;
+                } else {
+                    n_el += 1;
+                }
+            }
+            law.update_lanes(&mut s, &de, &mut hist, 6, n);
+            for l in 0..n {
+                for c in 0..4 {
+                    assert_eq!(s[c][l].to_bits(), s_ref[c][l].to_bits(), "stress {c} of lane {l}, round {round}");
+                }
+                assert_eq!(hist[l * 6].to_bits(), h_ref[l * 6].to_bits(), "plastic shear strain of lane {l}, round {round}");
+                assert_eq!(hist[l * 6 + 1], h_ref[l * 6 + 1], "state of lane {l}, round {round}");
+            }
+        }
+    }
+    // Both paths are exercised: points that stay elastic and points that yield.
+    assert!(n_el > 100 && n_pl > 100, "elastic {n_el}, plastic {n_pl}");
+}
