@@ -156,7 +156,8 @@ fn kept_vs_fresh(element: Option<&str>) {
     assert!(nf >= 30, "{nf}");
     let (kept, kf, ku) = run(50);
     // Measured: 3 fresh (the first; one after an update whose residual check failed; the last,
-    // which names the fragment without support), 33 updates.
+    // which names the fragment without support), 33 updates; since a refused update gets one
+    // refinement step (kept.rs): 1 fresh, 35 updates.
     assert!(ku >= 30 && kf <= 4, "{element:?}: fresh {kf}, updates {ku}");
     assert_eq!(fresh.len(), kept.len());
     for (a, b) in fresh.iter().zip(&kept) {
@@ -206,5 +207,143 @@ fn a_nonlinear_material_or_large_strain_is_refused() {
         let s = Scene::from_str(&t, &path, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
         let e = Simulation::new(s).err().expect("refused").to_string();
         assert!(e.contains(key) && e.contains("notch_plate_h0.25.toml") && e.contains("events"), "{e}");
+    }
+}
+
+/// The notched plate h = 0.25 as text for `common::scene` (paths against configs/), with
+/// checkpoints every 5 events and none by time.
+fn notch_ckpt_text() -> String {
+    std::fs::read_to_string(root().join("configs/events/notch_plate_h0.25.toml"))
+        .unwrap()
+        .replace("../meshes/", "meshes/")
+        .replace("[output]\n", "[output]\ncheckpoint_every = 5\ncheckpoint_seconds = 0\n")
+}
+
+/// Reference: the same events run uninterrupted (tolerance: none, bit for bit: final
+/// displacements by `to_bits`, splits.csv, history.csv, PVD and VTU byte for byte, stage
+/// results). Stopped after events 10 and 25 (checkpoints of `output.checkpoint_every = 5`,
+/// where the kept factor restarts in both runs) and resumed by a new `Simulation` from the
+/// folder: the resumed run ends as the uninterrupted one (tests/ckpt.rs's check).
+#[test]
+fn events_checkpoint_after_event_k_resumes_bit_for_bit() {
+    let text = notch_ckpt_text();
+    assert!(text.contains("checkpoint_every = 5"), "the scene has no [output] section: update the test");
+    let ref_dir = crate::ckpt::tmp("events-ref");
+    let mut reference = crate::common::sim(&text);
+    let mut w = flem_core::output::OutputWriter::new(&ref_dir, &reference).unwrap();
+    reference.run(&mut w).unwrap();
+    assert!(reference.state.step > 25, "{} events", reference.state.step);
+    let ev = reference.events.as_ref().unwrap();
+    assert!(ev.updates > 15, "the kept factor made {} updates: the checkpoints should not replace them all", ev.updates);
+    for at in [10, 25] {
+        crate::ckpt::interrupt_and_resume(&text, at, &reference, &ref_dir, &format!("events-{at}"));
+    }
+    let _ = std::fs::remove_dir_all(&ref_dir);
+}
+
+/// An interrupt between two events that is not at a checkpoint of the schedule (event 7; one
+/// every 5): the run stops at once with a checkpoint and an "interrupted" snapshot; resumed,
+/// its next solve is a fresh factorisation where the uninterrupted run updated, so it gives
+/// the same split log (points, edges, order) and the same event loads to 1e-9 relative
+/// (reference: the uninterrupted run; the tolerance of `kept_factor_updates_give_the_fresh_
+/// factorisations_path`).
+#[test]
+fn events_interrupt_between_checkpoints_stops_and_resumes_the_same_path() {
+    use flem_core::output::{checkpoint, OutputWriter};
+    let text = notch_ckpt_text();
+    let mut reference = crate::common::sim(&text);
+    let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+    reference.run(&mut log).unwrap();
+    let dir = crate::ckpt::tmp("events-int7");
+    /// The output writer and a split log, stopping once `at` events are done.
+    struct StopAt(OutputWriter, SplitLog, u64);
+    impl flem_core::solver::Observer for StopAt {
+        fn splits(&mut self, sim: &Simulation, rec: &flem_core::mesh::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+            self.1.splits(sim, rec, ev)?;
+            self.0.splits(sim, rec, ev)
+        }
+        fn history(&mut self, sim: &Simulation, stage: usize) -> flem_core::Result<()> {
+            self.0.history(sim, stage)
+        }
+        fn snapshot(&mut self, sim: &Simulation, stage: usize, label: &str) -> flem_core::Result<()> {
+            self.0.snapshot(sim, stage, label)
+        }
+        fn should_stop(&mut self, sim: &Simulation) -> bool {
+            sim.state.step >= self.2
+        }
+        fn checkpoint(&mut self, sim: &Simulation, pos: &flem_core::solver::StagePos) -> flem_core::Result<()> {
+            self.0.checkpoint(sim, pos)
+        }
+    }
+    let mut sim = crate::common::sim(&text);
+    let mut obs = StopAt(OutputWriter::new(&dir, &sim).unwrap(), SplitLog { splits: Vec::new(), stop_after: usize::MAX }, 7);
+    match sim.run(&mut obs) {
+        Err(FlemError::Interrupted { step: 7, .. }) => {}
+        other => panic!("expected an interruption after event 7, got {other:?}"),
+    }
+    assert!(std::fs::read_dir(&dir).unwrap().flatten().any(|e| e.file_name().to_string_lossy().contains("interrupted")), "no snapshot \"interrupted\"");
+    let mut first = obs.1.splits;
+    assert_eq!(first.len(), 7);
+    let mut sim = crate::common::sim(&text);
+    let (ck, path, _) = checkpoint::load_newest(&dir, &sim).unwrap();
+    assert_eq!(ck.step, 7, "the newest checkpoint is not the interruption's");
+    ck.restore(&mut sim).unwrap();
+    let mut w = OutputWriter::new(&dir, &sim).unwrap();
+    w.resume(&ck, &path).unwrap();
+    let mut rest = StopAt(w, SplitLog { splits: Vec::new(), stop_after: usize::MAX }, u64::MAX);
+    sim.run_from(ck.pos.clone(), &mut rest).unwrap();
+    first.append(&mut rest.1.splits);
+    assert_eq!(first.len(), log.splits.len());
+    for (a, b) in log.splits.iter().zip(&first) {
+        assert_eq!((a.point, &a.edges), (b.point, &b.edges));
+        assert!(rel(b.levels[0], a.levels[0]) < 1e-9, "{:?} {:?}", a.levels, b.levels);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A check solver of the tests' own: faer's sparse Cholesky through `CheckSolver::solve` only
+/// (no `events_factor`), counting its calls.
+#[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
+struct FreshOnly {}
+
+static FRESH_ONLY_CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+#[typetag::serde(name = "test_fresh_only")]
+impl flem_core::plugin::check::CheckSolver for FreshOnly {
+    fn solve(&self, model: &flem_core::element::model::Model, fix: &[u8], f: &[[f64; 2]], up: &[[f64; 2]]) -> flem_core::Result<Vec<[f64; 2]>> {
+        FRESH_ONLY_CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        flem_core::plugin::check::CheckSolver::solve(&flem_plugins::check::ImplicitSolver::new(), model, fix, f, up)
+    }
+}
+
+/// `[check] solver` is the events solver's: a check solver without a kept factor (here the
+/// tests' `test_fresh_only`) is called through `CheckSolver::solve`, two fresh solves per
+/// event, and gives the default's split log (points, edges, order) and event loads to 1e-9
+/// relative (reference: the default `faer_cholesky` with its kept factor, itself checked
+/// against fresh factorisations above).
+#[test]
+fn the_configured_check_solver_is_used_by_events() {
+    let path = root().join("configs/events/notch_plate_h0.25.toml");
+    let text = std::fs::read_to_string(&path).unwrap() + "\n[check]\nsolver = { type = \"test_fresh_only\" }\n";
+    let mut sc = Scene::from_str(&text, &path, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+    sc.file.solver.max_events = 12;
+    let mut sim = Simulation::new(sc).unwrap();
+    let before = FRESH_ONLY_CALLS.load(std::sync::atomic::Ordering::Relaxed);
+    let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+    sim.run(&mut log).unwrap();
+    let calls = FRESH_ONLY_CALLS.load(std::sync::atomic::Ordering::Relaxed) - before;
+    let ev = sim.events.as_ref().unwrap();
+    assert_eq!(calls as u64, ev.solves, "the configured check solver was not the one solving");
+    assert!(calls >= 24 && ev.fresh_factorisations == 0 && ev.updates == 0, "calls {calls}, {ev:?}");
+    let mut sc = scene("notch_plate_h0.25.toml");
+    sc.file.solver.max_events = 12;
+    let mut def = Simulation::new(sc).unwrap();
+    let mut dlog = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+    def.run(&mut dlog).unwrap();
+    assert_eq!(log.splits.len(), 12);
+    assert_eq!(dlog.splits.len(), 12);
+    for (a, b) in dlog.splits.iter().zip(&log.splits) {
+        assert_eq!((a.point, &a.edges), (b.point, &b.edges));
+        assert!(rel(b.levels[0], a.levels[0]) < 1e-9, "{:?} {:?}", a.levels, b.levels);
     }
 }

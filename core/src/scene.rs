@@ -300,8 +300,9 @@ pub struct OutputCfg {
     /// zlib-compress VTU arrays.
     #[serde(default)]
     pub compress: bool,
-    /// Steps (global count) between checkpoints (0: none by step count). A checkpoint is also
-    /// written at the end of every stage and when the run is interrupted.
+    /// Steps (global count) between checkpoints (0: none by step count); crack events in
+    /// `solver.type = "events"` stages. A checkpoint is also written at the end of every stage
+    /// and when the run is interrupted.
     #[serde(default)]
     pub checkpoint_every: u64,
     /// Wall-clock seconds between checkpoints (0: none by time).

@@ -10,7 +10,11 @@
 //!   solver (`explicit_twin`: load steps of `--step` of the stage's levels from the step below the
 //!   events' first split, checks at equilibrium), stopped after as many splits as the events
 //!   run made (or `--splits`, which stops the events run there too); wall time of each, their
-//!   ratio, and how far the split logs (point, edges, order) agree.
+//!   ratio, and how far the split logs (point, edges, order) agree. The events run is timed
+//!   `--repeats` times (best kept), the explicit one once; beside the wall times the CPU time of
+//!   each (every thread) and the machine's load averages at the start and the end, since the
+//!   wall time on a shared machine moves with the others' load. `--events-only` skips the
+//!   explicit run.
 use anyhow::Result;
 use flem_core::scene::Scene;
 use flem_core::solver::events::{explicit_twin, LoggedSplit, SplitLog};
@@ -116,29 +120,79 @@ pub fn run(dofs: &[f64], events: u64, refactor_every: usize) -> Result<()> {
     Ok(())
 }
 
-/// `flem bench events-path SCENE`: events against the explicit run of the same path.
-pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits: Option<usize>) -> Result<()> {
+/// The machine's load averages (1, 5, 15 min) from /proc/loadavg (empty where it is missing):
+/// reported beside the wall times, which the other processes of a shared machine move.
+fn load_average() -> Vec<f64> {
+    std::fs::read_to_string("/proc/loadavg").map(|s| s.split_whitespace().take(3).filter_map(|x| x.parse().ok()).collect()).unwrap_or_default()
+}
+
+/// CPU seconds of this process so far, every thread (utime + stime of /proc/self/stat, in
+/// USER_HZ = 100 ticks; NaN where it is missing): on a shared machine the wall time moves with
+/// the others' load, the CPU time much less.
+fn cpu_seconds() -> f64 {
+    let Ok(s) = std::fs::read_to_string("/proc/self/stat") else { return f64::NAN };
+    // Fields after the command name (which is in parentheses and may hold spaces).
+    let rest = s.rsplit_once(')').map_or("", |x| x.1);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    match (f.get(11).and_then(|x| x.parse::<f64>().ok()), f.get(12).and_then(|x| x.parse::<f64>().ok())) {
+        (Some(u), Some(k)) => (u + k) / 100.0,
+        _ => f64::NAN,
+    }
+}
+
+/// `flem bench events-path SCENE`: events (best of `repeats`) against the explicit run of the
+/// same path (once; skipped when `explicit` is false).
+pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits: Option<usize>, repeats: usize, explicit: bool) -> Result<()> {
     anyhow::ensure!(step > 0.0 && step < 1.0, "--step must be in (0, 1)");
     // With --splits the events run stops there too (solver.max_events; one split per event with
     // max_splits_per_check = 1), so that both solvers are timed on the same path.
-    let mut sc0 = Scene::from_file(scene_path)?;
-    if let Some(n) = splits {
-        sc0.file.solver.max_events = n as u64;
+    let scene0 = || -> Result<Scene> {
+        let mut sc0 = Scene::from_file(scene_path)?;
+        if let Some(n) = splits {
+            sc0.file.solver.max_events = n as u64;
+        }
+        Ok(sc0)
+    };
+    // The events run, best of `repeats` (the explicit run is timed once: it takes minutes).
+    let load_start = load_average();
+    let mut best: Option<(f64, f64, Simulation, Vec<LoggedSplit>)> = None;
+    let (mut walls, mut cpus) = (Vec::new(), Vec::new());
+    for _ in 0..repeats.max(1) {
+        let sc0 = scene0()?;
+        let (t, c) = (Instant::now(), cpu_seconds());
+        let mut sim = Simulation::new(sc0)?;
+        let setup = t.elapsed().as_secs_f64();
+        let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+        sim.run(&mut log)?;
+        let wall = t.elapsed().as_secs_f64();
+        walls.push(wall);
+        cpus.push(cpu_seconds() - c);
+        if best.as_ref().is_none_or(|b| wall < b.0) {
+            best = Some((wall, setup, sim, log.splits));
+        }
     }
-    let t = Instant::now();
-    let mut sim = Simulation::new(sc0)?;
-    let setup_events = t.elapsed().as_secs_f64();
-    let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
-    sim.run(&mut log)?;
-    let wall_events = t.elapsed().as_secs_f64();
-    let ev: Vec<LoggedSplit> = log.splits;
+    let (wall_events, setup_events, sim, ev) = best.expect("one run at least");
+    let cpu_events = cpus.iter().copied().fold(f64::INFINITY, f64::min);
     anyhow::ensure!(!ev.is_empty(), "the events run made no split");
     let target = sim.scene.file.stages[0].levels.values().copied().fold(0.0f64, |a, v| a.max(v.abs()));
     let first = ev[0].levels.iter().copied().fold(0.0f64, |a, v| a.max(v.abs())) / target;
     let n = splits.unwrap_or(ev.len()).min(ev.len());
     let mut sc = Scene::from_file(scene_path)?;
     explicit_twin(&mut sc, (first / step).floor() as u64, step, 1.0, max_steps, tolerance)?;
-    let t = Instant::now();
+    if !explicit {
+        let e = sim.events.as_ref();
+        let out = serde_json::json!({
+            "scene": scene_path.display().to_string(),
+            "elements": sim.model.n_elems(),
+            "dofs": 2 * sim.model.topo.n_points,
+            "load_average_1_5_15": [load_start, load_average()],
+            "events": { "splits": ev.len(), "wall_seconds": wall_events, "setup_seconds": setup_events, "wall_seconds_every_repeat": walls, "cpu_seconds_best": cpu_events,
+                "solves": e.map(|e| e.solves), "solve_seconds": e.map(|e| e.solve_seconds), "fresh_factorisations": e.map(|e| e.fresh_factorisations), "updates": e.map(|e| e.updates), "warnings": sim.warnings },
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    let (t, c) = (Instant::now(), cpu_seconds());
     let mut ex_sim = Simulation::new(sc)?;
     let setup_explicit = t.elapsed().as_secs_f64();
     let mut ex = SplitLog { splits: Vec::new(), stop_after: n };
@@ -148,6 +202,7 @@ pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits
         Err(e) => return Err(e.into()),
     };
     let wall_explicit = t.elapsed().as_secs_f64();
+    let cpu_explicit = cpu_seconds() - c;
     let same = ev.iter().zip(&ex.splits).take_while(|(a, b)| a.point == b.point && a.edges == b.edges).count();
     let first_difference = ev
         .iter()
@@ -157,13 +212,15 @@ pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits
     let out = serde_json::json!({
         "scene": scene_path.display().to_string(),
         "elements": sim.model.n_elems(),
-        "events": { "splits": ev.len(), "wall_seconds": wall_events, "setup_seconds": setup_events, "first_split_levels": ev[0].levels, "solves": sim.events.as_ref().map(|e| e.solves), "warnings": sim.warnings },
-        "explicit": { "splits": ex.splits.len(), "wall_seconds": wall_explicit, "setup_seconds": setup_explicit, "steps": ex_sim.state.step, "stages": ex_sim.stages_done.len(), "load_step": step, "tolerance": tolerance, "max_steps_per_stage": max_steps, "outcome": outcome, "first_split_levels": ex.splits.first().map(|s| s.levels.clone()) },
+        "load_average_1_5_15": [load_start, load_average()],
+        "events": { "splits": ev.len(), "wall_seconds": wall_events, "setup_seconds": setup_events, "wall_seconds_every_repeat": walls, "cpu_seconds_best": cpu_events, "first_split_levels": ev[0].levels, "solves": sim.events.as_ref().map(|e| e.solves), "solve_seconds": sim.events.as_ref().map(|e| e.solve_seconds), "fresh_factorisations": sim.events.as_ref().map(|e| e.fresh_factorisations), "updates": sim.events.as_ref().map(|e| e.updates), "warnings": sim.warnings },
+        "explicit": { "splits": ex.splits.len(), "wall_seconds": wall_explicit, "cpu_seconds": cpu_explicit, "setup_seconds": setup_explicit, "steps": ex_sim.state.step, "stages": ex_sim.stages_done.len(), "load_step": step, "tolerance": tolerance, "max_steps_per_stage": max_steps, "outcome": outcome, "first_split_levels": ex.splits.first().map(|s| s.levels.clone()) },
         "compared_splits": n.min(ex.splits.len()),
         "identical_prefix": same,
         "first_difference": first_difference,
         "wall_time_ratio_explicit_over_events": wall_explicit / wall_events,
         "ratio_without_setup": (wall_explicit - setup_explicit) / (wall_events - setup_events),
+        "cpu_time_ratio_explicit_over_events": cpu_explicit / cpu_events,
     });
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())

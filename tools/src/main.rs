@@ -263,6 +263,12 @@ enum BenchWhat {
         /// Compare at most this many splits (default: all the events run made).
         #[arg(long)]
         splits: Option<usize>,
+        /// Events runs timed (the best is kept; the explicit run is timed once).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        /// Time the events run only (no explicit run).
+        #[arg(long)]
+        events_only: bool,
     },
 }
 
@@ -618,7 +624,7 @@ fn bench(what: BenchWhat) -> Result<()> {
                 bench_events::run(&dofs, events, refactor_every)?
             }
         }
-        BenchWhat::EventsPath { scene, step, max_steps, tolerance, splits } => bench_events::path(&scene, step, max_steps, tolerance, splits)?,
+        BenchWhat::EventsPath { scene, step, max_steps, tolerance, splits, repeats, events_only } => bench_events::path(&scene, step, max_steps, tolerance, splits, repeats, !events_only)?,
     }
     Ok(())
 }

@@ -98,7 +98,7 @@ pub fn first_failure(criterion: &dyn FailureCriterion, p: &Path, t0: f64, t1: f6
 }
 
 /// How the factors of a run were found (closed form, closed form contradicted, bisection).
-#[derive(Copy, Clone, Debug, Default, serde::Serialize)]
+#[derive(Copy, Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct FactorStats {
     pub closed: u64,
     pub fallback: u64,

@@ -65,7 +65,8 @@
 //! and the Verlet list's build state (surface displacements at the last build, pending flag,
 //! rebuild count) in `"contact_verlet"`: the resumed run rebuilds the same list and rebuilds it
 //! again at the same steps (`Contact::restore_verlet`; tests/ckpt.rs interrupts a cracking run
-//! while pairs exist).
+//! while pairs exist). The events solver (`solver/events.rs`) stores its stage loop in section
+//! `"events"` (version 1: `EventsInfo`); it checkpoints between events (tests/events.rs).
 use std::path::{Path, PathBuf};
 
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
@@ -213,6 +214,11 @@ impl Checkpoint {
                 .collect();
             ck.put_section("blocks", 1, &blocks)?;
         }
+        // The events solver's stage loop (its path, factor, left-out clusters, counters, the
+        // kept factor's ordering): solver/events.rs.
+        if let Some(ev) = &sim.events {
+            ck.put_section("events", 1, ev)?;
+        }
         if let Some(c) = &sim.contact {
             ck.put_section("contact", 2, &c.history)?;
             ck.put_section("contact_verlet", 1, &c.verlet_state())?;
@@ -295,7 +301,8 @@ impl Checkpoint {
         sim.coeffs = DampingCoeffs { viscous: self.coeffs.0, local: self.coeffs.1, ..Default::default() };
         let sb = self.stable;
         sim.stable = crate::solver::StableStep { dt_crit: sb.0, dt_element_bound: sb.1, omega_max: sb.2, iterations: sb.3 as usize, dt_contact: self.stable_dt_contact };
-        if self.stable_vec.len() != nc {
+        // Empty in events runs (they make no power iteration).
+        if !self.stable_vec.is_empty() && self.stable_vec.len() != nc {
             return Err(bad(format!("stable-step vector has {} entries for {nc} clusters", self.stable_vec.len())));
         }
         sim.stable_vec.clone_from(&self.stable_vec);
@@ -332,6 +339,7 @@ impl Checkpoint {
             (Some(_), None) => return Err(bad("the scene has [contact] and the checkpoint has no contact pairs".into())),
             (None, Some(_)) => return Err(bad("the checkpoint has contact pairs and the scene has no [contact]".into())),
         }
+        sim.events = self.section::<crate::solver::events::EventsInfo>("events", 1)?;
         sim.refresh_constant_force();
         Ok(())
     }

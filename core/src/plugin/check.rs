@@ -53,6 +53,23 @@ pub trait EventsFactor: Send {
     fn solve_many(&mut self, model: &Model, fix: &[u8], rhs: &[(Vec<[f64; 2]>, Vec<[f64; 2]>)]) -> Result<Vec<Vec<[f64; 2]>>>;
     /// (fresh factorisations, updates) so far.
     fn counts(&self) -> (u64, u64);
+    /// Whether the next call makes a fresh factorisation by the refactorisation schedule
+    /// (`refactor_every`): a checkpoint taken there is resumed without changing the arithmetic.
+    fn fresh_next(&self) -> bool {
+        true
+    }
+    /// Drops the kept factor: the next call makes a fresh factorisation (what a run resumed
+    /// from a checkpoint does), keeping only what [`Self::save_state`] saves.
+    fn restart(&mut self) {}
+    /// What a checkpoint keeps of this factor (e.g. its fill-reducing ordering), so that the
+    /// resumed run's next fresh factorisation is the uninterrupted run's bit for bit.
+    fn save_state(&self) -> Vec<u64> {
+        Vec::new()
+    }
+    /// Restores [`Self::save_state`] into a new factor; `false` when the data do not fit.
+    fn load_state(&mut self, _state: &[u64]) -> bool {
+        true
+    }
 }
 
 /// `[check]`: compare every stage's equilibrium with the implicit solve.

@@ -12,8 +12,9 @@
 //!
 //! with the nodal stress exactly as the explicit run computes it (the paper's corner mean, or the
 //! nonlocal average: `Cracking::nodal_stress_of`). One stage:
-//! 1. solve `u0` and `u1` (the scene's check solver, faer's sparse Cholesky by default: one
-//!    factorisation, two right-hand sides, `CheckSolver::solve` keeps the factor);
+//! 1. solve `u0` and `u1` (the scene's check solver, `[check] solver`, faer's sparse Cholesky
+//!    by default: its kept factor with low-rank updates, `CheckSolver::events_factor`; a check
+//!    solver without one is called through `CheckSolver::solve`, two fresh solves per event);
 //! 2. set the state to `u(t)` and run the explicit solver's own failure check
 //!    (`Cracking::check`: criterion, most critical first, `max_splits_per_check`, the scene's
 //!    separation rule): a split is an event (a history row, its splits.csv rows); re-solve on the
@@ -41,8 +42,16 @@
 //! the stage index (`time` of history.csv and splits.csv), velocities are zero, the energy
 //! ledger holds the strain energy only (external work is set equal to it: dissipation by
 //! cracking is not booked), the unbalanced-force ratio is that of the linear solve
-//! (round-off), `output.snapshot_every` counts events, and checkpoints are written at stage
-//! ends only.
+//! (round-off), and `output.snapshot_every` and `output.checkpoint_every` count events.
+//!
+//! Checkpoints and interrupts, between two events (docs/events.md): every
+//! `output.checkpoint_every` events a checkpoint (section `"events"`: [`EventsInfo`], with the
+//! stage's path, factor, left-out clusters and the kept factor's ordering) and a restart of the
+//! kept factor, as in a run resumed there, so that the resumed run is bit for bit the
+//! uninterrupted one; a checkpoint due by `output.checkpoint_seconds` waits for the next fresh
+//! factorisation of the schedule (no change to the arithmetic); the interrupt flag
+//! (`Observer::should_stop`) stops the run at once with a checkpoint (resumed: the same path to
+//! round-off, the next solve being fresh).
 use std::time::Instant;
 
 use crate::cracking::events::{smallest_failure, FactorStats, Path};
@@ -50,8 +59,9 @@ use crate::error::{FlemError, Result};
 use crate::plugin::check::{CheckCfg, CheckSolver, EventsFactor};
 use crate::solver::{Ledger, Observer, Simulation, StagePos, StageResult};
 
-/// What the events solver shows of the current event (read by the output writer).
-#[derive(Clone, Debug, Default)]
+/// What the events solver shows of the current event (read by the output writer), and what a
+/// checkpoint keeps of the stage loop (section `"events"`, `output/checkpoint.rs`).
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct EventsInfo {
     /// The stage's load factor `t` now.
     pub factor: f64,
@@ -73,6 +83,14 @@ pub struct EventsInfo {
     pub factors: FactorStats,
     /// The message that ended the run (a fragment without support): later stages are skipped.
     pub stopped: Option<String>,
+    /// The stage's path: levels at `t = 0` and `t = 1` (kept for a resume within the stage).
+    pub stage_l0: Vec<f64>,
+    pub stage_l1: Vec<f64>,
+    /// Clusters left out of the searches (failing, not cut by the rule at the last check
+    /// that split nothing).
+    pub stuck: Vec<bool>,
+    /// The kept factor's [`EventsFactor::save_state`] at the last checkpoint.
+    pub kept_state: Vec<u64>,
 }
 
 /// The largest stage factor the critical-factor search looks at (beyond it: infinite).
@@ -142,6 +160,7 @@ impl Simulation {
         let t = Instant::now();
         let (fix, f0, p0) = self.events_rhs(l0)?;
         let (_, f1, p1) = self.events_rhs(l1)?;
+        let before = kept.as_ref().map_or((0, 0), |k| k.counts());
         let (a, b) = match kept.as_mut() {
             Some(k) => {
                 let mut v = k.solve_many(&self.model, &fix, &[(f0, p0), (f1, p1)])?;
@@ -154,7 +173,11 @@ impl Simulation {
             ev.solves += 2;
             ev.solve_seconds += t.elapsed().as_secs_f64();
             if let Some(k) = kept.as_ref() {
-                (ev.fresh_factorisations, ev.updates) = k.counts();
+                // Deltas: a kept factor restarted at a checkpoint (or in a resumed run) counts
+                // from zero.
+                let (f, u) = k.counts();
+                ev.fresh_factorisations += f - before.0;
+                ev.updates += u - before.1;
             }
         }
         Ok((a, b))
@@ -210,26 +233,54 @@ impl Simulation {
     pub(crate) fn run_stage_events(&mut self, pos: StagePos, obs: &mut dyn Observer) -> Result<()> {
         let t_start = Instant::now();
         let i = pos.stage;
-        let l0 = self.levels.clone();
-        if !pos.begun {
-            self.begin_stage(i);
-        }
-        let l1 = self.levels.clone();
         if self.events.is_none() {
             self.events = Some(EventsInfo { critical_factor: f64::NAN, ..EventsInfo::default() });
         }
         let file = self.scene.path.display().to_string();
-        // The default check solver (faer's sparse Cholesky), owned by the stage.
-        let own = CheckCfg::with_defaults(&file)?;
+        // A resume within the stage (a checkpoint after an event) takes the stage's path, its
+        // factor and its left-out clusters from the checkpoint's section "events".
+        let resumed = pos.begun && pos.stage_step > 0;
+        let (l0, l1) = if resumed {
+            let ev = self.events.as_ref().expect("set above");
+            if ev.stage_l0.len() != self.levels.len() || ev.stage_l1.len() != self.levels.len() {
+                return Err(FlemError::Other(format!("{file}: the checkpoint's events section has no load path for stage {i}: it cannot be resumed by events")));
+            }
+            (ev.stage_l0.clone(), ev.stage_l1.clone())
+        } else {
+            let l0 = self.levels.clone();
+            if !pos.begun {
+                self.begin_stage(i);
+            }
+            (l0, self.levels.clone())
+        };
+        {
+            let ev = self.events.as_mut().expect("set above");
+            ev.stage_l0.clone_from(&l0);
+            ev.stage_l1.clone_from(&l1);
+        }
+        // The scene's check solver ([check] solver, faer's sparse Cholesky by default), a copy
+        // owned by the stage. Only a solver with `CheckSolver::events_factor` (faer_cholesky:
+        // the kept factor with low-rank updates) keeps anything between events; any other is
+        // called through `CheckSolver::solve`, two fresh solves per event.
+        let own = match &self.scene.file.check {
+            Some(c) => {
+                let text = toml::to_string(c).map_err(|e| FlemError::config(&file, "check.solver", format!("cannot be copied for the events solver: {e}")))?;
+                let mut c: CheckCfg = toml::from_str(&text).map_err(|e| FlemError::config(&file, "check.solver", format!("cannot be copied for the events solver: {e}")))?;
+                c.fill_default(&file)?;
+                c
+            }
+            None => CheckCfg::with_defaults(&file)?,
+        };
         let st = self.scene.file.stages[i].clone();
         let max_events = self.scene.file.solver.max_events;
         let snap_every = self.scene.file.output.snapshot_every;
+        let ck_every = self.scene.file.output.checkpoint_every;
         let name = if st.name.is_empty() { format!("stage{i}") } else { st.name.clone() };
-        let (mut splits, mut checks, mut stage_events) = (0usize, 0u64, 0u64);
-        let mut t = 0.0f64;
+        let (mut splits, mut checks, mut stage_events) = if resumed { (pos.splits, pos.checks, pos.stage_step) } else { (0usize, 0u64, 0u64) };
+        let mut t = if resumed { self.events.as_ref().map_or(0.0, |e| e.factor) } else { 0.0f64 };
         // Clusters failing at the last check that split nothing (the rule found no edge): left
         // out of the searches while they fail.
-        let mut stuck: Vec<bool> = Vec::new();
+        let mut stuck: Vec<bool> = if resumed { self.events.as_ref().map(|e| e.stuck.clone()).unwrap_or_default() } else { Vec::new() };
         // Consecutive advances after which the check split nothing (round-off at the factor).
         let mut misses = 0u32;
         let mut advanced = false;
@@ -240,9 +291,18 @@ impl Simulation {
         }
         // A singular solve (a fragment without support) ends the run here, named.
         let mut stop: Option<String> = None;
-        let mut kept = solver.events_factor(self.scene.file.solver.refactor_every);
-        let mut pair = |sim: &mut Self, stop: &mut Option<String>| -> Result<Option<(Vec<[f64; 2]>, Vec<[f64; 2]>)>> {
-            match sim.events_solve_pair(solver, &mut kept, &l0, &l1) {
+        let refactor_every = self.scene.file.solver.refactor_every;
+        let mut kept = solver.events_factor(refactor_every);
+        if resumed {
+            if let Some(k) = kept.as_mut() {
+                let state = self.events.as_ref().map(|e| e.kept_state.clone()).unwrap_or_default();
+                if !k.load_state(&state) {
+                    return Err(FlemError::Other(format!("{file}: the checkpoint's events section holds a kept factor state that does not fit this scene")));
+                }
+            }
+        }
+        let pair = |sim: &mut Self, kept: &mut Option<Box<dyn EventsFactor>>, stop: &mut Option<String>| -> Result<Option<(Vec<[f64; 2]>, Vec<[f64; 2]>)>> {
+            match sim.events_solve_pair(solver, kept, &l0, &l1) {
                 Ok(p) => Ok(Some(p)),
                 Err(FlemError::Solve(m)) => {
                     *stop = Some(m);
@@ -251,7 +311,7 @@ impl Simulation {
                 Err(e) => Err(e),
             }
         };
-        let Some((mut u0, mut u1)) = pair(self, &mut stop)? else {
+        let Some((mut u0, mut u1)) = pair(self, &mut kept, &mut stop)? else {
             let m = stop.unwrap_or_default();
             return Err(FlemError::Solve(format!("{file}: stage \"{name}\" cannot start by events: {m}")));
         };
@@ -289,7 +349,45 @@ impl Simulation {
                     self.warnings.push(format!("{file}: stage \"{name}\" stopped at solver.max_events = {max_events} events (load factor {t:.6e} of the stage)"));
                     break;
                 }
-                match pair(self, &mut stop)? {
+                // Between two events (the state is whole here): checkpoints and the interrupt.
+                // Every `output.checkpoint_every` events (global count) the kept factor restarts
+                // (the next solve is a fresh factorisation, as in a run resumed here), so that
+                // a resumed run continues bit for bit. A checkpoint due by `checkpoint_seconds`
+                // waits for the next fresh factorisation of the schedule (it changes nothing of
+                // the arithmetic there). An interrupt stops at once with a checkpoint; resumed,
+                // its next solve is a fresh factorisation where the uninterrupted run would
+                // have updated (the same to round-off, docs/events.md).
+                let stop_now = obs.should_stop(self);
+                let by_count = ck_every > 0 && self.state.step % ck_every == 0;
+                let natural = kept.as_ref().is_none_or(|k| k.fresh_next());
+                if stop_now || by_count || (natural && obs.checkpoint_due(self)) {
+                    if let Some(k) = kept.as_mut() {
+                        k.restart();
+                    }
+                    {
+                        let ev = self.events.as_mut().expect("set above");
+                        ev.factor = t;
+                        ev.stuck.clone_from(&stuck);
+                        ev.kept_state = kept.as_ref().map(|k| k.save_state()).unwrap_or_default();
+                    }
+                    let here = StagePos {
+                        stage: i,
+                        stage_step: stage_events,
+                        begun: true,
+                        splits,
+                        ratio: self.last_ratio,
+                        wall_seconds: pos.wall_seconds + t_start.elapsed().as_secs_f64(),
+                        best_ratio: f64::INFINITY,
+                        best_step: 0,
+                        checks,
+                    };
+                    obs.checkpoint(self, &here)?;
+                }
+                if stop_now {
+                    obs.snapshot(self, i, "interrupted")?;
+                    return Err(FlemError::Interrupted { step: self.state.step, stage: i, stage_step: stage_events });
+                }
+                match pair(self, &mut kept, &mut stop)? {
                     Some((a, b)) => (u0, u1) = (a, b),
                     None => break,
                 }
@@ -355,6 +453,11 @@ impl Simulation {
         }
         obs.stage_end(self, i)?;
         obs.checkpoint(self, &StagePos::start(i + 1))?;
+        // As the explicit stage loop: the interrupt is polled at the stage's end too.
+        if i + 1 < self.scene.file.stages.len() && obs.should_stop(self) {
+            obs.snapshot(self, i, "interrupted")?;
+            return Err(FlemError::Interrupted { step: self.state.step, stage: i + 1, stage_step: 0 });
+        }
         Ok(())
     }
 }

@@ -617,7 +617,16 @@ impl Simulation {
         if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
             sim.check_events_scene()?;
         }
-        (sim.stable, sim.stable_vec) = sim.power_iteration(None);
+        if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
+            // The events solver takes no time step: the element bound stands in for the power
+            // iteration (which cost the events runs more than their events: docs/events.md).
+            let bound = sim.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
+            let k = sim.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
+            let dt = k * 2.0 / bound;
+            sim.stable = StableStep { dt_crit: dt, dt_element_bound: dt, omega_max: bound, iterations: 0, dt_contact: f64::INFINITY };
+        } else {
+            (sim.stable, sim.stable_vec) = sim.power_iteration(None);
+        }
         sim.dt = sim.choose_dt(&file)?;
         Ok(sim)
     }
