@@ -46,7 +46,11 @@ pub trait Blocked<const N: usize>: Shape<N> {
     const NAME: &'static str;
     /// Precomputed geometry of `LANES` elements.
     type Pack: Copy + Send + Sync + 'static;
-    /// Bytes of kernel data per element.
+    /// Geometry that only some packs need, kept beside the packs for those packs only (`q4`:
+    /// the packs holding a non-parallelogram); `()` for a kind that never needs any.
+    type Extra: Copy + Send + Sync + 'static;
+    /// Bytes of kernel data per element (the pack; a pack with an extra part adds
+    /// `size_of::<Extra>() / LANES`, counted by `Block::kernel_bytes`).
     const BYTES_PER_ELEM: usize = std::mem::size_of::<Self::Pack>() / LANES;
     /// f64 per element that `stress` needs beyond the geometry (built once by `recovery`);
     /// 0 for an isoparametric element, whose stress comes from the shape gradients alone.
@@ -56,8 +60,18 @@ pub trait Blocked<const N: usize>: Shape<N> {
     fn pack(x: &[[[f64; 2]; N]], d: &Dmat, t: f64) -> Self::Pack;
     /// The D matrix with thickness and Gauss weight folded in (passed back to `forces`).
     fn scaled_d(d: &Dmat, t: f64) -> [f64; 3];
-    /// Forces of the pack's elements, `f[a][dim][lane]`, from gathered `u[a][dim][lane]`.
+    /// The extra part of the pack of `x` (as `pack`), `None` when `forces` needs none.
+    fn extra(_x: &[[[f64; 2]; N]], _d: &Dmat, _t: f64) -> Option<Self::Extra> {
+        None
+    }
+    /// Forces of the pack's elements, `f[a][dim][lane]`, from gathered `u[a][dim][lane]`
+    /// (a pack whose `extra` is `None`).
     fn forces(p: &Self::Pack, d: &[f64; 3], u: &[[[f64; LANES]; 2]; N], f: &mut [[[f64; LANES]; 2]; N]);
+    /// Forces of a pack whose `extra` is `e` (default: `forces`, the extra part unused).
+    #[inline(always)]
+    fn forces_extra(p: &Self::Pack, _e: &Self::Extra, d: &[f64; 3], u: &[[[f64; LANES]; 2]; N], f: &mut [[[f64; LANES]; 2]; N]) {
+        Self::forces(p, d, u, f)
+    }
     /// Internal force of one element, the reference the blocked kernel is tested against.
     #[inline(always)]
     fn force_ref(x: &[[f64; 2]; N], u: &[[f64; 2]; N], d: &Dmat, t: f64) -> [[f64; 2]; N] {
@@ -83,6 +97,8 @@ pub struct Schedule {
     pub chunk_packs: usize,
     /// Chunk indices of each colour, in increasing order; colours run in this order.
     pub colours: Vec<Vec<u32>>,
+    /// Every chunk once, in the order one thread runs them (see [`Schedule::build`]).
+    pub order: Vec<u32>,
 }
 
 impl Schedule {
@@ -149,7 +165,49 @@ impl Schedule {
         for (k, &c) in colour.iter().enumerate() {
             colours[c as usize].push(k as u32);
         }
-        Schedule { chunk_packs, colours }
+        let order = Self::local_order(conn, chunk_elems, &count, &items, &colour);
+        Schedule { chunk_packs, colours, order }
+    }
+
+    /// The order one thread runs the chunks in (issue 24). A cluster's sum depends only on the
+    /// order of the chunks that touch it, (colour, index) when the colours run one after the
+    /// other; any order that keeps it for every pair of chunks sharing a cluster gives the same
+    /// forces bit for bit. Of those, the one nearest to index order (Kahn's algorithm, smallest
+    /// index first): running whole colours one after the other streams the node arrays once per
+    /// colour, this order keeps nearby chunks together, so their clusters are still in cache.
+    fn local_order<const N: usize>(conn: &[[u32; N]], chunk_elems: usize, count: &[u32], items: &[u32], colour: &[u32]) -> Vec<u32> {
+        use std::cmp::Reverse;
+        let n_chunks = colour.len();
+        let key = |k: u32| (colour[k as usize], k);
+        let mut after: Vec<Vec<u32>> = vec![Vec::new(); n_chunks];
+        let mut waits = vec![0u32; n_chunks];
+        let mut near = Vec::new();
+        for (k, ch) in conn.chunks(chunk_elems).enumerate() {
+            near.clear();
+            for c in ch.iter().flatten() {
+                let c = *c as usize;
+                near.extend(items[count[c] as usize..count[c + 1] as usize].iter().filter(|&&o| key(o) > key(k as u32)));
+            }
+            near.sort_unstable();
+            near.dedup();
+            for &o in &near {
+                waits[o as usize] += 1;
+            }
+            after[k].extend_from_slice(&near);
+        }
+        let mut ready: std::collections::BinaryHeap<Reverse<u32>> = (0..n_chunks as u32).filter(|&k| waits[k as usize] == 0).map(Reverse).collect();
+        let mut order = Vec::with_capacity(n_chunks);
+        while let Some(Reverse(k)) = ready.pop() {
+            order.push(k);
+            for &o in &after[k as usize] {
+                waits[o as usize] -= 1;
+                if waits[o as usize] == 0 {
+                    ready.push(Reverse(o));
+                }
+            }
+        }
+        debug_assert_eq!(order.len(), n_chunks, "the (colour, index) order has no cycle");
+        order
     }
 
     pub fn n_chunks(&self) -> usize {
@@ -209,6 +267,27 @@ mod tests {
         let s = Schedule::build(&conn, 101 * 61);
         let ce = s.chunk_packs * LANES;
         assert_eq!(s.n_chunks(), conn.len().div_ceil(ce));
+        // The one-thread order runs every chunk once and, for every cluster, its chunks in
+        // (colour, index) order, the order of running the colours one after the other.
+        let mut sorted = s.order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..s.n_chunks() as u32).collect::<Vec<_>>());
+        let colour_of = |k: u32| s.colours.iter().position(|c| c.contains(&k)).unwrap();
+        let mut seen: Vec<Vec<u32>> = vec![Vec::new(); 101 * 61];
+        for &k in &s.order {
+            for e in conn.chunks(ce).nth(k as usize).unwrap() {
+                for &c in e {
+                    let v = &mut seen[c as usize];
+                    if v.last() != Some(&k) {
+                        if let Some(&prev) = v.last() {
+                            assert!((colour_of(prev), prev) < (colour_of(k), k), "cluster {c}: chunk {k} runs after {prev} against the colour order");
+                        }
+                        v.push(k);
+                    }
+                }
+            }
+        }
+        assert!(s.order.iter().enumerate().any(|(i, &k)| k as usize != i), "a grid this size needs more than one colour");
         for col in &s.colours {
             let mut owner = vec![u32::MAX; 101 * 61];
             for &k in col {
