@@ -6,7 +6,9 @@
 //! - the bare kernel (`Model::internal_forces`: the blocked element loop and its scatter) in
 //!   element-updates per second and ns per element-update, Q4 and T3, at each size, for each
 //!   thread count, with the check that forces are bit-identical to one thread;
-//! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state);
+//! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state),
+//!   and the bytes an update streams (`Block::kernel_bytes` + 64 per cluster), against the
+//!   triad measured in the same run (issue 24);
 //! - the full `Simulation::step` against the bare kernel and against a bare central-difference
 //!   step (kernel + the textbook update loop written here), and a whole stage (`run_stage`,
 //!   which adds the unbalanced-force ratio every `ratio_every` steps);

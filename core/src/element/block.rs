@@ -126,16 +126,30 @@ pub enum Simd {
 }
 
 impl Simd {
-    /// The sets up to the cap of `FLEM_SIMD` (`plain`, `avx2`, `avx512`; default: all), read
-    /// once per process. The CPU may lack the wider ones (`ElementBlock::chunk_fn` checks).
-    pub fn available() -> Vec<Simd> {
-        static CAP: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-        let cap = *CAP.get_or_init(|| match std::env::var("FLEM_SIMD").as_deref() {
-            Ok("plain") => 1,
-            Ok("avx2") => 2,
-            _ => 3,
-        });
-        [Simd::Plain, Simd::Avx2, Simd::Avx512][..cap].to_vec()
+    /// Whether this CPU runs `self`.
+    pub fn detected(self) -> bool {
+        match self {
+            Simd::Plain => true,
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq"),
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+    /// The widest set this CPU runs, at most the cap of `FLEM_SIMD` (`plain`, `avx2`;
+    /// default: none; for measurements); decided once per process.
+    pub fn best() -> Simd {
+        static BEST: std::sync::OnceLock<Simd> = std::sync::OnceLock::new();
+        *BEST.get_or_init(|| {
+            let cap = match std::env::var("FLEM_SIMD").as_deref() {
+                Ok("plain") => 1,
+                Ok("avx2") => 2,
+                _ => 3,
+            };
+            [Simd::Plain, Simd::Avx2, Simd::Avx512][..cap].iter().rev().copied().find(|s| s.detected()).unwrap_or(Simd::Plain)
+        })
     }
 }
 
@@ -156,6 +170,9 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     extra: Vec<S::Extra>,
     /// Per pack, the index of its extra part in `extra`, `u32::MAX` for none.
     extra_of: Vec<u32>,
+    /// The threads' chunk flags and the last epoch (`Schedule::run_dataflow`); a call that
+    /// finds them taken (another thread in the same block) runs the colours instead.
+    dataflow: std::sync::Mutex<(u32, Vec<std::sync::atomic::AtomicU32>)>,
     /// D with thickness and Gauss weight folded in.
     dk: [f64; 3],
     sched: Schedule,
@@ -186,6 +203,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             packs: Vec::new(),
             extra: Vec::new(),
             extra_of: Vec::new(),
+            dataflow: std::sync::Mutex::new((0, Vec::new())),
             sched: Schedule::default(),
             corner_g: std::sync::OnceLock::new(),
             gauss_g: std::sync::OnceLock::new(),
@@ -218,8 +236,9 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             }
             for (l, c) in conn.iter().enumerate() {
                 for a in 0..N {
-                    // SAFETY: chunks running at the same time belong to one colour and write
-                    // disjoint clusters (Schedule::build).
+                    // SAFETY: chunks running at the same time write disjoint clusters: they
+                    // belong to one colour (Schedule::build), or, under the dataflow
+                    // (Schedule::run_dataflow), share no cluster with an unfinished chunk.
                     unsafe { f.add(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
                 }
             }
@@ -249,22 +268,21 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         match simd {
             Simd::Plain => Some(Self::run_chunk_plain),
             #[cfg(target_arch = "x86_64")]
-            Simd::Avx2 if std::arch::is_x86_feature_detected!("avx2") => {
-                // SAFETY: the CPU has AVX2 (checked on the line above).
+            Simd::Avx2 if simd.detected() => {
+                // SAFETY: the CPU has AVX2 (`detected`, on the line above).
                 Some(|b, k, u, f| unsafe { b.run_chunk_avx2(k, u, f) })
             }
             #[cfg(target_arch = "x86_64")]
-            Simd::Avx512 if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq") => {
-                // SAFETY: the CPU has AVX-512 F, VL and DQ (checked on the line above).
+            Simd::Avx512 if simd.detected() => {
+                // SAFETY: the CPU has AVX-512 F, VL and DQ (`detected`, on the line above).
                 Some(|b, k, u, f| unsafe { b.run_chunk_avx512(k, u, f) })
             }
             _ => None,
         }
     }
-    /// The widest chunk loop this CPU runs (`FLEM_SIMD=plain|avx2|avx512` caps it; for
-    /// measurements).
+    /// The chunk loop of [`Simd::best`].
     fn best_chunk_fn() -> ChunkFn<Self> {
-        Simd::available().into_iter().rev().find_map(Self::chunk_fn).unwrap_or(Self::run_chunk_plain)
+        Self::chunk_fn(Simd::best()).unwrap_or(Self::run_chunk_plain)
     }
     /// `f[c] += F_int` of every element, one thread, with the chunk loop of `simd`; false
     /// (nothing added) when this CPU lacks it.
@@ -344,7 +362,20 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         let shared = SharedForces::new(f);
         let run = Self::best_chunk_fn();
         match pool {
-            Some(pool) if self.len() >= PAR_MIN_ELEMS => {
+            Some(pool) if self.len() >= PAR_MIN_ELEMS && pool.current_num_threads() > 1 => {
+                if let Ok(mut g) = self.dataflow.try_lock() {
+                    let (epoch, done) = &mut *g;
+                    if done.len() != self.sched.n_chunks() {
+                        (*epoch, *done) = (0, (0..self.sched.n_chunks()).map(|_| Default::default()).collect());
+                    }
+                    // A new value, not in any flag (every flag holds an earlier epoch or 0).
+                    *epoch = epoch.wrapping_add(1).max(1);
+                    if *epoch == 1 {
+                        done.iter_mut().for_each(|d| *d.get_mut() = 0);
+                    }
+                    self.sched.run_dataflow(pool, done, *epoch, |k| run(self, k, u, shared));
+                    return;
+                }
                 for colour in &self.sched.colours {
                     use rayon::prelude::*;
                     if colour.len() > 1 {
