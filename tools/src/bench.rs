@@ -6,7 +6,9 @@
 //! - the bare kernel (`Model::internal_forces`: the blocked element loop and its scatter) in
 //!   element-updates per second and ns per element-update, Q4 and T3, at each size, for each
 //!   thread count, with the check that forces are bit-identical to one thread;
-//! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state);
+//! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state),
+//!   and the bytes an update streams (`Block::kernel_bytes` + 64 per cluster), against the
+//!   triad measured in the same run (issue 24);
 //! - the full `Simulation::step` against the bare kernel and against a bare central-difference
 //!   step (kernel + the textbook update loop written here), and a whole stage (`run_stage`,
 //!   which adds the unbalanced-force ratio every `ratio_every` steps);
@@ -128,10 +130,13 @@ fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, 
     let mut f = vec![[0.0; 2]; nc];
     let mut reference: Option<Vec<[f64; 2]>> = None;
     let mut per_thread = Vec::new();
-    // The bytes an element-update must move at the least: its block data (packs, connectivity)
-    // streamed once, and per cluster u read (16 B), f_int read and written (32 B).
-    let block_bytes = m.blocks.iter().map(|b| b.memory_bytes()).sum::<usize>() as f64 / ne as f64;
-    let min_bytes = block_bytes + 48.0 * nc as f64 / ne as f64;
+    // The bytes an element-update must move at the least: the block data the force pass
+    // streams once (`Block::kernel_bytes`: packs and their extra parts, connectivity, schedule;
+    // not the corner coordinates and ids, which it does not read), and per cluster u read
+    // (16 B), f_int zeroed, read and written (48 B; issue 24: before, every byte the block
+    // held was counted and the zeroing was not).
+    let block_bytes = m.blocks.iter().map(|b| b.kernel_bytes()).sum::<usize>() as f64 / ne as f64;
+    let min_bytes = block_bytes + 64.0 * nc as f64 / ne as f64;
     for &t in &o.threads {
         m.set_threads(t)?;
         let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
@@ -155,7 +160,7 @@ fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, 
     Ok(json!({
         "kind": kind.name, "nx": nx, "ny": ny, "elements": ne, "clusters": nc,
         "kernel": per_thread,
-        "memory_bytes_per_element": {"kernel_packs": kernel_bytes, "block_total": block as f64 / ne as f64, "node_state": node_bytes as f64 / ne as f64, "block_plus_node_state": (block + node_bytes) as f64 / ne as f64},
+        "memory_bytes_per_element": {"kernel_packs": kernel_bytes, "kernel_streamed": block_bytes, "block_total": block as f64 / ne as f64, "node_state": node_bytes as f64 / ne as f64, "block_plus_node_state": (block + node_bytes) as f64 / ne as f64},
     }))
 }
 

@@ -39,6 +39,12 @@ pub trait Block: Send + Sync {
     fn prepare(&mut self, n_clusters: usize);
     /// Bytes held by the block (geometry, connectivity, kernel data, schedule).
     fn memory_bytes(&self) -> usize;
+    /// Bytes of the block's own data that one force pass streams (kernel packs and their
+    /// extra parts, connectivity, schedule; `flem bench step`'s byte count). Default: all of
+    /// `memory_bytes`.
+    fn kernel_bytes(&self) -> usize {
+        self.memory_bytes()
+    }
     /// `f[c] += F_int` for the local elements in `range` only, element by element with the
     /// reference kernel `element::internal_force` (tests compare the blocked kernel with it).
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]);
@@ -107,6 +113,46 @@ pub trait Block: Send + Sync {
     }
 }
 
+/// The chunk loop of an element block (`ElementBlock::chunk_fn`).
+pub type ChunkFn<B> = fn(&B, usize, &[[f64; 2]], SharedForces);
+
+/// The instruction sets the chunk loop is compiled for (`ElementBlock::chunk_fn`), narrowest
+/// first.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Simd {
+    Plain,
+    Avx2,
+    Avx512,
+}
+
+impl Simd {
+    /// Whether this CPU runs `self`.
+    pub fn detected(self) -> bool {
+        match self {
+            Simd::Plain => true,
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq"),
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+    /// The widest set this CPU runs, at most the cap of `FLEM_SIMD` (`plain`, `avx2`;
+    /// default: none; for measurements); decided once per process.
+    pub fn best() -> Simd {
+        static BEST: std::sync::OnceLock<Simd> = std::sync::OnceLock::new();
+        *BEST.get_or_init(|| {
+            let cap = match std::env::var("FLEM_SIMD").as_deref() {
+                Ok("plain") => 1,
+                Ok("avx2") => 2,
+                _ => 3,
+            };
+            [Simd::Plain, Simd::Avx2, Simd::Avx512][..cap].iter().rev().copied().find(|s| s.detected()).unwrap_or(Simd::Plain)
+        })
+    }
+}
+
 /// Blocks smaller than this run on the calling thread (waking the pool costs more than it
 /// saves; the result is the same either way).
 const PAR_MIN_ELEMS: usize = 4096;
@@ -120,6 +166,13 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     pub conn: Vec<[u32; N]>,
     /// Blocked kernel data, one pack per `LANES` elements (built by `prepare`).
     packs: Vec<S::Pack>,
+    /// The extra parts of the packs that need one (`Blocked::extra`), in pack order.
+    extra: Vec<S::Extra>,
+    /// Per pack, the index of its extra part in `extra`, `u32::MAX` for none.
+    extra_of: Vec<u32>,
+    /// The threads' chunk flags and the last epoch (`Schedule::run_dataflow`); a call that
+    /// finds them taken (another thread in the same block) runs the colours instead.
+    dataflow: std::sync::Mutex<(u32, Vec<std::sync::atomic::AtomicU32>)>,
     /// D with thickness and Gauss weight folded in.
     dk: [f64; 3],
     sched: Schedule,
@@ -148,6 +201,9 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             x: Vec::new(),
             conn: Vec::new(),
             packs: Vec::new(),
+            extra: Vec::new(),
+            extra_of: Vec::new(),
+            dataflow: std::sync::Mutex::new((0, Vec::new())),
             sched: Schedule::default(),
             corner_g: std::sync::OnceLock::new(),
             gauss_g: std::sync::OnceLock::new(),
@@ -159,7 +215,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
 
     /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.
     #[inline(always)]
-    fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+    fn run_chunk_body(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
         let cp = self.sched.chunk_packs;
         let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
         let mut ug = [[[0.0; LANES]; 2]; N];
@@ -174,15 +230,67 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
                     ug[a][1][l] = ua[1];
                 }
             }
-            S::forces(&self.packs[p], &self.dk, &ug, &mut fg);
+            match self.extra_of[p] {
+                u32::MAX => S::forces(&self.packs[p], &self.dk, &ug, &mut fg),
+                i => S::forces_extra(&self.packs[p], &self.extra[i as usize], &self.dk, &ug, &mut fg),
+            }
             for (l, c) in conn.iter().enumerate() {
                 for a in 0..N {
-                    // SAFETY: chunks running at the same time belong to one colour and write
-                    // disjoint clusters (Schedule::build).
+                    // SAFETY: chunks running at the same time write disjoint clusters: they
+                    // belong to one colour (Schedule::build), or, under the dataflow
+                    // (Schedule::run_dataflow), share no cluster with an unfinished chunk.
                     unsafe { f.add(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
                 }
             }
         }
+    }
+    /// [`Self::run_chunk_body`] compiled for the baseline instruction set.
+    fn run_chunk_plain(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body(k, u, f)
+    }
+    /// [`Self::run_chunk_body`] compiled for AVX2 (4 lanes per vector instruction).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_chunk_avx2(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body(k, u, f)
+    }
+    /// [`Self::run_chunk_body`] compiled for AVX-512 (8 lanes: one pack per instruction).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    fn run_chunk_avx512(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body(k, u, f)
+    }
+    /// The chunk loop for `simd` (`None` when this CPU lacks it). The three are the same
+    /// code compiled for wider registers: each lane does the same IEEE operations in the same
+    /// order (Rust never contracts a multiply and an add into an FMA), so the forces are the
+    /// same bit for bit whichever runs (tested in flem-plugins' element tests).
+    pub fn chunk_fn(simd: Simd) -> Option<ChunkFn<Self>> {
+        match simd {
+            Simd::Plain => Some(Self::run_chunk_plain),
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 if simd.detected() => {
+                // SAFETY: the CPU has AVX2 (`detected`, on the line above).
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx2(k, u, f) })
+            }
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 if simd.detected() => {
+                // SAFETY: the CPU has AVX-512 F, VL and DQ (`detected`, on the line above).
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx512(k, u, f) })
+            }
+            _ => None,
+        }
+    }
+    /// The chunk loop of [`Simd::best`].
+    fn best_chunk_fn() -> ChunkFn<Self> {
+        Self::chunk_fn(Simd::best()).unwrap_or(Self::run_chunk_plain)
+    }
+    /// `f[c] += F_int` of every element, one thread, with the chunk loop of `simd`; false
+    /// (nothing added) when this CPU lacks it.
+    pub fn add_internal_forces_simd(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], simd: Simd) -> bool {
+        let Some(run) = Self::chunk_fn(simd) else { return false };
+        let shared = SharedForces::new(f);
+        self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
+        true
     }
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
         self.elems.push(e);
@@ -252,28 +360,62 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
     fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
         assert_eq!(self.packs.len(), self.len().div_ceil(LANES), "ElementBlock::prepare was not called after the last push");
         let shared = SharedForces::new(f);
-        for colour in &self.sched.colours {
-            match pool {
-                Some(pool) if colour.len() > 1 && self.len() >= PAR_MIN_ELEMS => {
-                    use rayon::prelude::*;
-                    pool.install(|| colour.par_iter().for_each(|&k| self.run_chunk(k as usize, u, shared)));
+        let run = Self::best_chunk_fn();
+        match pool {
+            Some(pool) if self.len() >= PAR_MIN_ELEMS && pool.current_num_threads() > 1 => {
+                if let Ok(mut g) = self.dataflow.try_lock() {
+                    let (epoch, done) = &mut *g;
+                    if done.len() != self.sched.n_chunks() {
+                        (*epoch, *done) = (0, (0..self.sched.n_chunks()).map(|_| Default::default()).collect());
+                    }
+                    // A new value, not in any flag (every flag holds an earlier epoch or 0).
+                    *epoch = epoch.wrapping_add(1).max(1);
+                    if *epoch == 1 {
+                        done.iter_mut().for_each(|d| *d.get_mut() = 0);
+                    }
+                    self.sched.run_dataflow(pool, done, *epoch, |k| run(self, k, u, shared));
+                    return;
                 }
-                _ => colour.iter().for_each(|&k| self.run_chunk(k as usize, u, shared)),
+                for colour in &self.sched.colours {
+                    use rayon::prelude::*;
+                    if colour.len() > 1 {
+                        pool.install(|| colour.par_iter().for_each(|&k| run(self, k as usize, u, shared)));
+                    } else {
+                        colour.iter().for_each(|&k| run(self, k as usize, u, shared));
+                    }
+                }
             }
+            // One thread: the chunks in the schedule's local order (the same sums, bit for bit).
+            _ => self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared)),
         }
     }
     fn prepare(&mut self, n_clusters: usize) {
         let (d, t) = (self.d, self.mat.thickness);
         self.packs = self.x.chunks(LANES).map(|x| S::pack(x, &d, t)).collect();
+        (self.extra, self.extra_of) = (Vec::new(), Vec::with_capacity(self.packs.len()));
+        for x in self.x.chunks(LANES) {
+            match S::extra(x, &d, t) {
+                Some(e) => {
+                    self.extra_of.push(self.extra.len() as u32);
+                    self.extra.push(e);
+                }
+                None => self.extra_of.push(u32::MAX),
+            }
+        }
         self.sched = Schedule::build(&self.conn, n_clusters);
     }
     fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
-        self.elems.capacity() * size_of::<ElemId>()
-            + self.x.capacity() * size_of::<[[f64; 2]; N]>()
-            + self.conn.capacity() * size_of::<[u32; N]>()
+        self.elems.capacity() * size_of::<ElemId>() + self.x.capacity() * size_of::<[[f64; 2]; N]>() + self.kernel_bytes()
+    }
+    fn kernel_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.conn.capacity() * size_of::<[u32; N]>()
             + self.packs.capacity() * size_of::<S::Pack>()
+            + self.extra.capacity() * size_of::<S::Extra>()
+            + self.extra_of.capacity() * 4
             + self.sched.colours.iter().map(|c| c.capacity() * 4).sum::<usize>()
+            + self.sched.order.capacity() * 4
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         let t = self.mat.thickness;

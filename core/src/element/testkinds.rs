@@ -72,6 +72,7 @@ fn forces<S: Blocked<N>, const N: usize>(p: &RefPack<N>, u: &[[[f64; LANES]; 2];
 impl Blocked<4> for TestQuad {
     const NAME: &'static str = "q4";
     type Pack = RefPack<4>;
+    type Extra = ();
     fn pack(x: &[[[f64; 2]; 4]], d: &Dmat, t: f64) -> RefPack<4> {
         pack(x, d, t)
     }
@@ -86,6 +87,7 @@ impl Blocked<4> for TestQuad {
 impl Blocked<3> for TestTri {
     const NAME: &'static str = "t3";
     type Pack = RefPack<3>;
+    type Extra = ();
     fn pack(x: &[[[f64; 2]; 3]], d: &Dmat, t: f64) -> RefPack<3> {
         pack(x, d, t)
     }

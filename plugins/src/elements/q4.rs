@@ -10,7 +10,11 @@
 //! **Blocked layout** (`flem_core::element::kernel`: packs of `LANES` elements, structure of
 //! arrays). The Jacobian is linear in the natural coordinates, `dx/dxi = a + eta h`,
 //! `dx/deta = b + xi h` (with `a, b, h` the three corner combinations of x and y: 6 values),
-//! plus `1 / det J` at the 4 Gauss points: 10 f64 = 80 bytes per element. With
+//! plus `1 / det J` at the 4 Gauss points: 10 f64 = 80 bytes per element. A pack whose
+//! elements are all parallelograms (`h = 0`: every structured mesh) keeps only `a, b` (4 f64 =
+//! 32 bytes per element, `Q4Pack`) and computes its one `1 / det J` (issue 24); the others keep
+//! the other 6 f64 in a `Q4Extra` beside it. Both forms give the same forces bit for bit on a
+//! parallelogram (`full_pack` says when; tested). With
 //! `adj J = det J * J^-1`, the force of a Gauss point is
 //! `f_a = w t (adj J^T dN_a)^T sigma`, `sigma = D (adj J grad_xi u) / det J`, which is exactly
 //! `element::internal_force` rearranged (equal to round-off, tested to 1e-12 relative). The
@@ -52,14 +56,23 @@ impl Shape<4> for Q4 {
     }
 }
 
+/// Geometry of `LANES` elements, all a pack needs when every element of it is a parallelogram
+/// (`h = 0`): `dx/dxi = a`, `dx/deta = b`, one Jacobian for the whole element (32 bytes each).
 #[derive(Copy, Clone, Debug)]
 #[repr(C, align(64))]
 pub struct Q4Pack {
     ax: [f64; LANES],
     bx: [f64; LANES],
-    hx: [f64; LANES],
     ay: [f64; LANES],
     by: [f64; LANES],
+}
+
+/// The rest of the geometry of a pack holding a non-parallelogram: `h` of x and y and
+/// `1 / det J` at the 4 Gauss points (48 bytes each; kept only for such packs).
+#[derive(Copy, Clone, Debug)]
+#[repr(C, align(64))]
+pub struct Q4Extra {
+    hx: [f64; LANES],
     hy: [f64; LANES],
     inv: [[f64; LANES]; 4],
 }
@@ -74,57 +87,99 @@ fn abh(v0: f64, v1: f64, v2: f64, v3: f64) -> (f64, f64, f64) {
     (0.25 * ((v1 - v0) + (v2 - v3)), 0.25 * ((v3 - v0) + (v2 - v1)), 0.25 * ((v0 - v1) + (v2 - v3)))
 }
 
+/// The whole geometry of a pack (`Q4Pack` and `Q4Extra`), and whether the lean form (the pack
+/// alone) gives the same forces bit for bit: every `h` is zero, so that `a + eta h` is `a`
+/// exactly (true unless `a` is -0.0, hence that exclusion), and every `det J` is finite and
+/// non-zero, so that `forces` recomputes the one `1 / det J` from the same expression.
+pub(crate) fn full_pack(x: &[[[f64; 2]; 4]]) -> (Q4Pack, Q4Extra, bool) {
+    let z = [0.0; LANES];
+    let (mut p, mut e) = (Q4Pack { ax: z, bx: z, ay: z, by: z }, Q4Extra { hx: z, hy: z, inv: [z; 4] });
+    let mut lean = true;
+    for (l, el) in x.iter().enumerate().take(LANES) {
+        let (ax, bx, hx) = abh(el[0][0], el[1][0], el[2][0], el[3][0]);
+        let (ay, by, hy) = abh(el[0][1], el[1][1], el[2][1], el[3][1]);
+        (p.ax[l], p.bx[l], p.ay[l], p.by[l], e.hx[l], e.hy[l]) = (ax, bx, ay, by, hx, hy);
+        for (g, &[xi, eta]) in Q4_GP.iter().enumerate() {
+            let (j11, j12, j21, j22) = (ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy);
+            e.inv[g][l] = 1.0 / (j11 * j22 - j12 * j21);
+        }
+        let not_neg_zero = [ax, bx, ay, by].iter().all(|v| v.to_bits() != (-0.0f64).to_bits());
+        lean &= hx == 0.0 && hy == 0.0 && not_neg_zero && e.inv[0][l].is_finite();
+    }
+    (p, e, lean)
+}
+
+/// Corner forces from the Gauss-point sums `S` (of P) and `T` (of P times the other
+/// coordinate), `[sxs, txs, sxe, txe]` per direction, into lane `l` of `f`:
+/// `f_a = 1/4 [xi_a (S_s + eta_a T_s) + eta_a (S_e + xi_a T_e)]`, corners (-,-) (+,-) (+,+) (-,+).
+#[inline(always)]
+fn assemble(s: [[f64; 4]; 2], l: usize, f: &mut [[[f64; LANES]; 2]; 4]) {
+    for (k, [ss, ts, se, te]) in s.into_iter().enumerate() {
+        f[0][k][l] = 0.25 * (-(ss - ts) - (se - te));
+        f[1][k][l] = 0.25 * ((ss - ts) - (se + te));
+        f[2][k][l] = 0.25 * ((ss + ts) + (se + te));
+        f[3][k][l] = 0.25 * (-(ss + ts) + (se - te));
+    }
+}
+
+/// Adds the integrand of Gauss point `(xi, eta)` to the sums of [`assemble`].
+#[inline(always)]
+fn add_point(s: &mut [[f64; 4]; 2], xi: f64, eta: f64, p: (f64, f64, f64, f64)) {
+    let (pxs, pxe, pys, pye) = p;
+    for (sk, (ps, pe)) in s.iter_mut().zip([(pxs, pxe), (pys, pye)]) {
+        sk[0] += ps;
+        sk[1] += eta * ps;
+        sk[2] += pe;
+        sk[3] += xi * pe;
+    }
+}
+
 impl Blocked<4> for Q4 {
     const NAME: &'static str = "q4";
     type Pack = Q4Pack;
+    type Extra = Q4Extra;
     fn pack(x: &[[[f64; 2]; 4]], _d: &Dmat, _t: f64) -> Q4Pack {
-        let z = [0.0; LANES];
-        let mut p = Q4Pack { ax: z, bx: z, hx: z, ay: z, by: z, hy: z, inv: [z; 4] };
-        for (l, e) in x.iter().enumerate().take(LANES) {
-            let (ax, bx, hx) = abh(e[0][0], e[1][0], e[2][0], e[3][0]);
-            let (ay, by, hy) = abh(e[0][1], e[1][1], e[2][1], e[3][1]);
-            (p.ax[l], p.bx[l], p.hx[l], p.ay[l], p.by[l], p.hy[l]) = (ax, bx, hx, ay, by, hy);
-            for (g, &[xi, eta]) in Q4_GP.iter().enumerate() {
-                let (j11, j12, j21, j22) = (ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy);
-                p.inv[g][l] = 1.0 / (j11 * j22 - j12 * j21);
-            }
-        }
-        p
+        full_pack(x).0
+    }
+    fn extra(x: &[[[f64; 2]; 4]], _d: &Dmat, _t: f64) -> Option<Q4Extra> {
+        let (_, e, lean) = full_pack(x);
+        (!lean).then_some(e)
     }
     fn scaled_d(d: &Dmat, t: f64) -> [f64; 3] {
         [d.d11 * t, d.d12 * t, d.d33 * t]
     }
+    /// The lean form: every element of the pack a parallelogram (see [`full_pack`]).
     #[inline(always)]
     fn forces(p: &Q4Pack, d: &[f64; 3], u: &[[[f64; LANES]; 2]; 4], f: &mut [[[f64; LANES]; 2]; 4]) {
         for l in 0..LANES {
             let (aux, bux, hux) = abh(u[0][0][l], u[1][0][l], u[2][0][l], u[3][0][l]);
             let (auy, buy, huy) = abh(u[0][1][l], u[1][1][l], u[2][1][l], u[3][1][l]);
-            let (ax, bx, hx, ay, by, hy) = (p.ax[l], p.bx[l], p.hx[l], p.ay[l], p.by[l], p.hy[l]);
-            // Sums over Gauss points of P (S) and of P times the other coordinate (T).
-            let (mut sxs, mut txs, mut sxe, mut txe) = (0.0, 0.0, 0.0, 0.0);
-            let (mut sys, mut tys, mut sye, mut tye) = (0.0, 0.0, 0.0, 0.0);
+            let (j11, j12, j21, j22) = (p.ax[l], p.ay[l], p.bx[l], p.by[l]);
+            // The same expression as `full_pack`'s (an empty lane, all zero, gives zero force).
+            let det = j11 * j22 - j12 * j21;
+            let inv = if det == 0.0 { 0.0 } else { 1.0 / det };
+            let mut s = [[0.0; 4]; 2];
+            for &[xi, eta] in Q4_GP.iter() {
+                let (uxs, uxe, uys, uye) = (aux + eta * hux, bux + xi * hux, auy + eta * huy, buy + xi * huy);
+                add_point(&mut s, xi, eta, parent_stress([j11, j12, j21, j22], inv, [uxs, uxe, uys, uye], d));
+            }
+            assemble(s, l, f);
+        }
+    }
+    /// The general form: the Jacobian and `1 / det J` of each Gauss point.
+    #[inline(always)]
+    fn forces_extra(p: &Q4Pack, e: &Q4Extra, d: &[f64; 3], u: &[[[f64; LANES]; 2]; 4], f: &mut [[[f64; LANES]; 2]; 4]) {
+        for l in 0..LANES {
+            let (aux, bux, hux) = abh(u[0][0][l], u[1][0][l], u[2][0][l], u[3][0][l]);
+            let (auy, buy, huy) = abh(u[0][1][l], u[1][1][l], u[2][1][l], u[3][1][l]);
+            let (ax, bx, hx, ay, by, hy) = (p.ax[l], p.bx[l], e.hx[l], p.ay[l], p.by[l], e.hy[l]);
+            let mut s = [[0.0; 4]; 2];
             for (g, &[xi, eta]) in Q4_GP.iter().enumerate() {
                 let (j11, j12, j21, j22) = (ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy);
                 let (uxs, uxe, uys, uye) = (aux + eta * hux, bux + xi * hux, auy + eta * huy, buy + xi * huy);
-                let (pxs, pxe, pys, pye) = parent_stress([j11, j12, j21, j22], p.inv[g][l], [uxs, uxe, uys, uye], d);
-                sxs += pxs;
-                txs += eta * pxs;
-                sxe += pxe;
-                txe += xi * pxe;
-                sys += pys;
-                tys += eta * pys;
-                sye += pye;
-                tye += xi * pye;
+                add_point(&mut s, xi, eta, parent_stress([j11, j12, j21, j22], e.inv[g][l], [uxs, uxe, uys, uye], d));
             }
-            // f_a = 1/4 [xi_a (S_s + eta_a T_s) + eta_a (S_e + xi_a T_e)], corners (-,-) (+,-) (+,+) (-,+).
-            f[0][0][l] = 0.25 * (-(sxs - txs) - (sxe - txe));
-            f[1][0][l] = 0.25 * ((sxs - txs) - (sxe + txe));
-            f[2][0][l] = 0.25 * ((sxs + txs) + (sxe + txe));
-            f[3][0][l] = 0.25 * (-(sxs + txs) + (sxe - txe));
-            f[0][1][l] = 0.25 * (-(sys - tys) - (sye - tye));
-            f[1][1][l] = 0.25 * ((sys - tys) - (sye + tye));
-            f[2][1][l] = 0.25 * ((sys + tys) + (sye + tye));
-            f[3][1][l] = 0.25 * (-(sys + tys) + (sye - tye));
+            assemble(s, l, f);
         }
     }
 }

@@ -225,6 +225,7 @@ pub fn matrices(x: &[[f64; 2]; 4], d: &Dmat, t: f64) -> ([[f64; 8]; 8], [[f64; 8
 impl Blocked<4> for Qm6 {
     const NAME: &'static str = "qm6";
     type Pack = Qm6Pack;
+    type Extra = ();
     /// 4 x 8 `H` (alpha = H u), row-major.
     const RECOVERY_LEN: usize = 32;
     fn pack(x: &[[[f64; 2]; 4]], d: &Dmat, t: f64) -> Qm6Pack {

@@ -133,7 +133,7 @@ fn check<S: Blocked<N>, const N: usize>(base: [[f64; 2]; N]) {
         for n in [LANES, 3] {
             let xs: Vec<[[f64; 2]; N]> = (0..n).map(|_| std::array::from_fn(|a| [1e3 + base[a][0] + 0.2 * lcg(&mut s), -5.0 + base[a][1] + 0.2 * lcg(&mut s)])).collect();
             let us: Vec<[[f64; 2]; N]> = (0..n).map(|_| std::array::from_fn(|_| [1e-3 * lcg(&mut s), 1e-3 * lcg(&mut s)])).collect();
-            let p = S::pack(&xs, &d, mat.thickness);
+            let (p, e) = (S::pack(&xs, &d, mat.thickness), S::extra(&xs, &d, mat.thickness));
             let mut ug = [[[0.0; LANES]; 2]; N];
             for (l, ue) in us.iter().enumerate() {
                 for a in 0..N {
@@ -142,7 +142,10 @@ fn check<S: Blocked<N>, const N: usize>(base: [[f64; 2]; N]) {
                 }
             }
             let mut fg = [[[f64::NAN; LANES]; 2]; N];
-            S::forces(&p, &S::scaled_d(&d, mat.thickness), &ug, &mut fg);
+            match &e {
+                Some(e) => S::forces_extra(&p, e, &S::scaled_d(&d, mat.thickness), &ug, &mut fg),
+                None => S::forces(&p, &S::scaled_d(&d, mat.thickness), &ug, &mut fg),
+            }
             for l in 0..LANES {
                 if l >= n {
                     assert!((0..N).all(|a| fg[a][0][l] == 0.0 && fg[a][1][l] == 0.0), "empty lane gives zero force");
@@ -205,4 +208,84 @@ fn corotational_q4_rotated_stretch_is_the_rotated_linear_result() {
     for k in 0..3 {
         assert!((sr[k] - want[k]).abs() < 1e-6 * lin[0].abs(), "{sr:?} {want:?}");
     }
+}
+
+/// Issue 24: a Q4 pack of parallelograms keeps only `a, b` (the lean form) and computes its one
+/// `1 / det J`; on a parallelogram the lean and the general form give the same forces bit for
+/// bit (the reference is the general form, the layout used before; exact equality).
+#[test]
+fn q4_lean_pack_equals_general_bit_for_bit() {
+    let mut s = 11u64;
+    for _ in 0..50 {
+        // Parallelograms o, o + e1, o + e1 + e2, o + e2 with coordinates on a 1/64 grid (exact
+        // sums, so h is exactly zero, as on a generated rectangle), random edge vectors.
+        let mut g = |lo: f64, hi: f64| ((lo + (hi - lo) * (lcg(&mut s) + 0.5)) * 64.0).round() / 64.0;
+        let xs: Vec<[[f64; 2]; 4]> = (0..LANES)
+            .map(|_| {
+                let (o, e1, e2) = ([g(-100.0, 100.0), g(-100.0, 100.0)], [g(0.5, 1.5), g(-0.3, 0.3)], [g(-0.3, 0.3), g(0.5, 1.5)]);
+                [o, [o[0] + e1[0], o[1] + e1[1]], [o[0] + e1[0] + e2[0], o[1] + e1[1] + e2[1]], [o[0] + e2[0], o[1] + e2[1]]]
+            })
+            .collect();
+        let (p, e, lean) = super::q4::full_pack(&xs);
+        let d = mat(Plane::Strain).dmat();
+        let dk = <Q4 as Blocked<4>>::scaled_d(&d, 0.7);
+        let ug: [[[f64; LANES]; 2]; 4] = std::array::from_fn(|_| std::array::from_fn(|_| std::array::from_fn(|_| 1e-3 * lcg(&mut s))));
+        let (mut f1, mut f2) = ([[[0.0; LANES]; 2]; 4], [[[0.0; LANES]; 2]; 4]);
+        <Q4 as Blocked<4>>::forces_extra(&p, &e, &dk, &ug, &mut f2);
+        assert!(lean, "a parallelogram on an exact grid is lean: {xs:?}");
+        <Q4 as Blocked<4>>::forces(&p, &dk, &ug, &mut f1);
+        let bits = |f: &[[[f64; LANES]; 2]; 4]| f.iter().flatten().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&f1), bits(&f2), "lean and general Q4 forces differ on parallelograms");
+    }
+    // A non-parallelogram is never lean.
+    assert!(!super::q4::full_pack(&[DISTORTED]).2);
+}
+
+/// Issue 24: the chunk loop compiled for wider vector units (AVX2, AVX-512, when this CPU has
+/// them) gives the same forces bit for bit as the baseline one, on a block mixing lean and
+/// general Q4 packs and on T3; and the blocked block equals the one-element reference
+/// (`add_internal_forces_range`) to 1e-12 relative.
+#[test]
+fn simd_chunk_loops_are_bit_identical() {
+    use flem_core::element::block::{Block, ElementBlock, Simd};
+    use flem_core::ids::ElemId;
+    let (nx, ny) = (37, 23);
+    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+    let mut s = 5u64;
+    // Corner points of a grid, distorted in its upper half only (mixed packs).
+    let pts: Vec<[f64; 2]> = (0..=ny).flat_map(|j| (0..=nx).map(move |i| (i, j))).map(|(i, j)| [i as f64 + if j > ny / 2 { 0.3 * lcg(&mut s) } else { 0.0 }, j as f64]).collect();
+    let u: Vec<[f64; 2]> = (0..pts.len()).map(|_| [1e-3 * lcg(&mut s), 1e-3 * lcg(&mut s)]).collect();
+    let m = mat(Plane::Strain);
+    let mut q = ElementBlock::<Q4, 4>::new("r".into(), m);
+    let mut t = ElementBlock::<T3, 3>::new("r".into(), m);
+    for j in 0..ny {
+        for i in 0..nx {
+            let c = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+            q.push(ElemId((j * nx + i) as u32), c.map(|c| pts[c as usize]), c);
+            for tri in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
+                t.push(ElemId(t.len() as u32), tri.map(|c| pts[c as usize]), tri);
+            }
+        }
+    }
+    q.prepare(pts.len());
+    t.prepare(pts.len());
+    type Run<'a> = &'a dyn Fn(&mut [[f64; 2]], Simd) -> bool;
+    let run = |b: Run, simd| {
+        let mut f = vec![[0.0; 2]; pts.len()];
+        b(&mut f, simd).then_some(f)
+    };
+    let (rq, rt): (Run, Run) = (&|f, s| q.add_internal_forces_simd(&u, f, s), &|f, s| t.add_internal_forces_simd(&u, f, s));
+    for b in [rq, rt] {
+        let plain = run(b, Simd::Plain).expect("the baseline always runs");
+        for simd in [Simd::Avx2, Simd::Avx512] {
+            if let Some(f) = run(b, simd) {
+                assert!(plain.iter().zip(&f).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits()), "{simd:?} differs from the baseline");
+            }
+        }
+    }
+    let mut r = vec![[0.0; 2]; pts.len()];
+    q.add_internal_forces_range(0..q.len(), &u, &mut r);
+    let plain = run(rq, Simd::Plain).unwrap();
+    let scale = r.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(plain.iter().flatten().zip(r.iter().flatten()).all(|(a, b)| (a - b).abs() <= 1e-12 * scale));
 }
