@@ -32,8 +32,9 @@
 //! gradients do not annihilate exactly, and of the principal values (`~1e-15 |sigma|`).
 //!
 //! Two tiers test `rho < rho_c` ([`Skip::certified`]): a streaming pass over the clusters
-//! (`max |u - u_ref|` against the smallest allowance: no gather, a few bytes per cluster) and,
-//! when it fails, the element pass (each element's half range against its own allowance).
+//! (`max |u - b|` against one allowance, where the base `b` is `u_ref` or the `u` of the last
+//! element pass that certified: no gather, a few bytes per cluster) and, when it fails, the
+//! element pass (each element's half range against its own allowance).
 //!
 //! The failure index of a skipped check (VTU output, checkpoints) is computed on demand from the
 //! displacement of that check ([`super::Cracking::failure_index`]), so the output is the same.
@@ -61,6 +62,8 @@ pub struct Skip {
     u_base: Vec<[f64; 2]>,
     base_is_ref: bool,
     slack: f64,
+    /// The margin factor `slack` was computed with.
+    slack_factor: f64,
     /// Back-off of the node tier after it fails: checks to wait, and the exponent.
     wait: u32,
     backoff: u32,
@@ -189,17 +192,19 @@ impl Skip {
 
     /// True when the check at `u` is certified to find no failing point (see the module doc).
     /// `margin_factor` is 1 (values above 1 make the bound unsafe: tests only). Chunks on the
-    /// model's pool (a logical and: the answer does not depend on the threads).
+    /// model's pool (a max and a min over fixed chunks: the answer does not depend on the threads).
     ///
     /// Two tiers, both exact consequences of the bound:
     /// 1. **Node tier**: `D = max_c |u_c - b_c|_inf` over all clusters against a base `b`, one
     ///    streaming pass over two arrays (no gather). The base is `u_ref` with the smallest
     ///    allowance, or the `u` of the last element pass that certified with the smallest
-    ///    slack `S = min_e (allowed_e - half_e - ROUND big_e)` it left: the half range is a
+    ///    slack `S = (1 - ROUND) min_e (mf allowed_e - half_e - ROUND big_e)` it left (`mf` the
+    ///    margin factor; a base kept under another factor is not used): the half range is a
     ///    seminorm and the largest change a norm, so `half_e(u - u_ref) <= half_e(b - u_ref) + D`
     ///    and `big_e(u - u_ref) <= big_e(b - u_ref) + D`, and `D (1 + ROUND)(1 + 2 ROUND) < S`
     ///    certifies every element at once (the `ROUND` factors cover the rounding of the
-    ///    passes). It ignores the translation an element shares with its neighbours, so it is
+    ///    passes; the chained rounding, ~1e-16 relative, sits far inside the 1e-9 cushions of
+    ///    the margins and allowances). It ignores the translation an element shares with its neighbours, so it is
     ///    weaker than the element pass: after it fails it waits 1, 3, 7, ... up to 63 checks.
     /// 2. **Element pass**: each element's half range against its own allowance; when the node
     ///    tier is due at the next check, it keeps `u` and the slack as the node tier's base.
@@ -212,7 +217,8 @@ impl Skip {
         if self.wait > 0 {
             self.wait -= 1;
         } else {
-            let (base, allowance) = if self.base_is_ref { (&self.u_ref[..], self.allowed_min * margin_factor) } else { (&self.u_base[..], self.slack) };
+            let by_ref = self.base_is_ref || self.slack_factor != margin_factor;
+            let (base, allowance) = if by_ref { (&self.u_ref[..], self.allowed_min * margin_factor) } else { (&self.u_base[..], self.slack) };
             if Self::node_pass(u, base, pool) * ((1.0 + Self::ROUND) * (1.0 + 2.0 * Self::ROUND)) < allowance {
                 self.n_node_tier += 1;
                 self.backoff = 0;
@@ -250,6 +256,7 @@ impl Skip {
             self.u_base.extend_from_slice(u);
             self.base_is_ref = false;
             self.slack = slack * (1.0 - Self::ROUND);
+            self.slack_factor = margin_factor;
         }
         true
     }
@@ -342,5 +349,29 @@ impl Skip {
             least = mn(s, least);
         }
         least
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Skip;
+
+    /// The node tier's pass over several chunks (reference: the plain maximum), the same on one
+    /// and two threads, and infinite when a change is not finite.
+    #[test]
+    fn node_pass_is_the_max_change_on_any_threads() {
+        let n = 40_001; // three chunks of 16 384, odd length
+        let u: Vec<[f64; 2]> = (0..n).map(|i| [((i * 7919) % 1000) as f64 * 1e-3, -(((i * 104_729) % 997) as f64) * 1e-3]).collect();
+        let b: Vec<[f64; 2]> = (0..n).map(|i| [((i * 31) % 17) as f64 * 1e-3, 0.0]).collect();
+        let want = u.iter().zip(&b).flat_map(|(x, y)| [(x[0] - y[0]).abs(), (x[1] - y[1]).abs()]).fold(0.0f64, f64::max);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        assert_eq!(Skip::node_pass(&u, &b, None).to_bits(), want.to_bits());
+        assert_eq!(Skip::node_pass(&u, &b, Some(&pool)).to_bits(), want.to_bits());
+        for bad in [f64::NAN, f64::INFINITY] {
+            let mut v = u.clone();
+            v[n - 1][1] = bad;
+            assert_eq!(Skip::node_pass(&v, &b, None), f64::INFINITY);
+            assert_eq!(Skip::node_pass(&v, &b, Some(&pool)), f64::INFINITY);
+        }
     }
 }

@@ -283,7 +283,7 @@ mod tests {
         }
         let n = xy.len();
         let mut t = Vec::new();
-        let mut link = |a: usize, b: usize, t: &mut Vec<Triplet<usize, usize, f64>>| {
+        let link = |a: usize, b: usize, t: &mut Vec<Triplet<usize, usize, f64>>| {
             let (lo, hi) = (a.min(b), a.max(b));
             t.push(Triplet::new(hi, lo, -1.0));
         };
