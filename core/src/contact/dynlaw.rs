@@ -32,12 +32,9 @@ impl DynContact {
     }
 }
 
-/// Whether a built-in contact law has this name (typetag's registry answers only through
-/// deserialization).
+/// Whether a built-in contact law has this name.
 pub fn is_builtin(name: &str) -> bool {
-    let mut t = toml::Table::new();
-    t.insert("type".into(), toml::Value::String(name.into()));
-    !Box::<dyn ContactLaw>::deserialize(toml::Value::Table(t)).err().is_some_and(|e| e.to_string().contains("unknown variant"))
+    dynload::registry_has::<dyn ContactLaw>(name)
 }
 
 /// `deserialize_with` for `[contact] law`: a loaded plugin's name builds a [`DynContact`]
@@ -55,16 +52,7 @@ pub fn de_contact<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Box<dy
 }
 
 impl ContactLaw for DynContact {
-    #[doc(hidden)]
-    fn typetag_name(&self) -> &'static str {
-        self.0.info.name
-    }
-    #[doc(hidden)]
-    fn typetag_deserialize(&self) {}
-
-    fn validate(&self) -> Result<(), ParamError> {
-        self.0.error.clone().map_or(Ok(()), Err)
-    }
+    dynload::instance_methods!();
 
     fn stiffness(&self) -> f64 {
         match (self.0.live(), self.0.entry.contact_stiffness) {

@@ -179,6 +179,65 @@ fn geometry<S: Shape<N>, const N: usize>(x: &[[f64; 2]; N], g: &mut [[[f64; 2]; 
 /// Gauss points of an element kind at most (Q4).
 const MAXG: usize = 4;
 
+/// The B-bar mean volumetric strain increment of the pack's lanes: `sum_a gb_a . du_a`.
+#[inline(always)]
+fn volumetric_lanes<const N: usize>(gb: &[[[f64; LANES]; 2]; N], du: &[[[f64; LANES]; 2]; N]) -> [f64; LANES] {
+    let mut ev = [0.0; LANES];
+    for l in 0..LANES {
+        for a in 0..N {
+            ev[l] += gb[a][0][l] * du[a][0][l] + gb[a][1][l] * du[a][1][l];
+        }
+    }
+    ev
+}
+
+/// The strain increment `(exx, eyy, gxy)` of lane `l` from the gradients `g`, with the
+/// B-bar correction towards the mean volumetric increment `ev` when `BBAR`.
+#[inline(always)]
+fn strain_lane<const N: usize, const BBAR: bool>(g: &[[[f64; LANES]; 2]; N], du: &[[[f64; LANES]; 2]; N], ev: f64, l: usize) -> (f64, f64, f64) {
+    let (mut e0, mut e1, mut e2) = (0.0, 0.0, 0.0);
+    for a in 0..N {
+        e0 += g[a][0][l] * du[a][0][l];
+        e1 += g[a][1][l] * du[a][1][l];
+        e2 += g[a][1][l] * du[a][0][l] + g[a][0][l] * du[a][1][l];
+    }
+    if BBAR {
+        let cc = 0.5 * (ev - (e0 + e1));
+        e0 += cc;
+        e1 += cc;
+    }
+    (e0, e1, e2)
+}
+
+/// The stress of Gauss point `k` of the pack's first `n` elements (stored element-major, `ng`
+/// points each) into lanes ([`store_lanes`]: back).
+#[inline(always)]
+fn load_lanes(s: &mut [[f64; LANES]; 4], st: &[[f64; 4]], ng: usize, k: usize, n: usize) {
+    for l in 0..n {
+        let x = st[l * ng + k];
+        (s[0][l], s[1][l], s[2][l], s[3][l]) = (x[0], x[1], x[2], x[3]);
+    }
+}
+
+#[inline(always)]
+fn store_lanes(s: &[[f64; LANES]; 4], st: &mut [[f64; 4]], ng: usize, k: usize, n: usize) {
+    for l in 0..n {
+        st[l * ng + k] = [s[0][l], s[1][l], s[2][l], s[3][l]];
+    }
+}
+
+/// Adds the pack's internal work to `wk` and scatters the forces of its elements (`conn`).
+#[inline(always)]
+fn scatter_lanes<const N: usize>(conn: &[[u32; N]], fe: &[[[f64; LANES]; 2]; N], w_acc: &[f64; LANES], wk: &mut [f64], f: SharedForces) {
+    for (l, c) in conn.iter().enumerate() {
+        wk[l] += w_acc[l];
+        for a in 0..N {
+            // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
+            unsafe { f.add(c[a] as usize, [fe[a][0][l], fe[a][1][l]]) };
+        }
+    }
+}
+
 /// `geometry` of the `LANES` elements of a pack at once (`x[a][dim][lane]`): the same
 /// operations lane by lane (`element::gradients`, then the mean), so the same bits.
 #[inline(always)]
@@ -461,14 +520,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         }
         let gb = &self.gbar[p];
         // B-bar: the element's mean volumetric strain increment (the same at every point).
-        let mut ev = [0.0; LANES];
-        if BBAR {
-            for l in 0..LANES {
-                for a in 0..N {
-                    ev[l] += gb[a][0][l] * du[a][0][l] + gb[a][1][l] * du[a][1][l];
-                }
-            }
-        }
+        let ev = if BBAR { volumetric_lanes(gb, &du) } else { [0.0; LANES] };
         let mut fe = [[[0.0; LANES]; 2]; N];
         let mut w_acc = [0.0; LANES];
         for k in 0..ng {
@@ -476,29 +528,13 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             let c = &self.gw[p * ng + k];
             let mut de = [[0.0; LANES]; 4];
             for l in 0..LANES {
-                let (mut e0, mut e1, mut e2) = (0.0, 0.0, 0.0);
-                for a in 0..N {
-                    e0 += g[a][0][l] * du[a][0][l];
-                    e1 += g[a][1][l] * du[a][1][l];
-                    e2 += g[a][1][l] * du[a][0][l] + g[a][0][l] * du[a][1][l];
-                }
-                if BBAR {
-                    let cc = 0.5 * (ev[l] - (e0 + e1));
-                    e0 += cc;
-                    e1 += cc;
-                }
-                (de[0][l], de[1][l], de[2][l]) = (e0, e1, e2);
+                (de[0][l], de[1][l], de[2][l]) = strain_lane::<N, BBAR>(g, &du, ev[l], l);
             }
             let mut s = [[0.0; LANES]; 4];
-            for l in 0..n {
-                let x = st[l * ng + k];
-                (s[0][l], s[1][l], s[2][l], s[3][l]) = (x[0], x[1], x[2], x[3]);
-            }
+            load_lanes(&mut s, st, ng, k, n);
             let old = s;
             self.law.update_lanes(&mut s, &de, &mut hs[k * ns..], ng * ns, n);
-            for l in 0..n {
-                st[l * ng + k] = [s[0][l], s[1][l], s[2][l], s[3][l]];
-            }
+            store_lanes(&s, st, ng, k, n);
             for l in 0..LANES {
                 let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
                 w_acc[l] += c[l] * 0.5 * ((old[0][l] + s0) * de[0][l] + (old[1][l] + s1) * de[1][l] + (old[2][l] + s2) * de[2][l]);
@@ -515,13 +551,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 }
             }
         }
-        for l in 0..n {
-            wk[l] += w_acc[l];
-            for a in 0..N {
-                // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
-                unsafe { f.add(conn[l][a] as usize, [fe[a][0][l], fe[a][1][l]]) };
-            }
-        }
+        scatter_lanes(conn, &fe, &w_acc, wk, f);
     }
 
     /// The packs of elements `e0..e1` (`e0` a multiple of `LANES`; `st`, `hs`, `up`, `wk`
@@ -579,38 +609,17 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let (mut ge, mut we) = ([[[[0.0; LANES]; 2]; N]; MAXG], [[0.0; LANES]; MAXG]);
         let gbm = geometry_lanes::<S, N>(&xm, &mut gm, &mut wm);
         let gbe = geometry_lanes::<S, N>(&xe, &mut ge, &mut we);
-        let mut ev = [0.0; LANES];
-        if BBAR {
-            for l in 0..LANES {
-                for a in 0..N {
-                    ev[l] += gbm[a][0][l] * du[a][0][l] + gbm[a][1][l] * du[a][1][l];
-                }
-            }
-        }
+        let ev = if BBAR { volumetric_lanes(&gbm, &du) } else { [0.0; LANES] };
         let mut fe = [[[0.0; LANES]; 2]; N];
         let mut w_acc = [0.0; LANES];
         for k in 0..ng {
             let (g, h) = (&gm[k], &ge[k]);
             let mut de = [[0.0; LANES]; 4];
             let mut s = [[0.0; LANES]; 4];
-            for l in 0..n {
-                let x = st[l * ng + k];
-                (s[0][l], s[1][l], s[2][l], s[3][l]) = (x[0], x[1], x[2], x[3]);
-            }
+            load_lanes(&mut s, st, ng, k, n);
             for l in 0..LANES {
-                let (mut e0, mut e1, mut e2) = (0.0, 0.0, 0.0);
+                (de[0][l], de[1][l], de[2][l]) = strain_lane::<N, BBAR>(g, &du, ev[l], l);
                 let mut om = 0.0;
-                for a in 0..N {
-                    e0 += g[a][0][l] * du[a][0][l];
-                    e1 += g[a][1][l] * du[a][1][l];
-                    e2 += g[a][1][l] * du[a][0][l] + g[a][0][l] * du[a][1][l];
-                }
-                if BBAR {
-                    let cc = 0.5 * (ev[l] - (e0 + e1));
-                    e0 += cc;
-                    e1 += cc;
-                }
-                (de[0][l], de[1][l], de[2][l]) = (e0, e1, e2);
                 // Spin of the increment at the mid-step configuration, Hughes-Winget rotation.
                 for a in 0..N {
                     om += 0.5 * (g[a][0][l] * du[a][1][l] - g[a][1][l] * du[a][0][l]);
@@ -624,9 +633,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             }
             let old = s;
             self.law.update_lanes(&mut s, &de, &mut hs[k * ns..], ng * ns, n);
-            for l in 0..n {
-                st[l * ng + k] = [s[0][l], s[1][l], s[2][l], s[3][l]];
-            }
+            store_lanes(&s, st, ng, k, n);
             for l in 0..LANES {
                 let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
                 w_acc[l] += wm[k][l] * t * 0.5 * ((old[0][l] + s0) * de[0][l] + (old[1][l] + s1) * de[1][l] + (old[2][l] + s2) * de[2][l]);
@@ -644,13 +651,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 }
             }
         }
-        for l in 0..n {
-            wk[l] += w_acc[l];
-            for a in 0..N {
-                // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
-                unsafe { f.add(conn[l][a] as usize, [fe[a][0][l], fe[a][1][l]]) };
-            }
-        }
+        scatter_lanes(conn, &fe, &w_acc, wk, f);
     }
 
     /// `packs` compiled for AVX2 (4 f64 per instruction instead of SSE2's 2), chosen at run
@@ -671,8 +672,9 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let (st, hs, up, wk) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(e0, e1), wk.range(e0, e1)) };
         if self.enh.is_empty() {
             #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2 (checked just above).
+            if crate::element::block::Simd::best() != crate::element::block::Simd::Plain && crate::element::block::Simd::Avx2.detected() {
+                // SAFETY: the CPU has AVX2 (detected just above; `FLEM_SIMD=plain` turns it off
+                // as for the elastic kernel).
                 unsafe { self.packs_avx2(e0, e1, u, f, st, hs, up, wk) };
                 return;
             }

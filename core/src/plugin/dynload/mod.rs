@@ -49,7 +49,7 @@ use crate::error::{FlemError, Result};
 use crate::plugin::damping::Damping;
 use crate::plugin::traits::{FailureCriterion, SeparationRule};
 use abi::{Descriptor, PluginEntry, ABI_VERSION, CONTACT_STATE_MAX, CORE_VERSION, ENTRY_SYMBOL, KIND_CONTACT, KIND_CRITERION, KIND_DAMPING, KIND_MATERIAL, KIND_SEPARATION, RUSTC_VERSION};
-pub(crate) use wrap::{err_slot, read_err, status_text, Instance, CHUNK};
+pub(crate) use wrap::{err_slot, instance_methods, read_err, status_text, Instance, CHUNK};
 pub use wrap::{DynCriterion, DynDamping, DynLaw, DynLawBlocks, DynLawCfg, DynSeparation};
 
 /// A plugin provided by a loaded library.
@@ -114,21 +114,28 @@ pub fn check_header(d: &Descriptor, file: &str) -> Result<(String, String)> {
     Ok((core, rustc))
 }
 
-/// Whether a typetag built-in of this kind has this name (the registry is only reachable
-/// through deserialization: an unknown name gives "unknown variant").
+/// Whether a typetag built-in of this kind has this name.
 pub fn is_builtin(kind: u32, name: &str) -> bool {
-    let mut t = toml::Table::new();
-    t.insert("type".into(), toml::Value::String(name.into()));
-    let msg = match kind {
-        KIND_CRITERION => Box::<dyn FailureCriterion>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
+    match kind {
+        KIND_CRITERION => registry_has::<dyn FailureCriterion>(name),
         // Contact laws live in a layer above this one (`crate::contact::dynlaw::is_builtin`,
         // which `[contact] law` consults when it meets a loaded name).
-        KIND_CONTACT => return false,
-        KIND_DAMPING => Box::<dyn Damping>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
-        KIND_MATERIAL => Box::<dyn LawCfg>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
-        _ => Box::<dyn SeparationRule>::deserialize(toml::Value::Table(t)).err().map(|e| e.to_string()),
-    };
-    !msg.is_some_and(|m| m.contains("unknown variant"))
+        KIND_CONTACT => false,
+        KIND_DAMPING => registry_has::<dyn Damping>(name),
+        KIND_MATERIAL => registry_has::<dyn LawCfg>(name),
+        _ => registry_has::<dyn SeparationRule>(name),
+    }
+}
+
+/// Whether typetag's registry of `T` has an entry of this name (the registry is only
+/// reachable through deserialization: an unknown name gives "unknown variant").
+pub fn registry_has<T: ?Sized>(name: &str) -> bool
+where
+    Box<T>: serde::de::DeserializeOwned,
+{
+    let mut t = toml::Table::new();
+    t.insert("type".into(), toml::Value::String(name.into()));
+    !Box::<T>::deserialize(toml::Value::Table(t)).err().is_some_and(|e| e.to_string().contains("unknown variant"))
 }
 
 /// Refuses a 64-bit little-endian ELF file whose headers or loadable segments reach past its

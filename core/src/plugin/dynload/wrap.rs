@@ -163,6 +163,7 @@ macro_rules! instance_methods {
         }
     };
 }
+pub(crate) use instance_methods;
 
 dyn_wrapper!(
     /// A failure criterion from a loaded library.
