@@ -599,13 +599,14 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// point from the total displacements, on geometry computed from the corners
     /// (`geometry_lanes`: 64 bytes per element read instead of the stored gradients), the
     /// law's stress from the initial state and its elastic test (`MaterialLaw::initial_lanes`),
-    /// the forces. Nothing stored is read or written. When every point of the pack's `n`
-    /// elements is elastic it scatters the forces and returns true; otherwise it scatters
-    /// nothing and returns false (the caller marks the pack yielded and runs the stored path,
-    /// which starts from the untouched initial state: zero stress and history, `u_prev = 0`,
-    /// so its first increment is the total displacement and its trial the same stress).
+    /// the forces. Nothing stored is read; only the last displacements are written. When
+    /// every point of the pack's `n` elements is elastic it scatters the forces, sets `up`
+    /// and returns true; otherwise it changes nothing and returns false (the caller then
+    /// seeds the pack's stored state from the last displacements, `seed_pack`, marks it
+    /// yielded and runs the stored path: the increment from the last step on, as if the pack
+    /// had been stored from the start).
     #[inline(always)]
-    fn update_pack_total<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], f: SharedForces) -> bool {
+    fn update_pack_total<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], f: SharedForces, up: &mut [[[f64; 2]; N]]) -> bool {
         let ng = S::GAUSS.len();
         let t = self.mat.thickness;
         let i0 = p * LANES;
@@ -669,11 +670,45 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         }
         for (l, c) in conn.iter().enumerate() {
             for a in 0..N {
+                up[l][a] = [ul[a][0][l], ul[a][1][l]];
                 // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
                 unsafe { f.add(c[a] as usize, [fe[a][0][l], fe[a][1][l]]) };
             }
         }
         true
+    }
+
+    /// The stored state of pack `p` when it leaves the shortcut: each point's stress of the
+    /// total strain at the last displacements `up` (the law's `initial_lanes`, on the stored
+    /// gradients the stored path uses), and each element's work so far, the elastic energy
+    /// `1/2 sigma : eps` of its points (what the increments' work adds up to). History stays
+    /// initial. `st`, `up`, `wk` start at the pack's first element. Runs once per pack.
+    #[inline(never)]
+    fn seed_pack<const BBAR: bool>(&self, p: usize, n: usize, st: &mut [[f64; 4]], up: &[[[f64; 2]; N]], wk: &mut [f64]) {
+        let ng = S::GAUSS.len();
+        let mut ul = [[[0.0; LANES]; 2]; N];
+        for l in 0..n {
+            for a in 0..N {
+                ul[a][0][l] = up[l][a][0];
+                ul[a][1][l] = up[l][a][1];
+            }
+        }
+        let ev = if BBAR { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
+        let mut w_acc = [0.0; LANES];
+        for k in 0..ng {
+            let (g, c) = (&self.gp[p * ng + k], &self.gw[p * ng + k]);
+            let mut e = [[0.0; LANES]; 4];
+            for l in 0..LANES {
+                (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(g, &ul, ev[l], l);
+            }
+            let mut s = [[0.0; LANES]; 4];
+            self.law.initial_lanes(&e, &mut s);
+            store_lanes(&s, st, ng, k, n);
+            for l in 0..LANES {
+                w_acc[l] += c[l] * 0.5 * (s[0][l] * e[0][l] + s[1][l] * e[1][l] + s[2][l] * e[2][l]);
+            }
+        }
+        wk[..n].copy_from_slice(&w_acc[..n]);
     }
 
     /// The packs of elements `e0..e1` (`e0` a multiple of `LANES`; `st`, `hs`, `up`, `wk`
@@ -691,9 +726,15 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 if PASS == PASS_STORED {
                     continue;
                 }
-                let done = if bbar { self.update_pack_total::<true>(p, n, u, f) } else { self.update_pack_total::<false>(p, n, u, f) };
+                let (st, up, wk) = (&mut st[j * ng..], &mut up[j..], &mut wk[j..]);
+                let done = if bbar { self.update_pack_total::<true>(p, n, u, f, up) } else { self.update_pack_total::<false>(p, n, u, f, up) };
                 if done {
                     continue;
+                }
+                if bbar {
+                    self.seed_pack::<true>(p, n, st, up, wk);
+                } else {
+                    self.seed_pack::<false>(p, n, st, up, wk);
                 }
                 yl[p - p0] = true;
             }
