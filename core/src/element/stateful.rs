@@ -30,6 +30,17 @@
 //! mid-point gradient of a rotation increment is skew, the Cayley transform) and rotates the
 //! stress exactly, so a body turned rigidly carries its stress along and gains none.
 //!
+//! Never-yielded shortcut (ours, `StatefulOpts::elastic_shortcut`, default on; small strain,
+//! no modes, a law with `MaterialLaw::elastic_start`): a pack of `LANES` elements none of
+//! whose points ever failed the law's initial elastic test gives its points the stress of the
+//! total strain (`MaterialLaw::initial_lanes`; geometry from the corners) and reads nothing
+//! stored (`update_pack_total`; it writes the last displacements). When a point first fails,
+//! the pack is seeded from the last step (`seed_pack`: stress of the total strain there, the
+//! elastic energy as work), flagged `yielded` for good, and takes the stored path. A chunk
+//! runs its never-yielded packs first, then the stored ones (one order of the force sums,
+//! whatever the threads or instruction set). Round-off differs from storing every point.
+//! Outputs compute a never-yielded point from the `u` they are given. docs/materials.md.
+//!
 //! Outside the step (stable step, implicit check, `add_internal_forces`): the block answers
 //! with the elastic law on the reference configuration (with B-bar), i.e. the initial
 //! tangent; `strain_energy` is the internal work done so far (stored plus dissipated: the
