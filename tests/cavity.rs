@@ -138,7 +138,7 @@ fn cavity_expansion_against_salencon() {
     let tol = 1e-2;
     let mut pts: Vec<(f64, f64)> = Vec::new();
     for blk in &s.model.blocks {
-        let st = blk.point_stress().expect("a stateful block");
+        let st = blk.point_stress(&s.state.u).expect("a stateful block");
         for i in 0..blk.len() {
             let x = blk.coords(i);
             for (k, xi) in gauss.iter().enumerate() {

@@ -360,7 +360,7 @@ fn stateful_qm6_patch_test() {
                     assert!(f[c][0].abs() < 1e-12 * scale && f[c][1].abs() < 1e-12 * scale, "{plane} bbar {bbar}: node {c} force {:?}", f[c]);
                 }
             }
-            let ps = s.model.blocks[0].point_stress().expect("stateful block keeps its point stress");
+            let ps = s.model.blocks[0].point_stress(&u).expect("stateful block keeps its point stress");
             assert_eq!(ps.len(), 4 * s.model.n_elems());
             for p in ps {
                 for k in 0..3 {

@@ -267,7 +267,7 @@ fn plastic_law_and_tension_cracking_together() {
     s.run(&mut flem_core::solver::NoOutput).unwrap();
     let splits: usize = s.stages_done.iter().map(|r| r.splits).sum();
     assert!(splits > 0, "the tension branch splits");
-    let pts = s.model.blocks[0].point_stress().expect("a stateful block");
+    let pts = s.model.blocks[0].point_stress(&s.state.u).expect("a stateful block");
     let mut smax = f64::NEG_INFINITY;
     for p in pts {
         let (m, r) = (0.5 * (p[0] + p[1]), (0.25 * (p[0] - p[1]).powi(2) + p[2] * p[2]).sqrt());

@@ -5,6 +5,9 @@
 //! - `elastic`: the default linear elastic law on the stateless blocked kernel (the reference);
 //! - `mohr_coulomb_elastic`: the plastic law while every point stays elastic (cohesion far
 //!   above the stress): the cost of the stateful block and of the yield check;
+//! - `mohr_coulomb_elastic_stored`: the same with `elastic_shortcut = false` (every point's
+//!   stress stored and updated incrementally; the default gives a pack whose points never
+//!   yielded the stress of the total strain, storing nothing: `element/stateful.rs`);
 //! - `mohr_coulomb_plastic`: every point returns at every update, to an edge or a corner of
 //!   the tension cut-off (cohesion far below the stress, a shear with a stretch alternating in
 //!   sign, `tension_cutoff = 0`): the return's worst case, several active sets tried per point;
@@ -49,10 +52,12 @@ pub fn run(n: usize, min_time: f64) -> Result<()> {
     let mc_el = "law = { type = \"mohr_coulomb\", cohesion = 1e6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0 }";
     let mc_pl = "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0, tension_cutoff = 0.0 }";
     let mc_face = "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0 }";
+    let mc_el_stored = format!("elastic_shortcut = false\n{mc_el}");
     use Motion::*;
     let cases = [
         ("elastic", "", false, ShearStretch),
         ("mohr_coulomb_elastic", mc_el, false, ShearStretch),
+        ("mohr_coulomb_elastic_stored", mc_el_stored.as_str(), false, ShearStretch),
         ("mohr_coulomb_plastic", mc_pl, false, ShearStretch),
         ("mohr_coulomb_plastic_face", mc_face, false, CompressedShear),
         ("large_strain_elastic", "", true, ShearStretch),
@@ -96,6 +101,7 @@ pub fn run(n: usize, min_time: f64) -> Result<()> {
     let r = |a: &str, b: &str| ns_of[a] / ns_of[b];
     let ratios = json!({
         "plastic_law_elastic_regime_over_elastic": r("mohr_coulomb_elastic", "elastic"),
+        "plastic_law_elastic_regime_stored_over_elastic": r("mohr_coulomb_elastic_stored", "elastic"),
         "plastic_regime_over_elastic": r("mohr_coulomb_plastic", "elastic"),
         "plastic_face_over_elastic": r("mohr_coulomb_plastic_face", "elastic"),
         "large_over_small_elastic": r("large_strain_elastic", "elastic"),

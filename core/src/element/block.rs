@@ -102,8 +102,9 @@ pub trait Block: Send + Sync {
     fn plastic(&self, _i: usize) -> Option<(f64, u8)> {
         None
     }
-    /// The stress `[sxx, syy, sxy, szz]` of every Gauss point, for blocks that keep it.
-    fn point_stress(&self) -> Option<&[[f64; 4]]> {
+    /// The stress `[sxx, syy, sxy, szz]` of every Gauss point at displacements `u`, for
+    /// stateful blocks (a point never yielded is computed from `u`, `element::stateful`).
+    fn point_stress(&self, _u: &[[f64; 2]]) -> Option<Vec<[f64; 4]>> {
         None
     }
     /// An error of the block's material law (a dynamic law that failed or returned a

@@ -60,6 +60,26 @@ pub trait MaterialLaw: Clone + Send + Sync + 'static {
             }
         }
     }
+    /// True for a law that, from its initial state (zero stress, zero history), stays linear
+    /// elastic and leaves its history untouched until it first yields. The stateful block then
+    /// gives a point that has never yielded the stress of its total strain
+    /// ([`Self::initial_lanes`]) without storing or reading anything of it
+    /// (`StatefulOpts::elastic_shortcut`, docs/materials.md). Default false: every point is
+    /// stored and updated incrementally (a law loaded at run time).
+    fn elastic_start(&self) -> bool {
+        false
+    }
+    /// For a law with [`Self::elastic_start`]: `s` = the stress that `update` gives from the
+    /// initial state with the increment `e` (`[exx, eyy, gxy, ezz]`, the total strain of a point
+    /// that never yielded), and for each lane whether that update is elastic (true only when
+    /// it surely is: a lane answered false goes, with its pack, to the stored path, which
+    /// updates it from the initial state with the same increment). The default answers false
+    /// for every lane.
+    #[inline(always)]
+    fn initial_lanes(&self, _e: &[[f64; LANES]; 4], s: &mut [[f64; LANES]; 4]) -> [bool; LANES] {
+        *s = [[0.0; LANES]; 4];
+        [false; LANES]
+    }
     /// What the output shows of a point's history: `(plastic shear strain, plastic state)`,
     /// the state 0 never plastic, 1 plastic in the last update, 2 plastic in the past only.
     fn output(&self, _state: &[f64]) -> (f64, u8) {
@@ -124,6 +144,10 @@ pub struct StatefulOpts {
     pub bbar: bool,
     /// Updated Lagrangian kinematics with the Jaumann rate (Hughes-Winget increments).
     pub large_strain: bool,
+    /// Points that never yielded take the stress of their total strain and store nothing
+    /// (ours; small strain, laws with `MaterialLaw::elastic_start`; `[[material]]
+    /// elastic_shortcut`, default true; see `stateful.rs`).
+    pub elastic_shortcut: bool,
 }
 
 /// The elements of one region, by cell type, that a law's blocks are built from, and the

@@ -38,6 +38,11 @@ pub struct MaterialCfg {
     /// Mean-dilatation B-bar on Q4 for stateful blocks (`element::stateful`; default true).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bbar: Option<bool>,
+    /// Stateful blocks: a point that never yielded takes the stress of its total strain and
+    /// stores nothing (ours, `element::stateful`; default true; false keeps every point's
+    /// stress stored and updated incrementally, the plain path).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elastic_shortcut: Option<bool>,
 }
 
 impl MaterialCfg {
@@ -45,7 +50,7 @@ impl MaterialCfg {
     /// co-rotation, the default element kind of each cell type and the default law: what a
     /// generated model (benches, tests) needs; one place to grow when `[[material]]` does.
     pub fn elastic(young_modulus: f64, poisson_ratio: f64, density: f64) -> Self {
-        MaterialCfg { region: all(), young_modulus, poisson_ratio, density, thickness: 1.0, corotational: false, element: None, law: None, bbar: None }
+        MaterialCfg { region: all(), young_modulus, poisson_ratio, density, thickness: 1.0, corotational: false, element: None, law: None, bbar: None, elastic_shortcut: None }
     }
 }
 
@@ -172,7 +177,7 @@ impl Model {
                 if !elems.t3.is_empty() {
                     elems.t3_kind = kind_of(region, CellKind::T3)?.name;
                 }
-                let so = StatefulOpts { bbar: mcfg.bbar.unwrap_or(true), large_strain: opts.large_strain };
+                let so = StatefulOpts { bbar: mcfg.bbar.unwrap_or(true), large_strain: opts.large_strain, elastic_shortcut: mcfg.elastic_shortcut.unwrap_or(true) };
                 let built = match &mcfg.law {
                     Some(l) => l.build(region, mat, so, &elems),
                     None => build_stateful_elastic(region, mat, so, &elems),

@@ -30,6 +30,17 @@
 //! mid-point gradient of a rotation increment is skew, the Cayley transform) and rotates the
 //! stress exactly, so a body turned rigidly carries its stress along and gains none.
 //!
+//! Never-yielded shortcut (ours, `StatefulOpts::elastic_shortcut`, default on; small strain,
+//! no modes, a law with `MaterialLaw::elastic_start`): a pack of `LANES` elements none of
+//! whose points ever failed the law's initial elastic test gives its points the stress of the
+//! total strain (`MaterialLaw::initial_lanes`; geometry from the corners) and reads nothing
+//! stored (`update_pack_total`; it writes the last displacements). When a point first fails,
+//! the pack is seeded from the last step (`seed_pack`: stress of the total strain there, the
+//! elastic energy as work), flagged `yielded` for good, and takes the stored path. A chunk
+//! runs its never-yielded packs first, then the stored ones (one order of the force sums,
+//! whatever the threads or instruction set). Round-off differs from storing every point.
+//! Outputs compute a never-yielded point from the `u` they are given. docs/materials.md.
+//!
 //! Outside the step (stable step, implicit check, `add_internal_forces`): the block answers
 //! with the elastic law on the reference configuration (with B-bar), i.e. the initial
 //! tangent; `strain_energy` is the internal work done so far (stored plus dissipated: the
@@ -78,6 +89,14 @@ pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
     omega_bound: std::sync::OnceLock<f64>,
     /// Incompatible modes of the element kind, if it has them (`with_enhanced`).
     enh_fn: Option<(&'static str, EnhancedFn<N>)>,
+    /// Per pack: true once a point of the pack failed the law's initial elastic test (the
+    /// pack then keeps its points' stress, history and last displacements); false while every
+    /// point of the pack never yielded (nothing of it stored: the stress of the total strain).
+    /// Only read when `shortcut`.
+    yielded: Vec<bool>,
+    /// The never-yielded shortcut is on (set by `prepare`: the law's `elastic_start`,
+    /// `opts.elastic_shortcut`, small strain, no incompatible modes).
+    shortcut: bool,
     enh: Vec<Enhanced<N>>,
     _s: std::marker::PhantomData<S>,
 }
@@ -175,6 +194,12 @@ fn geometry<S: Shape<N>, const N: usize>(x: &[[f64; 2]; N], g: &mut [[[f64; 2]; 
     }
     gb
 }
+
+/// Which packs `StatefulBlock::packs` runs: those that never yielded (the shortcut), or the
+/// stored ones. A chunk runs the first pass, then the second, with every instruction set
+/// (so the forces' sums have one order: the same bits on any x86-64, any thread count).
+const PASS_TOTAL: u8 = 1;
+const PASS_STORED: u8 = 2;
 
 /// Gauss points of an element kind at most (Q4).
 const MAXG: usize = 4;
@@ -337,6 +362,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             omega_bound: std::sync::OnceLock::new(),
             enh_fn: None,
             enh: Vec::new(),
+            yielded: Vec::new(),
+            shortcut: false,
             _s: std::marker::PhantomData,
         }
     }
@@ -352,6 +379,9 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
 
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
         let ng = S::GAUSS.len();
+        if self.elems.len() % LANES == 0 {
+            self.yielded.push(false);
+        }
         self.elems.push(e);
         self.x.push(x);
         self.conn.push(conn);
@@ -364,6 +394,28 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
 
     fn bbar(&self) -> bool {
         self.opts.bbar && S::GAUSS.len() > 1
+    }
+
+    /// Element `i`'s points are stored (not the never-yielded shortcut).
+    #[inline(always)]
+    fn stored(&self, i: usize) -> bool {
+        !self.shortcut || self.yielded[i / LANES]
+    }
+
+    /// Stress `[sxx, syy, sxy, szz]` of point `k` of element `i`: stored, or for a pack that
+    /// never yielded the stress of the total strain of `u` (`MaterialLaw::initial_lanes`).
+    fn stress4(&self, i: usize, k: usize, u: &[[f64; 2]]) -> [f64; 4] {
+        if self.stored(i) {
+            return self.stress[i * S::GAUSS.len() + k];
+        }
+        let ue = self.gather(i, u);
+        let gbi = self.gbar_at(i);
+        let e = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &ue);
+        let mut el = [[0.0; LANES]; 4];
+        (el[0][0], el[1][0], el[2][0]) = (e[0], e[1], e[2]);
+        let mut s = [[0.0; LANES]; 4];
+        self.law.initial_lanes(&el, &mut s);
+        [s[0][0], s[1][0], s[2][0], s[3][0]]
     }
 
     #[inline(always)]
@@ -554,15 +606,152 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         scatter_lanes(conn, &fe, &w_acc, wk, f);
     }
 
+    /// The never-yielded shortcut of pack `p` (small strain, no modes): the strain of every
+    /// point from the total displacements, on geometry computed from the corners
+    /// (`geometry_lanes`: 64 bytes per element read instead of the stored gradients), the
+    /// law's stress from the initial state and its elastic test (`MaterialLaw::initial_lanes`),
+    /// the forces. Nothing stored is read; only the last displacements are written. When
+    /// every point of the pack's `n` elements is elastic it scatters the forces, sets `up`
+    /// and returns true; otherwise it changes nothing and returns false (the caller then
+    /// seeds the pack's stored state from the last displacements, `seed_pack`, marks it
+    /// yielded and runs the stored path: the increment from the last step on, as if the pack
+    /// had been stored from the start).
+    #[inline(always)]
+    fn update_pack_total<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], f: SharedForces, up: &mut [[[f64; 2]; N]]) -> bool {
+        let ng = S::GAUSS.len();
+        let t = self.mat.thickness;
+        let i0 = p * LANES;
+        let conn = &self.conn[i0..i0 + n];
+        let mut ul = [[[0.0; LANES]; 2]; N];
+        for (l, c) in conn.iter().enumerate() {
+            for a in 0..N {
+                let v = u[c[a] as usize];
+                ul[a][0][l] = v[0];
+                ul[a][1][l] = v[1];
+            }
+        }
+        let (mut g, mut w) = ([[[[0.0; LANES]; 2]; N]; MAXG], [[0.0; LANES]; MAXG]);
+        // The geometry from the corners (cheaper than reading the stored gradients: this path
+        // is bound by arithmetic, and 64 bytes per element are read instead of 352).
+        let mut xl = [[[0.0; LANES]; 2]; N];
+        for l in 0..LANES {
+            // Lanes past the block's end repeat its first element (finite geometry, zero u).
+            let x0 = &self.x[i0 + if l < n { l } else { 0 }];
+            for a in 0..N {
+                xl[a][0][l] = x0[a][0];
+                xl[a][1][l] = x0[a][1];
+            }
+        }
+        let gb = geometry_lanes::<S, N>(&xl, &mut g, &mut w);
+        for wk in w.iter_mut() {
+            for v in wk.iter_mut() {
+                *v *= t;
+            }
+        }
+        let ev = if BBAR { volumetric_lanes(&gb, &ul) } else { [0.0; LANES] };
+        let mut fe = [[[0.0; LANES]; 2]; N];
+        let mut ok = [true; LANES];
+        for k in 0..ng {
+            let gk = &g[k];
+            let mut e = [[0.0; LANES]; 4];
+            for l in 0..LANES {
+                (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(gk, &ul, ev[l], l);
+            }
+            let mut s = [[0.0; LANES]; 4];
+            let inside = self.law.initial_lanes(&e, &mut s);
+            for l in 0..LANES {
+                ok[l] &= inside[l];
+                let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
+                let c = w[k][l];
+                let hp = 0.5 * (s0 + s1);
+                for a in 0..N {
+                    let (g0, g1) = (gk[a][0][l], gk[a][1][l]);
+                    let (mut fx, mut fy) = (g0 * s0 + g1 * s2, g0 * s2 + g1 * s1);
+                    if BBAR {
+                        fx += (gb[a][0][l] - g0) * hp;
+                        fy += (gb[a][1][l] - g1) * hp;
+                    }
+                    fe[a][0][l] += c * fx;
+                    fe[a][1][l] += c * fy;
+                }
+            }
+        }
+        if !ok[..n].iter().all(|&b| b) {
+            return false;
+        }
+        for (l, c) in conn.iter().enumerate() {
+            for a in 0..N {
+                up[l][a] = [ul[a][0][l], ul[a][1][l]];
+                // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
+                unsafe { f.add(c[a] as usize, [fe[a][0][l], fe[a][1][l]]) };
+            }
+        }
+        true
+    }
+
+    /// The stored state of pack `p` when it leaves the shortcut: each point's stress of the
+    /// total strain at the last displacements `up` (the law's `initial_lanes`, on the stored
+    /// gradients the stored path uses), and each element's work so far, the elastic energy
+    /// `1/2 sigma : eps` of its points (what the increments' work adds up to). History stays
+    /// initial. `st`, `up`, `wk` start at the pack's first element. Runs once per pack.
+    #[inline(never)]
+    fn seed_pack<const BBAR: bool>(&self, p: usize, n: usize, st: &mut [[f64; 4]], up: &[[[f64; 2]; N]], wk: &mut [f64]) {
+        let ng = S::GAUSS.len();
+        let mut ul = [[[0.0; LANES]; 2]; N];
+        for l in 0..n {
+            for a in 0..N {
+                ul[a][0][l] = up[l][a][0];
+                ul[a][1][l] = up[l][a][1];
+            }
+        }
+        let ev = if BBAR { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
+        let mut w_acc = [0.0; LANES];
+        for k in 0..ng {
+            let (g, c) = (&self.gp[p * ng + k], &self.gw[p * ng + k]);
+            let mut e = [[0.0; LANES]; 4];
+            for l in 0..LANES {
+                (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(g, &ul, ev[l], l);
+            }
+            let mut s = [[0.0; LANES]; 4];
+            self.law.initial_lanes(&e, &mut s);
+            store_lanes(&s, st, ng, k, n);
+            for l in 0..LANES {
+                w_acc[l] += c[l] * 0.5 * (s[0][l] * e[0][l] + s[1][l] * e[1][l] + s[2][l] * e[2][l]);
+            }
+        }
+        wk[..n].copy_from_slice(&w_acc[..n]);
+    }
+
     /// The packs of elements `e0..e1` (`e0` a multiple of `LANES`; `st`, `hs`, `up`, `wk`
-    /// start at `e0`).
+    /// start at `e0`, `yl` at pack `e0 / LANES`) that `PASS` selects. A pack whose shortcut
+    /// fails in `PASS_TOTAL` is marked yielded and left to `PASS_STORED`.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn packs(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64]) {
+    fn packs<const PASS: u8>(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], yl: &mut [bool]) {
         let (ng, ns) = (S::GAUSS.len(), self.law.n_state());
         let bbar = self.bbar();
-        for p in e0 / LANES..e1.div_ceil(LANES) {
+        let p0 = e0 / LANES;
+        for p in p0..e1.div_ceil(LANES) {
             let (j, n) = (p * LANES - e0, (e1 - p * LANES).min(LANES));
+            if self.shortcut && !yl[p - p0] {
+                if PASS == PASS_STORED {
+                    continue;
+                }
+                let (st, up, wk) = (&mut st[j * ng..], &mut up[j..], &mut wk[j..]);
+                let done = if bbar { self.update_pack_total::<true>(p, n, u, f, up) } else { self.update_pack_total::<false>(p, n, u, f, up) };
+                if done {
+                    continue;
+                }
+                if bbar {
+                    self.seed_pack::<true>(p, n, st, up, wk);
+                } else {
+                    self.seed_pack::<false>(p, n, st, up, wk);
+                }
+                yl[p - p0] = true;
+            }
+            if PASS == PASS_TOTAL {
+                continue;
+            }
             let (st, hs, up, wk) = (&mut st[j * ng..], &mut hs[j * ng * ns..], &mut up[j..], &mut wk[j..]);
             match (self.opts.large_strain, bbar) {
                 (false, true) => self.update_pack::<true>(p, n, u, st, hs, up, wk, f),
@@ -654,31 +843,62 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         scatter_lanes(conn, &fe, &w_acc, wk, f);
     }
 
+    /// The never-yielded packs (`PASS_TOTAL`) compiled for AVX-512 (8 f64 per instruction:
+    /// one pack per register, 32 registers; the same bits as `packs`, see `packs_avx2`). Only
+    /// this pass: it runs about 1.5 times faster than with AVX2, while the stored path ran
+    /// slower with AVX-512 than with AVX2 on this machine (session 10, docs/perf/README.md).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    #[allow(clippy::too_many_arguments)]
+    fn packs_total_avx512(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], yl: &mut [bool]) {
+        self.packs::<PASS_TOTAL>(e0, e1, u, f, st, hs, up, wk, yl)
+    }
+
     /// `packs` compiled for AVX2 (4 f64 per instruction instead of SSE2's 2), chosen at run
     /// time. The same operations in the same order (Rust never fuses a multiply and an add,
     /// and the lanes are independent), so the same bits as `packs` on any x86-64.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments)]
-    fn packs_avx2(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64]) {
-        self.packs(e0, e1, u, f, st, hs, up, wk)
+    fn packs_avx2<const PASS: u8>(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], yl: &mut [bool]) {
+        self.packs::<PASS>(e0, e1, u, f, st, hs, up, wk, yl)
     }
 
-    fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces, st: Raw<[f64; 4]>, hs: Raw<f64>, up: Raw<[[f64; 2]; N]>, wk: Raw<f64>) {
+    #[allow(clippy::too_many_arguments)]
+    fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces, st: Raw<[f64; 4]>, hs: Raw<f64>, up: Raw<[[f64; 2]; N]>, wk: Raw<f64>, yl: Raw<bool>) {
         let ce = self.sched.chunk_packs * LANES;
         let (e0, e1) = (k * ce, ((k + 1) * ce).min(self.len()));
         let (ng, ns) = (S::GAUSS.len(), self.law.n_state());
-        // SAFETY: chunks are disjoint element ranges; one chunk runs on one thread.
-        let (st, hs, up, wk) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(e0, e1), wk.range(e0, e1)) };
+        // SAFETY: chunks are disjoint element ranges (and so disjoint pack ranges: a chunk is
+        // whole packs); one chunk runs on one thread.
+        let (st, hs, up, wk, yl) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(e0, e1), wk.range(e0, e1), yl.range(e0 / LANES, e1.div_ceil(LANES))) };
         if self.enh.is_empty() {
+            #[cfg(target_arch = "x86_64")]
+            if crate::element::block::Simd::best() == crate::element::block::Simd::Avx512 {
+                // The never-yielded packs first, then the stored ones (a fixed order per chunk,
+                // whatever the thread count: the forces' sums stay bit-identical).
+                // SAFETY: `Simd::best` answers Avx512 only when the CPU has those features
+                // (and AVX2 with them).
+                unsafe {
+                    if self.shortcut {
+                        self.packs_total_avx512(e0, e1, u, f, st, hs, up, wk, yl);
+                    }
+                    self.packs_avx2::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
+                }
+                return;
+            }
             #[cfg(target_arch = "x86_64")]
             if crate::element::block::Simd::best() != crate::element::block::Simd::Plain && crate::element::block::Simd::Avx2.detected() {
                 // SAFETY: the CPU has AVX2 (detected just above; `FLEM_SIMD=plain` turns it off
                 // as for the elastic kernel).
-                unsafe { self.packs_avx2(e0, e1, u, f, st, hs, up, wk) };
+                unsafe {
+                    self.packs_avx2::<PASS_TOTAL>(e0, e1, u, f, st, hs, up, wk, yl);
+                    self.packs_avx2::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
+                }
                 return;
             }
-            self.packs(e0, e1, u, f, st, hs, up, wk);
+            self.packs::<PASS_TOTAL>(e0, e1, u, f, st, hs, up, wk, yl);
+            self.packs::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
             return;
         }
         for i in e0..e1 {
@@ -693,8 +913,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         }
     }
 
-    fn stress3(&self, i: usize, k: usize) -> [f64; 3] {
-        let s = self.stress[i * S::GAUSS.len() + k];
+    fn stress3(&self, i: usize, k: usize, u: &[[f64; 2]]) -> [f64; 3] {
+        let s = self.stress4(i, k, u);
         [s[0], s[1], s[2]]
     }
 }
@@ -733,14 +953,15 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
     fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
         let shared = SharedForces::new(f);
         let (st, hs, up, wk) = (Raw::new(&mut self.stress), Raw::new(&mut self.hist), Raw::new(&mut self.u_prev), Raw::new(&mut self.work));
+        let yl = Raw::new(&mut self.yielded);
         let this = &*self;
         for colour in &this.sched.colours {
             match pool {
                 Some(pool) if colour.len() > 1 && this.len() >= PAR_MIN_ELEMS => {
                     use rayon::prelude::*;
-                    pool.install(|| colour.par_iter().for_each(|&k| this.run_chunk(k as usize, u, shared, st, hs, up, wk)));
+                    pool.install(|| colour.par_iter().for_each(|&k| this.run_chunk(k as usize, u, shared, st, hs, up, wk, yl)));
                 }
-                _ => colour.iter().for_each(|&k| this.run_chunk(k as usize, u, shared, st, hs, up, wk)),
+                _ => colour.iter().for_each(|&k| this.run_chunk(k as usize, u, shared, st, hs, up, wk, yl)),
             }
         }
     }
@@ -772,6 +993,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
             self.enh = self.x.iter().map(|x| f(x, &d, t)).collect();
         }
         self.sched = Schedule::build(&self.conn, n_clusters);
+        self.shortcut = self.law.elastic_start() && self.opts.elastic_shortcut && !self.opts.large_strain && self.enh.is_empty();
     }
     fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
@@ -783,6 +1005,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
             + (self.gp.capacity() + self.gbar.capacity()) * size_of::<[[[f64; LANES]; 2]; N]>()
             + self.gw.capacity() * size_of::<[f64; LANES]>()
             + self.enh.capacity() * size_of::<Enhanced<N>>()
+            + self.yielded.capacity()
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         for i in range {
@@ -803,32 +1026,32 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         }
     }
     /// The stress of the Gauss point nearest each corner (the stress lives at the points).
-    fn corner_stress(&self, _u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+    fn corner_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
         for i in 0..self.len() {
             let base = first[self.elems[i].idx()] as usize;
             for a in 0..N {
-                out[base + a] = self.stress3(i, self.corner_gp[a]);
+                out[base + a] = self.stress3(i, self.corner_gp[a], u);
             }
         }
     }
-    fn gauss_stress(&self, _u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
+    fn gauss_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
         for i in 0..self.len() {
             let base = first[self.elems[i].idx()] as usize;
             for k in 0..S::GAUSS.len() {
-                out[base + k] = self.stress3(i, k);
+                out[base + k] = self.stress3(i, k, u);
             }
         }
     }
     /// The stress of the Gauss point nearest `xi`.
-    fn stress_at(&self, i: usize, _u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3] {
+    fn stress_at(&self, i: usize, u: &[[f64; 2]], xi: [f64; 2]) -> [f64; 3] {
         let d = |k: usize| (S::GAUSS[k].0[0] - xi[0]).powi(2) + (S::GAUSS[k].0[1] - xi[1]).powi(2);
         let k = (0..S::GAUSS.len()).fold(0, |best, k| if d(k) < d(best) { k } else { best });
-        self.stress3(i, k)
+        self.stress3(i, k, u)
     }
-    fn mean_stress(&self, i: usize, _u: &[[f64; 2]]) -> [f64; 3] {
+    fn mean_stress(&self, i: usize, u: &[[f64; 2]]) -> [f64; 3] {
         let (mut wsum, mut acc) = (0.0, [0.0; 3]);
         for (k, &(_, w)) in S::GAUSS.iter().enumerate() {
-            let s = self.stress3(i, k);
+            let s = self.stress3(i, k, u);
             for d in 0..3 {
                 acc[d] += w * s[d];
             }
@@ -866,8 +1089,23 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
             best.sqrt()
         })
     }
-    fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
-        Some(self.work.iter().sum())
+    /// The internal work of the stored points, plus for the packs that never yielded the
+    /// elastic energy `1/2 sigma : eps` of their total strain at `u` (what the work of their
+    /// increments adds up to).
+    fn strain_energy(&self, u: &[[f64; 2]]) -> Option<f64> {
+        let mut e: f64 = self.work.iter().sum();
+        if self.shortcut {
+            for i in (0..self.len()).filter(|&i| !self.stored(i)) {
+                let ue = self.gather(i, u);
+                let gbi = self.gbar_at(i);
+                for k in 0..S::GAUSS.len() {
+                    let ep = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &ue);
+                    let s = self.stress4(i, k, u);
+                    e += 0.5 * self.w_at(i, k) * (s[0] * ep[0] + s[1] * ep[1] + s[2] * ep[2]);
+                }
+            }
+        }
+        Some(e)
     }
     fn element(&self) -> &'static str {
         self.enh_fn.map_or_else(|| element::default_kind(S::KIND), |(name, _)| name)
@@ -877,13 +1115,14 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         self.enh_fn.is_none()
     }
     fn state_len(&self) -> usize {
-        self.u_prev.len() * 2 * N + self.stress.len() * 4 + self.hist.len() + self.work.len()
+        self.u_prev.len() * 2 * N + self.stress.len() * 4 + self.hist.len() + self.work.len() + self.yielded.len()
     }
     fn save_state(&self, out: &mut Vec<f64>) {
         out.extend(self.u_prev.iter().flat_map(|e| e.iter().flatten().copied()));
         out.extend(self.stress.iter().flatten().copied());
         out.extend_from_slice(&self.hist);
         out.extend_from_slice(&self.work);
+        out.extend(self.yielded.iter().map(|&y| if y { 1.0 } else { 0.0 }));
     }
     fn load_state(&mut self, s: &[f64]) -> bool {
         if s.len() != self.state_len() {
@@ -900,6 +1139,9 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         }
         for v in self.hist.iter_mut().chain(self.work.iter_mut()) {
             *v = it.next().unwrap_or(0.0);
+        }
+        for y in self.yielded.iter_mut() {
+            *y = it.next().unwrap_or(0.0) != 0.0;
         }
         true
     }
@@ -923,9 +1165,11 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         }
         Some((gamma / wsum, flag))
     }
-    /// The stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major).
-    fn point_stress(&self) -> Option<&[[f64; 4]]> {
-        Some(&self.stress)
+    /// The stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major; a pack that
+    /// never yielded gives the stress of its total strain at `u`).
+    fn point_stress(&self, u: &[[f64; 2]]) -> Option<Vec<[f64; 4]>> {
+        let ng = S::GAUSS.len();
+        Some((0..self.len() * ng).map(|j| self.stress4(j / ng, j % ng, u)).collect())
     }
     fn fault(&self) -> Option<String> {
         self.law.fault().map(|f| format!("region \"{}\": {f}", self.region))

@@ -437,6 +437,23 @@ impl MaterialLaw for MohrCoulomb {
             }
         }
     }
+    /// Elastic from zero stress until the trial first leaves the quick test's region; the
+    /// history (`[0, 0]`) does not change on an elastic update from the initial state.
+    fn elastic_start(&self) -> bool {
+        true
+    }
+    /// The elastic trial from zero stress and its quick test, lane by lane (`trial`, the same
+    /// arithmetic as `update`'s first step from the initial state).
+    #[inline(always)]
+    fn initial_lanes(&self, e: &[[f64; LANES]; 4], s: &mut [[f64; LANES]; 4]) -> [bool; LANES] {
+        let mut inside = [false; LANES];
+        for l in 0..LANES {
+            let t = self.trial(&[0.0; 4], [e[0][l], e[1][l], e[2][l], e[3][l]]);
+            (s[0][l], s[1][l], s[2][l], s[3][l]) = (t.s[0], t.s[1], t.s[2], t.s[3]);
+            inside[l] = t.inside;
+        }
+        inside
+    }
     fn output(&self, state: &[f64]) -> (f64, u8) {
         (state[0], state[1] as u8)
     }

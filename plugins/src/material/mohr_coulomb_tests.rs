@@ -299,3 +299,90 @@ fn update_lanes_is_update_bit_for_bit() {
     // Both paths are exercised: points that stay elastic and points that yield.
     assert!(n_el > 100 && n_pl > 100, "elastic {n_el}, plastic {n_pl}");
 }
+
+/// The never-yielded shortcut of the stateful block (`StatefulOpts::elastic_shortcut`: a pack
+/// whose points never yielded takes the stress of the total strain and stores nothing)
+/// against the stored path (every point's stress updated incrementally), on a distorted
+/// 6 x 3 Q4 mesh (two full packs and a part pack), B-bar on and off, under a non-uniform
+/// displacement field raised in 40 steps. Reference: the stored path, which is the law's
+/// `update` applied step by step. Cohesion: the median of what the points need at the last
+/// step, so about half the points yield on the way and the rest never do. Tolerances: 1e-12
+/// relative (of the largest value) on every point's stress and every nodal force while no
+/// point has yielded, 1e-9 after (the yielding points' trial, `s_n + D de` against `D eps`,
+/// differs in round-off only), the same on the internal work (`strain_energy`), and the same
+/// plastic state per element.
+#[test]
+fn never_yielded_shortcut_matches_the_stored_path() {
+    use flem_core::element::block::Block;
+    use flem_core::element::law::{LawCfg, RegionElems, StatefulOpts};
+    use flem_core::ids::ElemId;
+    let (nx, ny) = (6usize, 3usize);
+    let xy = |i: usize, j: usize| {
+        let (x, y) = (i as f64, j as f64);
+        [x + 0.2 * (0.7 * y + 0.3 * x).sin(), y + 0.15 * (0.9 * x).cos()]
+    };
+    let nodes: Vec<[f64; 2]> = (0..=ny).flat_map(|j| (0..=nx).map(move |i| (i, j))).map(|(i, j)| xy(i, j)).collect();
+    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+    let mut elems = RegionElems { q4_kind: "q4", ..Default::default() };
+    for j in 0..ny {
+        for i in 0..nx {
+            let c = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+            elems.q4.push((ElemId::new(j * nx + i), c.map(|k| nodes[k as usize]), c));
+        }
+    }
+    let field = |a: f64| -> Vec<[f64; 2]> { nodes.iter().map(|p| [a * (0.02 * p[1] * p[1] - 0.01 * p[0]), a * (-0.015 * p[1] + 0.004 * p[0] * p[1])]).collect() };
+    let (steps, nn) = (40, nodes.len());
+    let cfg = |c: f64| MohrCoulombCfg { cohesion: c, friction_angle_deg: 30.0, dilation_angle_deg: 5.0, tension_cutoff: None, softening: None };
+    let block = |c: f64, bbar: bool, shortcut: bool| {
+        let mut b = cfg(c).build("r", mat(), StatefulOpts { bbar, large_strain: false, elastic_shortcut: shortcut }, &elems).pop().unwrap();
+        b.prepare(nn);
+        b
+    };
+    for bbar in [true, false] {
+        // The cohesion each point needs at the last step (elastic stresses), then their median.
+        let mut probe = block(1e9, bbar, false);
+        let mut f = vec![[0.0; 2]; nn];
+        let u1 = field(1.0);
+        probe.update_internal_forces(&u1, &mut f, None);
+        let (sp, cp) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
+        let mut need: Vec<f64> = probe
+            .point_stress(&u1)
+            .unwrap()
+            .iter()
+            .map(|s| {
+                let (m, r) = (0.5 * (s[0] + s[1]), (0.25 * (s[0] - s[1]).powi(2) + s[2] * s[2]).sqrt());
+                let (s1, s3) = ((m + r).max(s[3]), (m - r).min(s[3]));
+                ((s1 - s3) + (s1 + s3) * sp) / (2.0 * cp)
+            })
+            .collect();
+        need.sort_by(f64::total_cmp);
+        let c = need[need.len() / 2];
+        assert!(c > 0.0, "the field must load the points in shear");
+        let (mut a, mut b) = (block(c, bbar, true), block(c, bbar, false));
+        let mut yielded_once = false;
+        for step in 1..=steps {
+            let u = field(step as f64 / steps as f64);
+            let (mut fa, mut fb) = (vec![[0.0; 2]; nn], vec![[0.0; 2]; nn]);
+            a.update_internal_forces(&u, &mut fa, None);
+            b.update_internal_forces(&u, &mut fb, None);
+            let plastic = |blk: &Box<dyn Block>| (0..blk.len()).map(|i| blk.plastic(i).unwrap().1).collect::<Vec<_>>();
+            let (pa, pb) = (plastic(&a), plastic(&b));
+            assert_eq!(pa, pb, "bbar {bbar} step {step}: plastic states");
+            yielded_once |= pb.iter().any(|&s| s > 0);
+            let tol = if yielded_once { 1e-9 } else { 1e-12 };
+            let fmax = fb.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (x, y) in fa.iter().flatten().zip(fb.iter().flatten()) {
+                assert!((x - y).abs() <= tol * fmax, "bbar {bbar} step {step}: force {x} against {y}");
+            }
+            let (sa, sb) = (a.point_stress(&u).unwrap(), b.point_stress(&u).unwrap());
+            let smax = sb.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (x, y) in sa.iter().flatten().zip(sb.iter().flatten()) {
+                assert!((x - y).abs() <= tol * smax, "bbar {bbar} step {step}: stress {x} against {y}");
+            }
+            let (ea, eb) = (a.strain_energy(&u).unwrap(), b.strain_energy(&u).unwrap());
+            assert!((ea - eb).abs() <= tol * eb.abs().max(1e-300), "bbar {bbar} step {step}: strain energy {ea} against {eb}");
+        }
+        let last = (0..b.len()).filter(|&i| b.plastic(i).unwrap().1 > 0).count();
+        assert!(last > 0 && last < b.len(), "bbar {bbar}: {last} of {} elements plastic: the test needs both kinds", b.len());
+    }
+}
