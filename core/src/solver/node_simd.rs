@@ -14,9 +14,9 @@
 //! sums start at `+0.0` and a sum that starts at `+0.0` is never `-0.0` under rounding to
 //! nearest, and `x + 0.0 == x` for every other `x`, infinities and NaN included.
 //!
-//! Compiled for AVX2 and for AVX-512 (the same code with 32 registers: the full step's fourteen
-//! sums then stay in registers); chosen once per process by [`Simd::best`] (`FLEM_SIMD` caps
-//! it). The odd last node of a chunk runs the scalar code (it is in lanes 0 and 1 there too).
+//! Compiled for AVX2, which also runs where [`Simd::best`] is AVX-512; chosen once per process
+//! by [`Simd::best`] (`FLEM_SIMD=plain` keeps the scalar update). The odd last node of a chunk
+//! runs the scalar code (it is in lanes 0 and 1 there too).
 use super::{NodeCtx, UpdateFn, NSUM};
 use crate::element::block::Simd;
 
@@ -24,15 +24,12 @@ use crate::element::block::Simd;
 /// [`NodeCtx::update`]; `None` when `simd` is `Plain` or this CPU lacks it.
 pub(super) fn vector_update<const C: bool, const L: u8, const FULL: bool, const STATS: bool>(simd: Simd) -> Option<UpdateFn> {
     match simd {
+        // A CPU with AVX-512 F runs AVX2: the same code (wider registers would not hold more
+        // than the two nodes of the four lanes).
         #[cfg(target_arch = "x86_64")]
-        Simd::Avx2 if simd.detected() => {
+        Simd::Avx2 | Simd::Avx512 if Simd::Avx2.detected() => {
             // SAFETY: the CPU has AVX2 (`detected`, on the line above).
             Some(|x, k, u, v| unsafe { x86::update_avx2::<C, L, FULL, STATS>(x, k, u, v) })
-        }
-        #[cfg(target_arch = "x86_64")]
-        Simd::Avx512 if simd.detected() => {
-            // SAFETY: the CPU has AVX-512 F, VL and DQ (`detected`), hence AVX2.
-            Some(|x, k, u, v| unsafe { x86::update_avx512::<C, L, FULL, STATS>(x, k, u, v) })
         }
         _ => None,
     }
@@ -62,12 +59,6 @@ mod x86 {
     /// [`body`] compiled for AVX2.
     #[target_feature(enable = "avx2")]
     pub(super) fn update_avx2<const C: bool, const L: u8, const FULL: bool, const STATS: bool>(x: &NodeCtx, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; NSUM] {
-        body::<C, L, FULL, STATS>(x, c0, u, v)
-    }
-
-    /// [`body`] compiled for AVX-512 (the same 256-bit operations, 32 registers).
-    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq")]
-    pub(super) fn update_avx512<const C: bool, const L: u8, const FULL: bool, const STATS: bool>(x: &NodeCtx, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; NSUM] {
         body::<C, L, FULL, STATS>(x, c0, u, v)
     }
 
