@@ -18,7 +18,8 @@
 //! 4. Damping coefficients from the `Damping` plugin (one call per step); central-difference update
 //!    with damping implicit in velocity, in fixed node chunks
 //!    (`NodeCtx::update::<CONTACT, LOCAL, FULL, STATS>`: contact and local damping compiled out
-//!    when absent). The stage loop asks for a *full* step (`step_as(true)`: the whole energy
+//!    when absent; on a CPU with AVX2 the same update two nodes per register, `node_simd.rs`,
+//!    bit for bit the same). The stage loop asks for a *full* step (`step_as(true)`: the whole energy
 //!    ledger plus the unbalanced-force ratio, fused) only when something reads them after it
 //!    (ratio checks every `ratio_every` steps, history rows, snapshots, the last step); other
 //!    steps sum only what accumulates (work, damping, contact work; and the kinetic energy,
