@@ -292,7 +292,7 @@ mod tests {
         /// A value in (-1, 1), or (one in eight) an exact zero.
         fn val(&mut self) -> f64 {
             let r = self.next();
-            if r % 8 == 0 {
+            if r.is_multiple_of(8) {
                 0.0
             } else {
                 (r >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
@@ -319,10 +319,10 @@ mod tests {
             let pair = |r: &mut Rng| -> Vec<[f64; 2]> { (0..len).map(|_| [r.val(), r.val()]).collect() };
             let (f_int, f_con, v_pres, u0, v0) = (pair(&mut r), pair(&mut r), pair(&mut r), pair(&mut r), pair(&mut r));
             // Loads on about one dof in four, the rest exact zeros (as on a real mesh).
-            let f_ext: Vec<[f64; 2]> = (0..len).map(|_| [0, 1].map(|_| if r.next() % 4 == 0 { r.val() } else { 0.0 })).collect();
+            let f_ext: Vec<[f64; 2]> = (0..len).map(|_| [0, 1].map(|_| if r.next().is_multiple_of(4) { r.val() } else { 0.0 })).collect();
             let mass: Vec<f64> = (0..len).map(|_| 0.5 + r.val().abs()).collect();
             // Fixed dofs on about one node in three.
-            let fix: Vec<u8> = (0..len).map(|_| if r.next() % 3 == 0 { (r.next() % 4) as u8 } else { 0 }).collect();
+            let fix: Vec<u8> = (0..len).map(|_| if r.next().is_multiple_of(3) { (r.next() % 4) as u8 } else { 0 }).collect();
             let dt = 0.1;
             for (a, beta, eta) in [(0.0, 0.0, 0.0), (3.0, 0.0, 0.0), (0.0, 0.3, 0.0), (2.0, 0.0, 1.5)] {
                 let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
