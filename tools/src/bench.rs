@@ -20,6 +20,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use flem_core::element::block::Simd;
 use flem_core::element::model::Model;
 use flem_core::element::Plane;
 use flem_core::mesh::{CellKind, Rectangle, ValidationOptions};
@@ -226,6 +227,11 @@ impl Bare {
 
     fn step(&mut self, s: &Simulation) {
         s.model.internal_forces(&self.u, &mut self.f);
+        self.update();
+    }
+
+    /// The textbook central-difference update alone.
+    fn update(&mut self) {
         for c in 0..self.u.len() {
             for d in 0..2 {
                 if self.fix[c] & (1 << d) == 0 {
@@ -249,6 +255,19 @@ fn step_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> 
     // The bare explicit step: kernel plus the textbook update (no damping, no ledger).
     let mut bare_state = Bare::of(&s);
     let (bare, bare_cpu) = time_per_call(o.min_time, || bare_state.step(&s));
+    // The node update alone (a lean step's, default damping) with the scalar code and with the
+    // vectorised one (`Simd::best`), beside the textbook update alone; the nodes are put back.
+    let nc = s.state.u.len() as f64;
+    let (u0, v0) = (s.state.u.clone(), s.state.v.clone());
+    let (node_plain, _) = time_per_call(o.min_time, || s.bench_node_update(Simd::Plain));
+    let (node_best, _) = time_per_call(o.min_time, || s.bench_node_update(Simd::best()));
+    (s.state.u, s.state.v) = (u0, v0);
+    let mut text_state = Bare::of(&s);
+    let (node_text, _) = time_per_call(o.min_time, || text_state.update());
+    let node_update = json!({"simd": format!("{:?}", Simd::best()).to_lowercase(), "clusters": nc,
+        "ns_per_node": node_best * 1e9 / nc, "ns_per_node_scalar": node_plain * 1e9 / nc, "ns_per_node_textbook": node_text * 1e9 / nc,
+        "ns_per_elem": node_best * 1e9 / ne, "ns_per_elem_scalar": node_plain * 1e9 / ne, "ns_per_elem_textbook": node_text * 1e9 / ne,
+        "scalar_over_vector": node_plain / node_best, "over_textbook": node_best / node_text});
     let n_steps = ((2.0 * o.min_time / step).ceil() as u64).clamp(200, 100_000);
     let n_steps = n_steps.div_ceil(100) * 100;
     let (stage, stage_cpu) = stage_time(&scene_text(nx, ny, kind, threads, n_steps, None), n_steps)?;
@@ -317,6 +336,7 @@ fn step_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> 
         "step_over_bare_step": step / bare,
         "stage_over_bare_step": stage / bare,
         "interleaved": il_adaptive, "interleaved_undamped": il_none,
+        "node_update": node_update,
         "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks},
         "failure_check_nonlocal": nonlocal_case(nx, ny, kind, threads, o)?,
     }))

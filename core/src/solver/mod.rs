@@ -18,7 +18,8 @@
 //! 4. Damping coefficients from the `Damping` plugin (one call per step); central-difference update
 //!    with damping implicit in velocity, in fixed node chunks
 //!    (`NodeCtx::update::<CONTACT, LOCAL, FULL, STATS>`: contact and local damping compiled out
-//!    when absent). The stage loop asks for a *full* step (`step_as(true)`: the whole energy
+//!    when absent; on a CPU with AVX2 the same update two nodes per register, `node_simd.rs`,
+//!    bit for bit the same). The stage loop asks for a *full* step (`step_as(true)`: the whole energy
 //!    ledger plus the unbalanced-force ratio, fused) only when something reads them after it
 //!    (ratio checks every `ratio_every` steps, history rows, snapshots, the last step); other
 //!    steps sum only what accumulates (work, damping, contact work; and the kinetic energy,
@@ -62,8 +63,10 @@
 pub mod events;
 pub mod fos;
 pub mod loads;
+mod node_simd;
 
 use crate::cracking::Cracking;
+use crate::element::block::Simd;
 use crate::element::model::Model;
 use crate::error::{FlemError, Result};
 use crate::mesh::topology::SplitRecord;
@@ -331,12 +334,20 @@ fn ratio_of(num: f64, sum: f64, cnt: f64) -> f64 {
 /// The node update of a step (see [`NodeCtx::update`]).
 type UpdateFn = fn(&NodeCtx, usize, &mut [[f64; 2]], &mut [[f64; 2]]) -> [f64; NSUM];
 
-fn pick_update<const C: bool, const L: u8>(full: bool, stats: bool) -> UpdateFn {
-    match (full, stats) {
+/// The node update of a step: the variant of the scene (contact `C`, damping mode `L`) and of
+/// the step (`full`, `stats`), vectorised for `simd` when this CPU has it (`node_simd.rs`: the
+/// same results bit for bit), else the scalar [`NodeCtx::update`].
+fn pick_update<const C: bool, const L: u8>(full: bool, stats: bool, simd: Simd) -> UpdateFn {
+    let vector = match (full, stats) {
+        (true, _) => node_simd::vector_update::<C, L, true, true>(simd),
+        (false, true) => node_simd::vector_update::<C, L, false, true>(simd),
+        (false, false) => node_simd::vector_update::<C, L, false, false>(simd),
+    };
+    vector.unwrap_or(match (full, stats) {
         (true, _) => |x, k, u, v| x.update::<C, L, true, true>(k, u, v),
         (false, true) => |x, k, u, v| x.update::<C, L, false, true>(k, u, v),
         (false, false) => |x, k, u, v| x.update::<C, L, false, false>(k, u, v),
-    }
+    })
 }
 
 impl NodeCtx<'_> {
@@ -367,6 +378,11 @@ impl NodeCtx<'_> {
             let [a0, a1, ..] = &mut acc;
             self.node::<CONTACT, DAMP, FULL, STATS>(c0 + i, &mut u[i], &mut v[i], a0, a1);
         }
+        self.reduce(&acc)
+    }
+
+    /// The chunk's sums from its four lanes (in a fixed order), with the common factors.
+    fn reduce(&self, acc: &[[f64; NSUM]; 4]) -> [f64; NSUM] {
         let (h, hdt) = (0.5, 0.5 * self.dt);
         let mut out = [0.0; NSUM];
         for (k, o) in out.iter_mut().enumerate() {
@@ -947,6 +963,36 @@ impl Simulation {
         }
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
         let corot_strain = if full && (self.model.corotational || self.model.stateful) { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
+        let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
+        let sum = self.update_nodes(full, stats, Simd::best());
+        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc, num, asum, cnt] = sum;
+        self.step_ratio = full.then(|| ratio_of(num.sqrt(), asum, cnt));
+        self.ledger.external_work += w;
+        self.ledger.damping += dmp;
+        self.ledger.contact_work += wc;
+        if full {
+            self.ledger.pending_ext = pw;
+            self.ledger.pending_damp = pd;
+            self.ledger.pending_contact = pc;
+            self.ledger.kinetic = ke;
+            self.ledger.strain = corot_strain.unwrap_or(0.5 * uf);
+        }
+        self.state.time += dt;
+        self.state.step += 1;
+        if full || stats {
+            self.stats = StepStats { step: self.state.step, dt, omega_max: self.stable.omega_max, kinetic: keh, u_f_int: ufi, u_m_u: umu };
+            self.guard(keh)?;
+        } else {
+            self.stats.step = self.state.step;
+        }
+        Ok(())
+    }
+
+    /// The node update of a step (the central-difference update of every cluster with the
+    /// current damping coefficients, `NodeCtx::update`) and its ledger sums; `full`: every sum,
+    /// `stats`: the damping's Rayleigh sums too; vectorised for `simd` if this CPU has it.
+    fn update_nodes(&mut self, full: bool, stats: bool, simd: Simd) -> [f64; NSUM] {
+        let dt = self.dt;
         let (a, beta, eta) = (self.coeffs.viscous, self.coeffs.local, self.coeffs.eta);
         let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
         // Node update in fixed chunks; the ledger sums are added chunk by chunk in chunk order,
@@ -955,7 +1001,6 @@ impl Simulation {
         let ctx = NodeCtx { mass, fix, f_int, f_ext, f_con, v_pres, dt, inv_dt: 1.0 / dt, c1, c2, beta, eta_hdt: 0.5 * eta * dt, a_hdt: 0.5 * a * dt };
         // One monomorphised node update per combination: a step pays only for what the scene
         // has and for what is read after it.
-        let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
         // Damping: 0 none, 1 viscous only, 2 with the local term, 3 with a constant eta (the
         // paper's; with a local term too, the local term is dropped: no scheme asks for both).
         let damp = if eta != 0.0 {
@@ -968,14 +1013,14 @@ impl Simulation {
             0
         };
         let update = match (self.contact.is_some(), damp) {
-            (false, 0) => pick_update::<false, 0>(full, stats),
-            (false, 1) => pick_update::<false, 1>(full, stats),
-            (false, 2) => pick_update::<false, 2>(full, stats),
-            (false, _) => pick_update::<false, 3>(full, stats),
-            (true, 0) => pick_update::<true, 0>(full, stats),
-            (true, 1) => pick_update::<true, 1>(full, stats),
-            (true, 2) => pick_update::<true, 2>(full, stats),
-            (true, _) => pick_update::<true, 3>(full, stats),
+            (false, 0) => pick_update::<false, 0>(full, stats, simd),
+            (false, 1) => pick_update::<false, 1>(full, stats, simd),
+            (false, 2) => pick_update::<false, 2>(full, stats, simd),
+            (false, _) => pick_update::<false, 3>(full, stats, simd),
+            (true, 0) => pick_update::<true, 0>(full, stats, simd),
+            (true, 1) => pick_update::<true, 1>(full, stats, simd),
+            (true, 2) => pick_update::<true, 2>(full, stats, simd),
+            (true, _) => pick_update::<true, 3>(full, stats, simd),
         };
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
         if self.partials.len() != n_chunks {
@@ -998,27 +1043,16 @@ impl Simulation {
                 *s = if k == 11 { f64::max(*s, *x) } else { *s + x };
             }
         }
-        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc, num, asum, cnt] = sum;
-        self.step_ratio = full.then(|| ratio_of(num.sqrt(), asum, cnt));
-        self.ledger.external_work += w;
-        self.ledger.damping += dmp;
-        self.ledger.contact_work += wc;
-        if full {
-            self.ledger.pending_ext = pw;
-            self.ledger.pending_damp = pd;
-            self.ledger.pending_contact = pc;
-            self.ledger.kinetic = ke;
-            self.ledger.strain = corot_strain.unwrap_or(0.5 * uf);
-        }
-        self.state.time += dt;
-        self.state.step += 1;
-        if full || stats {
-            self.stats = StepStats { step: self.state.step, dt, omega_max: self.stable.omega_max, kinetic: keh, u_f_int: ufi, u_m_u: umu };
-            self.guard(keh)?;
-        } else {
-            self.stats.step = self.state.step;
-        }
-        Ok(())
+        sum
+    }
+
+    /// The node update alone, as a lean step of the scene runs it, with the code of `simd`
+    /// (`Simd::Plain`: the scalar one; timed by `flem bench step`). It moves the nodes and
+    /// keeps no ledger and no time.
+    #[doc(hidden)]
+    pub fn bench_node_update(&mut self, simd: Simd) {
+        let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
+        std::hint::black_box(self.update_nodes(false, stats, simd));
     }
 
     /// The divergence guard on the half-step kinetic energy `keh`. It runs on every full step
