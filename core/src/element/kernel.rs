@@ -583,4 +583,42 @@ mod tests {
             }
         }
     }
+
+    /// The schedule lets two threads work without waiting: on the 1e6-element grid of `flem
+    /// bench step` (1414 x 707 Q4, 1953 chunks, 64 regions), two threads following
+    /// `run_dataflow`'s rules (the lead chunks from one counter, then whole regions, a chunk
+    /// starting when its waits are done), with every chunk taking one time unit, finish within
+    /// 1 % of half the chunks, also when the second thread starts 10 units late. (Session 9's
+    /// rule, both threads taking chunks one at a time from one (colour, index) order: 0.67 of
+    /// that; docs/perf/README.md, session 10.) A model of the schedule, not a timing.
+    #[test]
+    fn two_threads_seldom_wait_on_the_bench_grid() {
+        let (conn, n) = grid(1414, 707);
+        let s = Schedule::build(&conn, n);
+        let nc = s.n_chunks();
+        assert!(s.region_start.len() > 32, "many regions");
+        let waits = |k: u32| &s.wait_on[s.wait_start[k as usize] as usize..s.wait_start[k as usize + 1] as usize];
+        for delay in [0.0, 10.0] {
+            let mut done = vec![f64::NAN; nc];
+            let mut t = [0.0f64, delay];
+            let mut one = |th: usize, k: u32, t: &mut [f64; 2]| {
+                let start = waits(k).iter().map(|&w| done[w as usize]).fold(t[th], f64::max);
+                assert!(!start.is_nan(), "chunk {k} waits for a chunk not yet taken");
+                done[k as usize] = start + 1.0;
+                t[th] = start + 1.0;
+            };
+            for &k in &s.lead {
+                let th = (t[1] < t[0]) as usize;
+                one(th, k, &mut t);
+            }
+            for r in 0..s.region_start.len() - 1 {
+                let th = (t[1] < t[0]) as usize;
+                for &k in &s.rest[s.region_start[r] as usize..s.region_start[r + 1] as usize] {
+                    one(th, k, &mut t);
+                }
+            }
+            let ideal = (nc as f64 + delay) / 2.0;
+            assert!(t[0].max(t[1]) <= 1.01 * ideal, "delay {delay}: two threads take {t:?} units for {nc} chunks");
+        }
+    }
 }
