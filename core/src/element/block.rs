@@ -32,8 +32,8 @@ pub trait Block: Send + Sync {
     fn remap(&mut self, i: usize, a: usize, cluster: u32);
     /// `f[c] += F_int` of every element, with `u` the cluster displacements.
     fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]);
-    /// `f[c] += F_int` of every element with the blocked kernel, the chunks of each colour
-    /// spread over `pool` when given; the result does not depend on the pool (see `kernel`).
+    /// `f[c] += F_int` of every element with the blocked kernel, the chunks spread over `pool`
+    /// when given; the result does not depend on the pool (see `kernel`).
     fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>);
     /// Builds the blocked kernel data and the parallel schedule (after the last `push`).
     fn prepare(&mut self, n_clusters: usize);
@@ -172,7 +172,7 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     /// Per pack, the index of its extra part in `extra`, `u32::MAX` for none.
     extra_of: Vec<u32>,
     /// The threads' chunk flags and the last epoch (`Schedule::run_dataflow`); a call that
-    /// finds them taken (another thread in the same block) runs the colours instead.
+    /// finds them taken (another thread in the same block) runs on its own thread instead.
     dataflow: std::sync::Mutex<(u32, Vec<std::sync::atomic::AtomicU32>)>,
     /// D with thickness and Gauss weight folded in.
     dk: [f64; 3],
@@ -237,9 +237,9 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             }
             for (l, c) in conn.iter().enumerate() {
                 for a in 0..N {
-                    // SAFETY: chunks running at the same time write disjoint clusters: they
-                    // belong to one colour (Schedule::build), or, under the dataflow
-                    // (Schedule::run_dataflow), share no cluster with an unfinished chunk.
+                    // SAFETY: chunks running at the same time write disjoint clusters: under the
+                    // dataflow (Schedule::run_dataflow) a chunk starts only when every earlier
+                    // chunk sharing a cluster with it is done, and the later ones wait for it.
                     unsafe { f.add(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
                 }
             }
@@ -377,14 +377,8 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
                     self.sched.run_dataflow(pool, done, *epoch, |k| run(self, k, u, shared));
                     return;
                 }
-                for colour in &self.sched.colours {
-                    use rayon::prelude::*;
-                    if colour.len() > 1 {
-                        pool.install(|| colour.par_iter().for_each(|&k| run(self, k as usize, u, shared)));
-                    } else {
-                        colour.iter().for_each(|&k| run(self, k as usize, u, shared));
-                    }
-                }
+                // Another thread is in this block's dataflow: this call runs on its own thread.
+                self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
             }
             // One thread: the chunks in the schedule's local order (the same sums, bit for bit).
             _ => self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared)),
@@ -415,8 +409,8 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             + self.packs.capacity() * size_of::<S::Pack>()
             + self.extra.capacity() * size_of::<S::Extra>()
             + self.extra_of.capacity() * 4
-            + self.sched.colours.iter().map(|c| c.capacity() * 4).sum::<usize>()
-            + self.sched.order.capacity() * 4
+            + (self.sched.order.capacity() + self.sched.lead.capacity() + self.sched.rest.capacity() + self.sched.region_start.capacity()) * 4
+            + (self.sched.wait_start.capacity() + self.sched.wait_on.capacity()) * 4
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         let t = self.mat.thickness;

@@ -13,20 +13,25 @@
 //! tests check 1e-12 relative.
 //!
 //! **Schedule.** Packs are grouped in chunks of consecutive packs (the chunk size depends on
-//! the block size only, never on the thread count). Chunks are coloured greedily so that two
-//! chunks of one colour share no cluster. A step runs the colours in order; the chunks of one
-//! colour may run on different threads because they write disjoint clusters, and inside a
-//! chunk elements are scattered in their local order. Every cluster therefore receives its
-//! contributions in the same order (colour, then element) whatever the number of threads: the
-//! result is bit-identical to one thread. The colours need not run one after the other: one
-//! thread runs the chunks in a local order, and several threads run the same order as a
-//! dataflow (`Schedule::local_order`, `Schedule::run_dataflow`), each chunk waiting for the
-//! chunks sharing a cluster with it that come before it in (colour, index) order; the sums
-//! are the same, and the clusters of nearby chunks are still in cache (issue 24). A split only re-points corners at new clusters whose
-//! elements shared the parent cluster before, so the colouring stays valid after `remap`.
+//! the block size only, never on the thread count). Inside a chunk elements are scattered in
+//! their local order. The chunk range is cut into regions (their number too depends on the
+//! block only, `Schedule::regions_for`), and the chunks are put in one *sequence*: first the
+//! *lead* chunks (those sharing a cluster with an earlier region), then region by region the
+//! others (`Schedule::build`). Two chunks sharing a cluster add to it in sequence order,
+//! whatever thread runs them: every cluster receives its contributions in the same order
+//! (sequence, then element) whatever the number of threads, so the result is bit-identical
+//! to one thread. One thread runs any order that keeps this (`Schedule::order`, the one
+//! nearest to index order); several threads run the lead chunks first, then one region each
+//! at a time, each chunk waiting for the chunks sharing a cluster with it that come before it
+//! in the sequence (`Schedule::run_dataflow`; issue 24, session 10: the threads seldom wait,
+//! because a region's chunks wait only for lead chunks, run long before, and for their own
+//! region's). The greedy colouring of the chunks (two chunks of one colour share no cluster)
+//! is kept for the stateful blocks, which run the colours one after the other. A split only
+//! re-points corners at new clusters whose elements shared the parent cluster before, so the
+//! colouring, the lead chunks and the waits stay valid after `remap`.
 //!
 //! **Threads, node update, measurement.** A step gathers `u` for a pack, computes its 8
-//! elements as one vectorised loop and scatters. The chunks of one colour run on the rayon pool
+//! elements as one vectorised loop and scatters. The chunks run on the rayon pool
 //! of `solver.threads` (`Model::pool`; 0 = all cores, 1 = no pool). The node update
 //! (`solver/mod.rs`) adds its ledger sums per fixed 4096-node chunk (`NODE_CHUNK`), so whole
 //! runs, not only the forces, are bit-identical to one thread (tests/parallel.rs).
@@ -96,18 +101,27 @@ pub trait Blocked<const N: usize>: Shape<N> {
     }
 }
 
-/// Chunks of packs and their colours (see the module doc).
+/// Chunks of packs, their colours, and the order in which threads run them (see the module doc).
 #[derive(Clone, Debug, Default)]
 pub struct Schedule {
     /// Packs per chunk.
     pub chunk_packs: usize,
-    /// Chunk indices of each colour, in increasing order; colours run in this order.
+    /// Chunk indices of each colour, in increasing order (two chunks of one colour share no
+    /// cluster): the stateful blocks (`element::stateful`) run the colours one after the other.
     pub colours: Vec<Vec<u32>>,
-    /// Every chunk once, in the order one thread runs them (see [`Schedule::local_order`]).
+    /// Every chunk once, in the order one thread runs them (see [`Schedule::build`]).
     pub order: Vec<u32>,
-    /// The chunks each chunk waits for when threads run `order` together (CSR: those of chunk
-    /// `k` are `wait_on[wait_start[k]..wait_start[k + 1]]`): the chunks sharing a cluster with
-    /// it that come before it in (colour, index) order.
+    /// The lead chunks (those sharing a cluster with an earlier region), the regions taken in
+    /// turn (the first lead chunk of every region, then the second, ...): the first phase of
+    /// [`Schedule::run_dataflow`].
+    pub lead: Vec<u32>,
+    /// The other chunks of region `r`, interior ones then trailing ones, each in index order:
+    /// `rest[region_start[r]..region_start[r + 1]]`.
+    pub region_start: Vec<u32>,
+    pub rest: Vec<u32>,
+    /// The chunks each chunk waits for (CSR: those of chunk `k` are
+    /// `wait_on[wait_start[k]..wait_start[k + 1]]`): the chunks sharing a cluster with it that
+    /// come before it in the schedule's sequence, `lead` then `rest`.
     pub wait_start: Vec<u32>,
     pub wait_on: Vec<u32>,
 }
@@ -118,13 +132,31 @@ impl Schedule {
         (n_packs / 64).clamp(4, 64)
     }
 
-    /// Greedy colouring of chunks by shared clusters (`conn` of every element, in local order).
+    /// Regions of a block of `n_chunks` chunks: about 16 chunks each, at most 64, from the
+    /// chunk count only (never from the thread count: the regions fix the sums).
+    pub fn regions_for(n_chunks: usize) -> usize {
+        (n_chunks / 16).clamp(1, 64)
+    }
+
+    /// Chunks, colours and the sequence of the chunks (`conn` of every element, in local
+    /// order; issue 24, session 10).
+    ///
+    /// The chunk range is cut into [`Schedule::regions_for`] regions of consecutive chunks. A
+    /// chunk of region `r` is *lead* when it shares a cluster with a chunk of an earlier
+    /// region, else *trailing* when it shares one with a later region, else *interior*. The
+    /// sequence is every lead chunk (regions taken in turn), then region by region its
+    /// interior then its trailing chunks, each in index order. Two chunks sharing a cluster
+    /// add their forces to it in sequence order, whoever runs them: a cluster's sum, and so
+    /// the forces bit for bit, depend on the sequence only, which depends on the mesh only.
+    /// Only a lead chunk shares clusters with another region (of two chunks sharing a
+    /// cluster across regions, the later one is lead), so a region's other chunks wait only
+    /// for lead chunks and for their own region's earlier chunks.
     pub fn build<const N: usize>(conn: &[[u32; N]], n_clusters: usize) -> Schedule {
         let n_packs = conn.len().div_ceil(LANES);
         let chunk_packs = Self::chunk_packs_for(n_packs);
         let chunk_elems = chunk_packs * LANES;
         let n_chunks = conn.len().div_ceil(chunk_elems);
-        // Chunks touching each cluster (CSR), then the colour of each chunk.
+        // Chunks touching each cluster (CSR, increasing chunk order), then the colour of each chunk.
         let mut count = vec![0u32; n_clusters + 1];
         let mut last = vec![u32::MAX; n_clusters];
         for (k, ch) in conn.chunks(chunk_elems).enumerate() {
@@ -176,90 +208,141 @@ impl Schedule {
         for (k, &c) in colour.iter().enumerate() {
             colours[c as usize].push(k as u32);
         }
-        let (order, wait_start, wait_on) = Self::local_order(conn, chunk_elems, &count, &items, &colour);
-        Schedule { chunk_packs, colours, order, wait_start, wait_on }
+        let mut s = Schedule { chunk_packs, colours, ..Default::default() };
+        s.sequence(conn, chunk_elems, &count, &items);
+        s
     }
 
-    /// The order one thread runs the chunks in (issue 24). A cluster's sum depends only on the
-    /// order of the chunks that touch it, (colour, index) when the colours run one after the
-    /// other; any order that keeps it for every pair of chunks sharing a cluster gives the same
-    /// forces bit for bit. Of those, the one nearest to index order (Kahn's algorithm, smallest
-    /// index first): running whole colours one after the other streams the node arrays once per
-    /// colour, this order keeps nearby chunks together, so their clusters are still in cache.
-    /// Also returns the waits of each chunk (`wait_start`, `wait_on`).
-    #[allow(clippy::type_complexity)]
-    fn local_order<const N: usize>(conn: &[[u32; N]], chunk_elems: usize, count: &[u32], items: &[u32], colour: &[u32]) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    /// Regions, lead chunks, the waits and the one-thread order (see [`Schedule::build`]).
+    fn sequence<const N: usize>(&mut self, conn: &[[u32; N]], chunk_elems: usize, count: &[u32], items: &[u32]) {
         use std::cmp::Reverse;
-        let n_chunks = colour.len();
-        let key = |k: u32| (colour[k as usize], k);
-        let mut after: Vec<Vec<u32>> = vec![Vec::new(); n_chunks];
-        let mut waits = vec![0u32; n_chunks];
+        let n_chunks = self.colours.iter().map(Vec::len).sum::<usize>();
+        let n_regions = Self::regions_for(n_chunks);
+        let rstart: Vec<usize> = (0..=n_regions).map(|r| r * n_chunks / n_regions).collect();
+        let chunks = || conn.chunks(chunk_elems).enumerate();
+        // Lead, interior and trailing chunks of each region, in index order.
+        let (mut lead_of, mut inner_of, mut trail_of) = (vec![Vec::new(); n_regions], vec![Vec::new(); n_regions], vec![Vec::new(); n_regions]);
+        let mut region = vec![0u32; n_chunks];
+        for r in 0..n_regions {
+            for k in rstart[r]..rstart[r + 1] {
+                region[k] = r as u32;
+            }
+        }
+        for (k, ch) in chunks() {
+            let r = region[k] as usize;
+            let touch = |c: &u32| &items[count[*c as usize] as usize..count[*c as usize + 1] as usize];
+            // `items` of a cluster are in increasing chunk order: first and last toucher.
+            if ch.iter().flatten().any(|c| (touch(c)[0] as usize) < rstart[r]) {
+                lead_of[r].push(k as u32);
+            } else if ch.iter().flatten().any(|c| *touch(c).last().unwrap() as usize >= rstart[r + 1]) {
+                trail_of[r].push(k as u32);
+            } else {
+                inner_of[r].push(k as u32);
+            }
+        }
+        let deepest = lead_of.iter().map(Vec::len).max().unwrap_or(0);
+        self.lead = (0..deepest).flat_map(|j| lead_of.iter().filter_map(move |l| l.get(j).copied())).collect();
+        self.region_start = vec![0];
+        self.rest = Vec::with_capacity(n_chunks - self.lead.len());
+        for r in 0..n_regions {
+            self.rest.extend_from_slice(&inner_of[r]);
+            self.rest.extend_from_slice(&trail_of[r]);
+            self.region_start.push(self.rest.len() as u32);
+        }
+        // Position of each chunk in the sequence, and the waits: the chunks sharing a cluster
+        // that come before it.
+        let mut pos = vec![0u32; n_chunks];
+        for (i, &k) in self.lead.iter().chain(&self.rest).enumerate() {
+            pos[k as usize] = i as u32;
+        }
+        self.wait_start = Vec::with_capacity(n_chunks + 1);
+        self.wait_start.push(0);
+        self.wait_on.clear();
         let mut near = Vec::new();
-        for (k, ch) in conn.chunks(chunk_elems).enumerate() {
+        for (k, ch) in chunks() {
             near.clear();
             for c in ch.iter().flatten() {
                 let c = *c as usize;
-                near.extend(items[count[c] as usize..count[c + 1] as usize].iter().filter(|&&o| key(o) > key(k as u32)));
+                near.extend(items[count[c] as usize..count[c + 1] as usize].iter().filter(|&&o| pos[o as usize] < pos[k]));
             }
             near.sort_unstable();
             near.dedup();
-            for &o in &near {
-                waits[o as usize] += 1;
-            }
-            after[k].extend_from_slice(&near);
+            self.wait_on.extend_from_slice(&near);
+            self.wait_start.push(self.wait_on.len() as u32);
         }
-        let mut ready: std::collections::BinaryHeap<Reverse<u32>> = (0..n_chunks as u32).filter(|&k| waits[k as usize] == 0).map(Reverse).collect();
-        let mut order = Vec::with_capacity(n_chunks);
-        while let Some(Reverse(k)) = ready.pop() {
-            order.push(k);
-            for &o in &after[k as usize] {
+        // The one-thread order: any order that keeps the waits gives the same sums. Of those,
+        // the one nearest to region by region, interior, then the next region's lead chunks,
+        // then the trailing ones (Kahn's algorithm, the nearest first): the clusters a lead
+        // chunk shares are still in cache from the chunks before it.
+        let mut near_rank = vec![0u32; n_chunks];
+        let mut i = 0u32;
+        // (Region 0 has no lead chunk: the lead chunks of region r + 1 come after region r's interior.)
+        for r in 0..n_regions {
+            let next_lead = lead_of.get(r + 1).map(Vec::as_slice).unwrap_or(&[]);
+            for &k in inner_of[r].iter().chain(next_lead).chain(&trail_of[r]) {
+                near_rank[k as usize] = i;
+                i += 1;
+            }
+        }
+        let mut after_start = vec![0u32; n_chunks + 1];
+        for &w in &self.wait_on {
+            after_start[w as usize + 1] += 1;
+        }
+        for k in 0..n_chunks {
+            after_start[k + 1] += after_start[k];
+        }
+        let mut after = vec![0u32; self.wait_on.len()];
+        let mut fill = after_start.clone();
+        for k in 0..n_chunks {
+            for &w in &self.wait_on[self.wait_start[k] as usize..self.wait_start[k + 1] as usize] {
+                after[fill[w as usize] as usize] = k as u32;
+                fill[w as usize] += 1;
+            }
+        }
+        let mut waits: Vec<u32> = (0..n_chunks).map(|k| self.wait_start[k + 1] - self.wait_start[k]).collect();
+        let mut ready: std::collections::BinaryHeap<Reverse<(u32, u32)>> = (0..n_chunks as u32).filter(|&k| waits[k as usize] == 0).map(|k| Reverse((near_rank[k as usize], k))).collect();
+        self.order = Vec::with_capacity(n_chunks);
+        while let Some(Reverse((_, k))) = ready.pop() {
+            self.order.push(k);
+            for &o in &after[after_start[k as usize] as usize..after_start[k as usize + 1] as usize] {
                 waits[o as usize] -= 1;
                 if waits[o as usize] == 0 {
-                    ready.push(Reverse(o));
+                    ready.push(Reverse((near_rank[o as usize], o)));
                 }
             }
         }
-        debug_assert_eq!(order.len(), n_chunks, "the (colour, index) order has no cycle");
-        let mut wait_start = vec![0u32; n_chunks + 1];
-        for a in after.iter().flatten() {
-            wait_start[*a as usize + 1] += 1;
-        }
-        for k in 0..n_chunks {
-            wait_start[k + 1] += wait_start[k];
-        }
-        let mut fill = wait_start.clone();
-        let mut wait_on = vec![0u32; wait_start[n_chunks] as usize];
-        for (k, a) in after.iter().enumerate() {
-            for &o in a {
-                wait_on[fill[o as usize] as usize] = k as u32;
-                fill[o as usize] += 1;
-            }
-        }
-        (order, wait_start, wait_on)
+        debug_assert_eq!(self.order.len(), n_chunks, "the waits follow one sequence: no cycle");
     }
 
-    /// Runs every chunk once with `run` on every thread of `pool`, the threads taking the
-    /// chunks in `order`; a chunk starts when the chunks it waits for are done (issue 24: the
-    /// colours ran one after the other over the whole block, streaming the node arrays once per
-    /// colour). `done` holds one flag per chunk, set to `epoch` when it is done; `epoch` must
-    /// differ from every flag at the call (a new value per call).
+    /// Runs every chunk once with `run` on the threads of `pool` (issue 24, session 10). First
+    /// the lead chunks, taken one at a time by whichever thread is free, in `lead` order;
+    /// then the regions, each taken whole by one thread, which runs its interior then its
+    /// trailing chunks. A chunk starts when the chunks it waits for are done. `done` holds
+    /// one flag per chunk, set to `epoch` when it is done; `epoch` must differ from every flag
+    /// at the call (a new value per call).
     ///
-    /// No deadlock: `order` is a topological order of the waits, so the chunk at the smallest
-    /// position not done has every chunk it waits for done. The same sums as the colours: two
-    /// chunks sharing a cluster never run at the same time and run in (colour, index) order.
+    /// The same sums as one thread: two chunks sharing a cluster never run at the same time
+    /// and run in sequence order (the waits). Why threads seldom wait: consecutive lead chunks
+    /// belong to different regions, so they share no cluster unless the regions are thin;
+    /// a region's interior waits only for its own lead chunks and the trailing chunks for
+    /// the next region's, all run in the first phase. No deadlock, even when some threads of
+    /// the pool never come: a lead chunk waits only for lead chunks earlier in `lead`, all
+    /// taken by running threads (by induction, done); a thread starts on the regions only
+    /// once every lead chunk is taken, and a region's chunk waits only for lead chunks and
+    /// for the chunks its own thread ran before it. The threads are started with
+    /// `rayon::join` inside `install` (no allocation per call, unlike `broadcast`); a half
+    /// that no other thread steals runs after the first and finds nothing left.
     pub fn run_dataflow(&self, pool: &rayon::ThreadPool, done: &[std::sync::atomic::AtomicU32], epoch: u32, run: impl Fn(usize) + Sync) {
         use std::sync::atomic::{AtomicUsize, Ordering};
-        let next = AtomicUsize::new(0);
-        pool.broadcast(|_| loop {
-            let i = next.fetch_add(1, Ordering::Relaxed);
-            let Some(&k) = self.order.get(i) else { break };
+        let (next_lead, next_region) = (AtomicUsize::new(0), AtomicUsize::new(0));
+        let one = |k: u32| {
             let k = k as usize;
             for &w in &self.wait_on[self.wait_start[k] as usize..self.wait_start[k + 1] as usize] {
                 let mut spins = 0u32;
                 // Acquire: the forces the waited-for chunk wrote are visible here.
                 while done[w as usize].load(Ordering::Acquire) != epoch {
                     spins += 1;
-                    if spins < 64 {
+                    if spins < 256 {
                         std::hint::spin_loop();
                     } else {
                         std::thread::yield_now();
@@ -269,7 +352,27 @@ impl Schedule {
             run(k);
             // Release: every write of chunk k happens before a waiting chunk's reads.
             done[k].store(epoch, Ordering::Release);
-        });
+        };
+        let work = || {
+            while let Some(&k) = self.lead.get(next_lead.fetch_add(1, Ordering::Relaxed)) {
+                one(k);
+            }
+            loop {
+                let r = next_region.fetch_add(1, Ordering::Relaxed);
+                if r + 1 >= self.region_start.len() {
+                    break;
+                }
+                self.rest[self.region_start[r] as usize..self.region_start[r + 1] as usize].iter().for_each(|&k| one(k));
+            }
+        };
+        fn fan(n: usize, work: &(impl Fn() + Sync)) {
+            if n <= 1 {
+                work()
+            } else {
+                rayon::join(|| fan(n / 2, work), || fan(n - n / 2, work));
+            }
+        }
+        pool.install(|| fan(pool.current_num_threads(), &work));
     }
 
     pub fn n_chunks(&self) -> usize {
@@ -277,16 +380,18 @@ impl Schedule {
     }
 }
 
-/// A raw view of the force array shared by the chunks of one colour.
+/// A raw view of the force array shared by the chunks that run at the same time.
 ///
 /// Safety argument (why not a safe split): the clusters written by one chunk are scattered over
-/// the whole array, so no slice split separates them. The colouring guarantees that chunks
-/// running at the same time (one colour) write disjoint clusters, so no two threads touch the
-/// same element of the array; under the dataflow (`Schedule::run_dataflow`) a chunk starts
-/// only when every chunk sharing a cluster with it and before it in (colour, index) order is
-/// done (its flag stored with Release after its last write, loaded with Acquire before the
-/// first read), and the chunks after it wait for it likewise. `f` outlives every use (the
-/// colour loop and the broadcast join before returning).
+/// the whole array, so no slice split separates them. No two threads touch the same element of
+/// the array at the same time: chunks running at the same time write disjoint clusters. With
+/// the colours (the stateful blocks), they belong to one colour (`Schedule::build`). Under the
+/// dataflow (`Schedule::run_dataflow`) a chunk starts only when every chunk sharing a cluster
+/// with it and before it in the schedule's sequence is done (its flag stored with Release
+/// after its last write, loaded with Acquire before the first read), and the chunks after it
+/// in the sequence wait for it likewise; every pair of chunks sharing a cluster is one of
+/// these (`Schedule::wait_on` lists, for each chunk, every earlier chunk sharing a cluster).
+/// `f` outlives every use (the colour loop and the dataflow's `install` join before returning).
 #[derive(Copy, Clone)]
 pub struct SharedForces {
     ptr: *mut [f64; 2],
@@ -302,7 +407,8 @@ impl SharedForces {
     /// `f[c] += v`.
     ///
     /// # Safety
-    /// No other thread may access `f[c]` during the call (guaranteed by the colouring).
+    /// No other thread may access `f[c]` during the call (guaranteed by the colouring or by the
+    /// dataflow's waits).
     #[inline(always)]
     pub unsafe fn add(&self, c: usize, v: [f64; 2]) {
         assert!(c < self.len);
@@ -317,45 +423,56 @@ impl SharedForces {
 mod tests {
     use super::*;
 
-    /// Chunks of one colour share no cluster; every chunk has one colour.
-    #[test]
-    fn colouring_separates_chunks() {
-        // A structured 100 x 60 grid of quads, row by row.
-        let nx = 100;
-        let conn: Vec<[u32; 4]> = (0..60)
-            .flat_map(|j| {
-                (0..nx).map(move |i| {
-                    let id = |i: u32, j: u32| j * (nx + 1) + i;
-                    [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]
-                })
-            })
-            .collect();
-        let s = Schedule::build(&conn, 101 * 61);
-        let ce = s.chunk_packs * LANES;
-        assert_eq!(s.n_chunks(), conn.len().div_ceil(ce));
-        // The one-thread order runs every chunk once and, for every cluster, its chunks in
-        // (colour, index) order, the order of running the colours one after the other.
-        let mut sorted = s.order.clone();
-        sorted.sort_unstable();
-        assert_eq!(sorted, (0..s.n_chunks() as u32).collect::<Vec<_>>());
-        let colour_of = |k: u32| s.colours.iter().position(|c| c.contains(&k)).unwrap();
-        let mut seen: Vec<Vec<u32>> = vec![Vec::new(); 101 * 61];
-        for &k in &s.order {
+    /// A structured `nx` x `ny` grid of quads, row by row.
+    fn grid(nx: u32, ny: u32) -> (Vec<[u32; 4]>, usize) {
+        let id = move |i: u32, j: u32| j * (nx + 1) + i;
+        let conn = (0..ny).flat_map(|j| (0..nx).map(move |i| [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)])).collect();
+        (conn, ((nx + 1) * (ny + 1)) as usize)
+    }
+
+    /// The grid with its elements shuffled (a fixed pseudo-random permutation): chunks share
+    /// clusters with chunks of far regions, many chunks are lead and would also be trailing.
+    fn shuffled(nx: u32, ny: u32) -> (Vec<[u32; 4]>, usize) {
+        let (mut conn, n) = grid(nx, ny);
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for i in (1..conn.len()).rev() {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            conn.swap(i, (x % (i as u64 + 1)) as usize);
+        }
+        (conn, n)
+    }
+
+    /// For every cluster, the chunks touching it in the order they run in `seq`.
+    fn per_cluster(conn: &[[u32; 4]], n: usize, ce: usize, seq: &[u32]) -> Vec<Vec<u32>> {
+        let mut seen: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for &k in seq {
             for e in conn.chunks(ce).nth(k as usize).unwrap() {
                 for &c in e {
-                    let v = &mut seen[c as usize];
-                    if v.last() != Some(&k) {
-                        if let Some(&prev) = v.last() {
-                            assert!((colour_of(prev), prev) < (colour_of(k), k), "cluster {c}: chunk {k} runs after {prev} against the colour order");
-                        }
-                        v.push(k);
+                    if seen[c as usize].last() != Some(&k) {
+                        seen[c as usize].push(k);
                     }
                 }
             }
         }
-        assert!(s.order.iter().enumerate().any(|(i, &k)| k as usize != i), "a grid this size needs more than one colour");
+        seen
+    }
+
+    /// Chunks of one colour share no cluster; every chunk has one colour (the stateful
+    /// blocks' path).
+    #[test]
+    fn colouring_separates_chunks() {
+        let (conn, n) = grid(100, 60);
+        let s = Schedule::build(&conn, n);
+        let ce = s.chunk_packs * LANES;
+        assert_eq!(s.n_chunks(), conn.len().div_ceil(ce));
+        assert!(s.colours.len() > 1, "a grid this size needs more than one colour");
+        let mut all: Vec<u32> = s.colours.iter().flatten().copied().collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..s.n_chunks() as u32).collect::<Vec<_>>());
         for col in &s.colours {
-            let mut owner = vec![u32::MAX; 101 * 61];
+            let mut owner = vec![u32::MAX; n];
             for &k in col {
                 for e in conn.chunks(ce).nth(k as usize).unwrap() {
                     for &c in e {
@@ -364,6 +481,144 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// The sequence (`lead` then `rest`) and the waits: of two chunks sharing a cluster, the
+    /// later in the sequence waits for the earlier, and no chunk waits for one it shares
+    /// nothing with; a lead chunk waits only for earlier lead chunks, any other chunk only for
+    /// lead chunks and its own region's earlier chunks (what `run_dataflow`'s progress
+    /// argument needs); the one-thread `order` keeps every wait. On a row-by-row grid (the
+    /// lead chunks of a region follow the previous region), a shuffled one (chunks sharing
+    /// clusters with far regions), a grid of 4 rows each about a region long (chunks sharing
+    /// clusters with both neighbouring regions) and a one-chunk block.
+    #[test]
+    fn sequence_and_waits_fix_every_shared_cluster() {
+        for (name, (conn, n)) in [("grid", grid(300, 150)), ("shuffled", shuffled(120, 90)), ("thin", grid(4000, 4)), ("tiny", grid(5, 3))] {
+            let s = Schedule::build(&conn, n);
+            let (ce, nc) = (s.chunk_packs * LANES, s.n_chunks());
+            let seq: Vec<u32> = s.lead.iter().chain(&s.rest).copied().collect();
+            let mut sorted = seq.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..nc as u32).collect::<Vec<_>>(), "{name}: the sequence runs every chunk once");
+            let mut sorted = s.order.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..nc as u32).collect::<Vec<_>>(), "{name}: the order runs every chunk once");
+            let mut pos = vec![0usize; nc];
+            seq.iter().enumerate().for_each(|(i, &k)| pos[k as usize] = i);
+            let waits = |k: usize| &s.wait_on[s.wait_start[k] as usize..s.wait_start[k + 1] as usize];
+            // Pairs sharing a cluster.
+            let mut share = vec![vec![false; nc]; nc];
+            for v in per_cluster(&conn, n, ce, &(0..nc as u32).collect::<Vec<_>>()) {
+                for &a in &v {
+                    for &b in &v {
+                        share[a as usize][b as usize] |= a != b;
+                    }
+                }
+            }
+            for a in 0..nc {
+                for b in 0..nc {
+                    let waits_ab = waits(a).contains(&(b as u32));
+                    assert_eq!(waits_ab, share[a][b] && pos[b] < pos[a], "{name}: chunk {a} waits for {b}: {waits_ab}");
+                }
+            }
+            let region_of = |k: u32| (0..s.region_start.len() - 1).find(|&r| s.rest[s.region_start[r] as usize..s.region_start[r + 1] as usize].contains(&k));
+            for (i, &k) in seq.iter().enumerate() {
+                for &w in waits(k as usize) {
+                    if i < s.lead.len() {
+                        assert!(pos[w as usize] < i, "{name}: lead chunk {k} waits for {w}, not an earlier lead chunk");
+                    } else {
+                        assert!(pos[w as usize] < s.lead.len() || region_of(w) == region_of(k), "{name}: chunk {k} waits for {w} of another region");
+                    }
+                }
+            }
+            let mut at = vec![0usize; nc];
+            s.order.iter().enumerate().for_each(|(i, &k)| at[k as usize] = i);
+            for k in 0..nc {
+                assert!(waits(k).iter().all(|&w| at[w as usize] < at[k]), "{name}: the one-thread order runs {k} before a chunk it waits for");
+            }
+            if name == "grid" {
+                assert!(s.region_start.len() > 4 && !s.lead.is_empty(), "{name}: several regions with lead chunks");
+                assert!(s.lead.len() * 5 < nc, "{name}: few lead chunks on a row-by-row grid ({} of {nc})", s.lead.len());
+            }
+            if name == "shuffled" {
+                assert!(s.lead.len() * 2 > nc, "{name}: most chunks are lead chunks here ({} of {nc})", s.lead.len());
+            }
+        }
+    }
+
+    /// `run_dataflow` on pools of 1 to 4 threads: every cluster receives its chunks in the
+    /// same order as with the one-thread `order` (so the same sums bit for bit), and what each
+    /// thread ran is in an order that keeps the waits. Two calls per pool (the epochs).
+    #[test]
+    fn dataflow_keeps_the_per_cluster_order_on_every_thread_count() {
+        use std::sync::atomic::AtomicU32;
+        use std::sync::Mutex;
+        for (name, (conn, n)) in [("grid", grid(300, 150)), ("shuffled", shuffled(120, 90)), ("thin", grid(4000, 4))] {
+            let s = Schedule::build(&conn, n);
+            let (ce, nc) = (s.chunk_packs * LANES, s.n_chunks());
+            let want = per_cluster(&conn, n, ce, &s.order);
+            for threads in 1..=4 {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let done: Vec<AtomicU32> = (0..nc).map(|_| AtomicU32::new(0)).collect();
+                for epoch in 1..=2 {
+                    // Chunks sharing a cluster never overlap, so the start order gives each
+                    // cluster's order; the thread of each chunk gives each thread's order.
+                    let log = Mutex::new(Vec::new());
+                    s.run_dataflow(&pool, &done, epoch, |k| log.lock().unwrap().push((k as u32, rayon::current_thread_index().unwrap())));
+                    let log = log.into_inner().unwrap();
+                    let ran: Vec<u32> = log.iter().map(|x| x.0).collect();
+                    assert_eq!(per_cluster(&conn, n, ce, &ran), want, "{name}, {threads} threads: a cluster receives its chunks in another order");
+                    for t in 0..threads {
+                        let mine: Vec<u32> = log.iter().filter(|x| x.1 == t).map(|x| x.0).collect();
+                        let mut at = vec![usize::MAX; nc];
+                        mine.iter().enumerate().for_each(|(i, &k)| at[k as usize] = i);
+                        for &k in &mine {
+                            for &w in &s.wait_on[s.wait_start[k as usize] as usize..s.wait_start[k as usize + 1] as usize] {
+                                assert!(at[w as usize] == usize::MAX || at[w as usize] < at[k as usize], "{name}: thread {t} ran {k} before {w}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The schedule lets two threads work without waiting: on the 1e6-element grid of `flem
+    /// bench step` (1414 x 707 Q4, 1953 chunks, 64 regions), two threads following
+    /// `run_dataflow`'s rules (the lead chunks from one counter, then whole regions, a chunk
+    /// starting when its waits are done), with every chunk taking one time unit, finish within
+    /// 1 % of half the chunks, also when the second thread starts 10 units late. (Session 9's
+    /// rule, both threads taking chunks one at a time from one (colour, index) order: 0.67 of
+    /// that; docs/perf/README.md, session 10.) A model of the schedule, not a timing.
+    #[test]
+    fn two_threads_seldom_wait_on_the_bench_grid() {
+        let (conn, n) = grid(1414, 707);
+        let s = Schedule::build(&conn, n);
+        let nc = s.n_chunks();
+        assert!(s.region_start.len() > 32, "many regions");
+        let waits = |k: u32| &s.wait_on[s.wait_start[k as usize] as usize..s.wait_start[k as usize + 1] as usize];
+        for delay in [0.0, 10.0] {
+            let mut done = vec![f64::NAN; nc];
+            let mut t = [0.0f64, delay];
+            let mut one = |th: usize, k: u32, t: &mut [f64; 2]| {
+                let start = waits(k).iter().map(|&w| done[w as usize]).fold(t[th], f64::max);
+                assert!(!start.is_nan(), "chunk {k} waits for a chunk not yet taken");
+                done[k as usize] = start + 1.0;
+                t[th] = start + 1.0;
+            };
+            for &k in &s.lead {
+                let th = (t[1] < t[0]) as usize;
+                one(th, k, &mut t);
+            }
+            for r in 0..s.region_start.len() - 1 {
+                let th = (t[1] < t[0]) as usize;
+                for &k in &s.rest[s.region_start[r] as usize..s.region_start[r + 1] as usize] {
+                    one(th, k, &mut t);
+                }
+            }
+            let ideal = (nc as f64 + delay) / 2.0;
+            assert!(t[0].max(t[1]) <= 1.01 * ideal, "delay {delay}: two threads take {t:?} units for {nc} chunks");
         }
     }
 }
