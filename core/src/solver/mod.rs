@@ -55,7 +55,7 @@
 //! - Energy ledger: `Ledger` (trapezoidal work, KE as `1/2 m v- . v+`): exact for linear
 //!   elasticity; the contact terms are described in `crate::contact`.
 //! - Bit-identical results for any `solver.threads`: the node update sums per fixed node chunk
-//!   (`NODE_CHUNK`), the element loop per colour (`element/kernel.rs`).
+//!   (`NODE_CHUNK`), the element loop by regions of chunks (`element/kernel.rs`).
 //!
 //! The stage loop is re-entrant (`run_from(StagePos)`) for checkpoints: `output/checkpoint.rs`.
 //! Results leave through the [`Observer`] trait, which the output writer and the comparer
