@@ -72,8 +72,9 @@ pub trait MaterialLaw: Clone + Send + Sync + 'static {
     /// For a law with [`Self::elastic_start`]: `s` = the stress that `update` gives from the
     /// initial state with the increment `e` (`[exx, eyy, gxy, ezz]`, the total strain of a point
     /// that never yielded), and for each lane whether that update is elastic (true only when
-    /// it surely is: a lane answered false goes, with its pack, to the stored path, which
-    /// updates it from the initial state with the same increment). The default answers false
+    /// it surely is: a lane answered false goes, with its pack, to the stored path, which is
+    /// seeded with the last step's stress of the shortcut and goes on with the increment since
+    /// then; from the initial state on a pack's first step). The default answers false
     /// for every lane.
     #[inline(always)]
     fn initial_lanes(&self, _e: &[[f64; LANES]; 4], s: &mut [[f64; LANES]; 4]) -> [bool; LANES] {

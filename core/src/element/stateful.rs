@@ -402,13 +402,16 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         !self.shortcut || self.yielded[i / LANES]
     }
 
-    /// Stress `[sxx, syy, sxy, szz]` of point `k` of element `i`: stored, or for a pack that
-    /// never yielded the stress of the total strain of `u` (`MaterialLaw::initial_lanes`).
-    fn stress4(&self, i: usize, k: usize, u: &[[f64; 2]]) -> [f64; 4] {
+    /// Stress `[sxx, syy, sxy, szz]` of point `k` of element `i` at the last element pass:
+    /// stored, or for a pack that never yielded the stress of the total strain of the
+    /// displacements of that pass (`u_prev`, `MaterialLaw::initial_lanes`), so that every point
+    /// of a block is read at the same time level whatever `u` the caller holds (a failure check
+    /// runs after the node update). `_u`: kept for the callers' symmetry.
+    fn stress4(&self, i: usize, k: usize, _u: &[[f64; 2]]) -> [f64; 4] {
         if self.stored(i) {
             return self.stress[i * S::GAUSS.len() + k];
         }
-        let ue = self.gather(i, u);
+        let ue = self.u_prev[i];
         let gbi = self.gbar_at(i);
         let e = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &ue);
         let mut el = [[0.0; LANES]; 4];
@@ -874,11 +877,11 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let (st, hs, up, wk, yl) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(e0, e1), wk.range(e0, e1), yl.range(e0 / LANES, e1.div_ceil(LANES))) };
         if self.enh.is_empty() {
             #[cfg(target_arch = "x86_64")]
-            if crate::element::block::Simd::best() == crate::element::block::Simd::Avx512 {
+            if crate::element::block::Simd::best() == crate::element::block::Simd::Avx512 && crate::element::block::Simd::Avx2.detected() {
                 // The never-yielded packs first, then the stored ones (a fixed order per chunk,
                 // whatever the thread count: the forces' sums stay bit-identical).
-                // SAFETY: `Simd::best` answers Avx512 only when the CPU has those features
-                // (and AVX2 with them).
+                // SAFETY: `Simd::best` answers Avx512 only when the CPU has those features,
+                // and AVX2 is checked on the line above (a VM may hide it).
                 unsafe {
                     if self.shortcut {
                         self.packs_total_avx512(e0, e1, u, f, st, hs, up, wk, yl);
@@ -1090,18 +1093,28 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         })
     }
     /// The internal work of the stored points, plus for the packs that never yielded the
-    /// elastic energy `1/2 sigma : eps` of their total strain at `u` (what the work of their
-    /// increments adds up to).
-    fn strain_energy(&self, u: &[[f64; 2]]) -> Option<f64> {
+    /// elastic energy `1/2 sigma : eps` of their total strain at the last element pass (what
+    /// the work of their increments adds up to). One `initial_lanes` per pack and point (not
+    /// per element: full steps call this); summed in (pack, point, lane) order.
+    fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
         let mut e: f64 = self.work.iter().sum();
         if self.shortcut {
-            for i in (0..self.len()).filter(|&i| !self.stored(i)) {
-                let ue = self.gather(i, u);
-                let gbi = self.gbar_at(i);
+            let n = self.len();
+            for p in (0..n.div_ceil(LANES)).filter(|&p| !self.yielded[p]) {
+                let (i0, i1) = (p * LANES, ((p + 1) * LANES).min(n));
                 for k in 0..S::GAUSS.len() {
-                    let ep = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &ue);
-                    let s = self.stress4(i, k, u);
-                    e += 0.5 * self.w_at(i, k) * (s[0] * ep[0] + s[1] * ep[1] + s[2] * ep[2]);
+                    let mut el = [[0.0; LANES]; 4];
+                    for i in i0..i1 {
+                        let gbi = self.gbar_at(i);
+                        let ep = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &self.u_prev[i]);
+                        (el[0][i - i0], el[1][i - i0], el[2][i - i0]) = (ep[0], ep[1], ep[2]);
+                    }
+                    let mut s = [[0.0; LANES]; 4];
+                    self.law.initial_lanes(&el, &mut s);
+                    for i in i0..i1 {
+                        let l = i - i0;
+                        e += 0.5 * self.w_at(i, k) * (s[0][l] * el[0][l] + s[1][l] * el[1][l] + s[2][l] * el[2][l]);
+                    }
                 }
             }
         }
