@@ -39,7 +39,8 @@
 //! elastic energy as work), flagged `yielded` for good, and takes the stored path. A chunk
 //! runs its never-yielded packs first, then the stored ones (one order of the force sums,
 //! whatever the threads or instruction set). Round-off differs from storing every point.
-//! Outputs compute a never-yielded point from the `u` they are given. docs/materials.md.
+//! Outputs compute a never-yielded point from the displacements of the last element pass
+//! (`u_prev`), the time level of the stored points. docs/materials.md.
 //!
 //! Outside the step (stable step, implicit check, `add_internal_forces`): the block answers
 //! with the elastic law on the reference configuration (with B-bar), i.e. the initial
@@ -1179,7 +1180,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         Some((gamma / wsum, flag))
     }
     /// The stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major; a pack that
-    /// never yielded gives the stress of its total strain at `u`).
+    /// never yielded gives the stress of its total strain at the last element pass).
     fn point_stress(&self, u: &[[f64; 2]]) -> Option<Vec<[f64; 4]>> {
         let ng = S::GAUSS.len();
         Some((0..self.len() * ng).map(|j| self.stress4(j / ng, j % ng, u)).collect())
