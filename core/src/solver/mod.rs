@@ -337,6 +337,21 @@ type UpdateFn = fn(&NodeCtx, usize, &mut [[f64; 2]], &mut [[f64; 2]]) -> [f64; N
 /// The node update of a step: the variant of the scene (contact `C`, damping mode `L`) and of
 /// the step (`full`, `stats`), vectorised for `simd` when this CPU has it (`node_simd.rs`: the
 /// same results bit for bit), else the scalar [`NodeCtx::update`].
+/// [`pick_update`] for a scene's contact flag and damping mode (0 none, 1 viscous, 2 with the
+/// local term, 3 with a constant eta) known at run time.
+fn pick_variant(contact: bool, damp: u8, full: bool, stats: bool, simd: Simd) -> UpdateFn {
+    match (contact, damp) {
+        (false, 0) => pick_update::<false, 0>(full, stats, simd),
+        (false, 1) => pick_update::<false, 1>(full, stats, simd),
+        (false, 2) => pick_update::<false, 2>(full, stats, simd),
+        (false, _) => pick_update::<false, 3>(full, stats, simd),
+        (true, 0) => pick_update::<true, 0>(full, stats, simd),
+        (true, 1) => pick_update::<true, 1>(full, stats, simd),
+        (true, 2) => pick_update::<true, 2>(full, stats, simd),
+        (true, _) => pick_update::<true, 3>(full, stats, simd),
+    }
+}
+
 fn pick_update<const C: bool, const L: u8>(full: bool, stats: bool, simd: Simd) -> UpdateFn {
     let vector = match (full, stats) {
         (true, _) => node_simd::vector_update::<C, L, true, true>(simd),
@@ -1012,16 +1027,7 @@ impl Simulation {
         } else {
             0
         };
-        let update = match (self.contact.is_some(), damp) {
-            (false, 0) => pick_update::<false, 0>(full, stats, simd),
-            (false, 1) => pick_update::<false, 1>(full, stats, simd),
-            (false, 2) => pick_update::<false, 2>(full, stats, simd),
-            (false, _) => pick_update::<false, 3>(full, stats, simd),
-            (true, 0) => pick_update::<true, 0>(full, stats, simd),
-            (true, 1) => pick_update::<true, 1>(full, stats, simd),
-            (true, 2) => pick_update::<true, 2>(full, stats, simd),
-            (true, _) => pick_update::<true, 3>(full, stats, simd),
-        };
+        let update = pick_variant(self.contact.is_some(), damp, full, stats, simd);
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
         if self.partials.len() != n_chunks {
             self.partials.resize(n_chunks, [0.0; NSUM]);

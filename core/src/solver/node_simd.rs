@@ -277,7 +277,7 @@ mod x86 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{pick_update, NodeCtx, NSUM};
+    use super::super::{pick_variant, NodeCtx, NSUM};
     use crate::element::block::Simd;
 
     /// xorshift64*: a fixed, reproducible stream.
@@ -341,16 +341,7 @@ mod tests {
                     for (full, stats) in [(true, true), (false, true), (false, false)] {
                         let run = |simd: Simd| -> (Vec<[f64; 2]>, Vec<[f64; 2]>, [f64; NSUM]) {
                             let (mut u, mut v) = (u0[c0..].to_vec(), v0[c0..].to_vec());
-                            let f = match (contact, damp) {
-                                (false, 0) => pick_update::<false, 0>(full, stats, simd),
-                                (false, 1) => pick_update::<false, 1>(full, stats, simd),
-                                (false, 2) => pick_update::<false, 2>(full, stats, simd),
-                                (false, _) => pick_update::<false, 3>(full, stats, simd),
-                                (true, 0) => pick_update::<true, 0>(full, stats, simd),
-                                (true, 1) => pick_update::<true, 1>(full, stats, simd),
-                                (true, 2) => pick_update::<true, 2>(full, stats, simd),
-                                (true, _) => pick_update::<true, 3>(full, stats, simd),
-                            };
+                            let f = pick_variant(contact, damp, full, stats, simd);
                             let s = f(&ctx, c0, &mut u, &mut v);
                             (u, v, s)
                         };
