@@ -235,6 +235,24 @@ fn strain_lane<const N: usize, const BBAR: bool>(g: &[[[f64; LANES]; 2]; N], du:
     (e0, e1, e2)
 }
 
+/// `fe += c B_bar^T s` of lane `l` at one point: the nodal forces of the stress `(s0, s1, s2)`
+/// with the gradients `g` (and the B-bar correction with the mean gradients `gb` when `BBAR`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn force_lane<const N: usize, const BBAR: bool>(fe: &mut [[[f64; LANES]; 2]; N], g: &[[[f64; LANES]; 2]; N], gb: &[[[f64; LANES]; 2]; N], s0: f64, s1: f64, s2: f64, c: f64, l: usize) {
+    let hp = 0.5 * (s0 + s1);
+    for a in 0..N {
+        let (g0, g1) = (g[a][0][l], g[a][1][l]);
+        let (mut fx, mut fy) = (g0 * s0 + g1 * s2, g0 * s2 + g1 * s1);
+        if BBAR {
+            fx += (gb[a][0][l] - g0) * hp;
+            fy += (gb[a][1][l] - g1) * hp;
+        }
+        fe[a][0][l] += c * fx;
+        fe[a][1][l] += c * fy;
+    }
+}
+
 /// The stress of Gauss point `k` of the pack's first `n` elements (stored element-major, `ng`
 /// points each) into lanes ([`store_lanes`]: back).
 #[inline(always)]
@@ -594,17 +612,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             for l in 0..LANES {
                 let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
                 w_acc[l] += c[l] * 0.5 * ((old[0][l] + s0) * de[0][l] + (old[1][l] + s1) * de[1][l] + (old[2][l] + s2) * de[2][l]);
-                let hp = 0.5 * (s0 + s1);
-                for a in 0..N {
-                    let (g0, g1) = (g[a][0][l], g[a][1][l]);
-                    let (mut fx, mut fy) = (g0 * s0 + g1 * s2, g0 * s2 + g1 * s1);
-                    if BBAR {
-                        fx += (gb[a][0][l] - g0) * hp;
-                        fy += (gb[a][1][l] - g1) * hp;
-                    }
-                    fe[a][0][l] += c[l] * fx;
-                    fe[a][1][l] += c[l] * fy;
-                }
+                force_lane::<N, BBAR>(&mut fe, g, gb, s0, s1, s2, c[l], l);
             }
         }
         scatter_lanes(conn, &fe, &w_acc, wk, f);
@@ -665,19 +673,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             let inside = self.law.initial_lanes(&e, &mut s);
             for l in 0..LANES {
                 ok[l] &= inside[l];
-                let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
-                let c = w[k][l];
-                let hp = 0.5 * (s0 + s1);
-                for a in 0..N {
-                    let (g0, g1) = (gk[a][0][l], gk[a][1][l]);
-                    let (mut fx, mut fy) = (g0 * s0 + g1 * s2, g0 * s2 + g1 * s1);
-                    if BBAR {
-                        fx += (gb[a][0][l] - g0) * hp;
-                        fy += (gb[a][1][l] - g1) * hp;
-                    }
-                    fe[a][0][l] += c * fx;
-                    fe[a][1][l] += c * fy;
-                }
+                force_lane::<N, BBAR>(&mut fe, gk, &gb, s[0][l], s[1][l], s[2][l], w[k][l], l);
             }
         }
         if !ok[..n].iter().all(|&b| b) {
@@ -830,18 +826,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             for l in 0..LANES {
                 let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
                 w_acc[l] += wm[k][l] * t * 0.5 * ((old[0][l] + s0) * de[0][l] + (old[1][l] + s1) * de[1][l] + (old[2][l] + s2) * de[2][l]);
-                let c = we[k][l] * t;
-                let hp = 0.5 * (s0 + s1);
-                for a in 0..N {
-                    let (g0, g1) = (h[a][0][l], h[a][1][l]);
-                    let (mut fx, mut fy) = (g0 * s0 + g1 * s2, g0 * s2 + g1 * s1);
-                    if BBAR {
-                        fx += (gbe[a][0][l] - g0) * hp;
-                        fy += (gbe[a][1][l] - g1) * hp;
-                    }
-                    fe[a][0][l] += c * fx;
-                    fe[a][1][l] += c * fy;
-                }
+                force_lane::<N, BBAR>(&mut fe, &h, &gbe, s0, s1, s2, we[k][l] * t, l);
             }
         }
         scatter_lanes(conn, &fe, &w_acc, wk, f);

@@ -280,14 +280,12 @@ mod tests {
     use super::super::{pick_variant, NodeCtx, NSUM};
     use crate::element::block::Simd;
 
-    /// xorshift64*: a fixed, reproducible stream.
+    /// A fixed, reproducible stream: the Weibull field's hash of a counter.
     struct Rng(u64);
     impl Rng {
         fn next(&mut self) -> u64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+            self.0 += 1;
+            crate::cracking::weibull::splitmix64(self.0)
         }
         /// A value in (-1, 1), or (one in eight) an exact zero.
         fn val(&mut self) -> f64 {
