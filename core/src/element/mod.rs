@@ -90,6 +90,31 @@ pub trait Shape<const N: usize>: Copy + Default + Send + Sync + 'static {
     const GAUSS: &'static [([f64; 2], f64)];
     fn n(xi: [f64; 2]) -> [f64; N];
     fn dn(xi: [f64; 2]) -> [[f64; 2]; N];
+
+    /// The never-yielded pass of a stateful block in the kind's own form (ours, issue 21,
+    /// session 11; `element::stateful`, docs/materials.md "Storage"). `TOTAL_ROWS` rows of
+    /// `LANES` f64 per pack of geometry, `TOTAL_EXTRA_ROWS` more for a pack whose `total_geometry`
+    /// asks for them (`q4`: a pack holding a non-parallelogram). 0 (the default): the kind has
+    /// no such form, and the block computes the generic isoparametric geometry (`t3`, `qm6`,
+    /// a plugin's kind).
+    const TOTAL_ROWS: usize = 0;
+    const TOTAL_EXTRA_ROWS: usize = 0;
+    /// Fills `geo` (`TOTAL_ROWS` rows) and `extra` (`TOTAL_EXTRA_ROWS` rows) from the corners of
+    /// the pack's `LANES` elements (`x[lane]`, every lane a valid element); true when the pack
+    /// needs `extra`.
+    fn total_geometry(_x: &[[[f64; 2]; N]; kernel::LANES], _geo: &mut [[f64; kernel::LANES]], _extra: &mut [[f64; kernel::LANES]]) -> bool {
+        false
+    }
+    /// `e[k] = [exx, eyy, gxy, 0]` of Gauss point `k` of every lane from the displacements
+    /// `u[a][dim][lane]` (with B-bar when `BBAR`: the in-plane volumetric part replaced by its
+    /// mean over the element weighted by `w det J`). Equal to the generic
+    /// `B(x) u` to round-off.
+    #[inline(always)]
+    fn total_strains<const BBAR: bool>(_geo: &[[f64; kernel::LANES]], _extra: Option<&[[f64; kernel::LANES]]>, _u: &[[[f64; kernel::LANES]; 2]; N], _e: &mut [[[f64; kernel::LANES]; 4]; 4]) {}
+    /// `f[a][dim][lane] = sum_k w_k det J_k t Bbar_a(k)^T s[k]` (B-bar when `BBAR`): the
+    /// corner forces of the point stresses `s[k] = [sxx, syy, sxy, szz]`.
+    #[inline(always)]
+    fn total_forces<const BBAR: bool>(_geo: &[[f64; kernel::LANES]], _extra: Option<&[[f64; kernel::LANES]]>, _s: &[[[f64; kernel::LANES]; 4]; 4], _t: f64, _f: &mut [[[f64; kernel::LANES]; 2]; N]) {}
 }
 
 /// The name of the default element kind of a cell type (the paper's elements: `q4` for

@@ -98,6 +98,15 @@ pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
     /// The never-yielded shortcut is on (set by `prepare`: the law's `elastic_start`,
     /// `opts.elastic_shortcut`, small strain, no incompatible modes).
     shortcut: bool,
+    /// The element kind's own form of the never-yielded pass (`Shape::TOTAL_ROWS`, session
+    /// 11): `S::TOTAL_ROWS` rows per pack (`tg`), and for a pack that asks for them
+    /// `S::TOTAL_EXTRA_ROWS` more at `tx[tx_at[p]..]` (`u32::MAX`: none). Built by `prepare`
+    /// when the shortcut is on and the kind has the form (`kind_total`; a test turns it off
+    /// with `generic_total` to compare).
+    tg: Vec<[f64; LANES]>,
+    tx: Vec<[f64; LANES]>,
+    tx_at: Vec<u32>,
+    kind_total: bool,
     enh: Vec<Enhanced<N>>,
     _s: std::marker::PhantomData<S>,
 }
@@ -383,6 +392,10 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             enh: Vec::new(),
             yielded: Vec::new(),
             shortcut: false,
+            tg: Vec::new(),
+            tx: Vec::new(),
+            tx_at: Vec::new(),
+            kind_total: S::TOTAL_ROWS > 0,
             _s: std::marker::PhantomData,
         }
     }
@@ -391,6 +404,14 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// kind's registered name, `f` builds each element's modes when the block is prepared. The
     /// modes are condensed with the elastic moduli (a fixed `alpha = H u` per element; why:
     /// docs/elements.md). Small strain only (the large-strain path has no modes).
+    /// The never-yielded pass on the generic isoparametric geometry even for a kind that has
+    /// its own form (`Shape::TOTAL_ROWS`): the reference the kind's form is tested against.
+    #[doc(hidden)]
+    pub fn generic_total(mut self) -> Self {
+        self.kind_total = false;
+        self
+    }
+
     pub fn with_enhanced(mut self, name: &'static str, f: EnhancedFn<N>) -> Self {
         self.enh_fn = Some((name, f));
         self
@@ -642,6 +663,48 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 ul[a][1][l] = v[1];
             }
         }
+        let mut fe = [[[0.0; LANES]; 2]; N];
+        let mut ok = [true; LANES];
+        if S::TOTAL_ROWS > 0 && self.kind_total {
+            // The kind's own form (`Shape::total_strains`, `total_forces`; `q4`: the parent
+            // coordinates, as its elastic kernel).
+            let r = S::TOTAL_ROWS;
+            let geo = &self.tg[p * r..(p + 1) * r];
+            let xa = self.tx_at[p];
+            let extra = (xa != u32::MAX).then(|| &self.tx[xa as usize..xa as usize + S::TOTAL_EXTRA_ROWS]);
+            let mut e = [[[0.0; LANES]; 4]; MAXG];
+            S::total_strains::<BBAR>(geo, extra, &ul, &mut e);
+            let mut s = [[[0.0; LANES]; 4]; MAXG];
+            for k in 0..ng {
+                let inside = self.law.initial_lanes(&e[k], &mut s[k]);
+                for l in 0..LANES {
+                    ok[l] &= inside[l];
+                }
+            }
+            S::total_forces::<BBAR>(geo, extra, &s, t, &mut fe);
+        } else {
+            self.total_generic::<BBAR>(p, n, &ul, &mut fe, &mut ok);
+        }
+        if !ok[..n].iter().all(|&b| b) {
+            return false;
+        }
+        for (l, c) in conn.iter().enumerate() {
+            for a in 0..N {
+                up[l][a] = [ul[a][0][l], ul[a][1][l]];
+                // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
+                unsafe { f.add(c[a] as usize, [fe[a][0][l], fe[a][1][l]]) };
+            }
+        }
+        true
+    }
+
+    /// The never-yielded pass of `update_pack_total` on the generic isoparametric geometry
+    /// (a kind without its own form): forces into `fe`, the elastic test into `ok`.
+    #[inline(always)]
+    fn total_generic<const BBAR: bool>(&self, p: usize, n: usize, ul: &[[[f64; LANES]; 2]; N], fe: &mut [[[f64; LANES]; 2]; N], ok: &mut [bool; LANES]) {
+        let ng = S::GAUSS.len();
+        let t = self.mat.thickness;
+        let i0 = p * LANES;
         let (mut g, mut w) = ([[[[0.0; LANES]; 2]; N]; MAXG], [[0.0; LANES]; MAXG]);
         // The geometry from the corners (cheaper than reading the stored gradients: this path
         // is bound by arithmetic, and 64 bytes per element are read instead of 352).
@@ -660,33 +723,20 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 *v *= t;
             }
         }
-        let ev = if BBAR { volumetric_lanes(&gb, &ul) } else { [0.0; LANES] };
-        let mut fe = [[[0.0; LANES]; 2]; N];
-        let mut ok = [true; LANES];
+        let ev = if BBAR { volumetric_lanes(&gb, ul) } else { [0.0; LANES] };
         for k in 0..ng {
             let gk = &g[k];
             let mut e = [[0.0; LANES]; 4];
             for l in 0..LANES {
-                (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(gk, &ul, ev[l], l);
+                (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(gk, ul, ev[l], l);
             }
             let mut s = [[0.0; LANES]; 4];
             let inside = self.law.initial_lanes(&e, &mut s);
             for l in 0..LANES {
                 ok[l] &= inside[l];
-                force_lane::<N, BBAR>(&mut fe, gk, &gb, s[0][l], s[1][l], s[2][l], w[k][l], l);
+                force_lane::<N, BBAR>(fe, gk, &gb, s[0][l], s[1][l], s[2][l], w[k][l], l);
             }
         }
-        if !ok[..n].iter().all(|&b| b) {
-            return false;
-        }
-        for (l, c) in conn.iter().enumerate() {
-            for a in 0..N {
-                up[l][a] = [ul[a][0][l], ul[a][1][l]];
-                // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
-                unsafe { f.add(c[a] as usize, [fe[a][0][l], fe[a][1][l]]) };
-            }
-        }
-        true
     }
 
     /// The stored state of pack `p` when it leaves the shortcut: each point's stress of the
@@ -983,6 +1033,23 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         }
         self.sched = Schedule::build(&self.conn, n_clusters);
         self.shortcut = self.law.elastic_start() && self.opts.elastic_shortcut && !self.opts.large_strain && self.enh.is_empty();
+        (self.tg, self.tx, self.tx_at) = (Vec::new(), Vec::new(), Vec::new());
+        if self.shortcut && self.kind_total {
+            let (r, rx) = (S::TOTAL_ROWS, S::TOTAL_EXTRA_ROWS);
+            self.tg = vec![[0.0; LANES]; np * r];
+            let mut extra = vec![[0.0; LANES]; rx];
+            for p in 0..np {
+                let i0 = p * LANES;
+                // Lanes past the block's end repeat its first element (finite geometry, zero u).
+                let xl: [[[f64; 2]; N]; LANES] = std::array::from_fn(|l| self.x[if i0 + l < self.len() { i0 + l } else { 0 }]);
+                if S::total_geometry(&xl, &mut self.tg[p * r..(p + 1) * r], &mut extra) {
+                    self.tx_at.push(self.tx.len() as u32);
+                    self.tx.extend_from_slice(&extra);
+                } else {
+                    self.tx_at.push(u32::MAX);
+                }
+            }
+        }
     }
     fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
@@ -994,6 +1061,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
             + (self.gp.capacity() + self.gbar.capacity()) * size_of::<[[[f64; LANES]; 2]; N]>()
             + self.gw.capacity() * size_of::<[f64; LANES]>()
             + self.enh.capacity() * size_of::<Enhanced<N>>()
+            + (self.tg.capacity() + self.tx.capacity()) * size_of::<[f64; LANES]>()
+            + self.tx_at.capacity() * 4
             + self.yielded.capacity()
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {

@@ -54,6 +54,185 @@ impl Shape<4> for Q4 {
         let c = Self::CORNERS;
         std::array::from_fn(|a| [0.25 * c[a][0] * (1.0 + c[a][1] * xi[1]), 0.25 * c[a][1] * (1.0 + c[a][0] * xi[0])])
     }
+    /// `ax, bx, ay, by, 1 / det J` (the parallelogram form, 40 bytes per element); see
+    /// [`total_geometry`].
+    const TOTAL_ROWS: usize = 5;
+    /// `hx, hy`, `1 / det J` and `det J / sum det J` at the 4 Gauss points.
+    const TOTAL_EXTRA_ROWS: usize = 10;
+    fn total_geometry(x: &[[[f64; 2]; 4]; LANES], geo: &mut [[f64; LANES]], extra: &mut [[f64; LANES]]) -> bool {
+        total_geometry(x, geo, extra)
+    }
+    #[inline(always)]
+    fn total_strains<const BBAR: bool>(geo: &[[f64; LANES]], extra: Option<&[[f64; LANES]]>, u: &[[[f64; LANES]; 2]; 4], e: &mut [[[f64; LANES]; 4]; 4]) {
+        let g: &[[f64; LANES]; 5] = geo.try_into().expect("q4: 5 rows per pack");
+        match extra {
+            None => total_strains_lean::<BBAR>(g, u, e),
+            Some(x) => total_strains_full::<BBAR>(g, x.try_into().expect("q4: 10 extra rows"), u, e),
+        }
+    }
+    #[inline(always)]
+    fn total_forces<const BBAR: bool>(geo: &[[f64; LANES]], extra: Option<&[[f64; LANES]]>, s: &[[[f64; LANES]; 4]; 4], t: f64, f: &mut [[[f64; LANES]; 2]; 4]) {
+        let g: &[[f64; LANES]; 5] = geo.try_into().expect("q4: 5 rows per pack");
+        match extra {
+            None => total_forces_lean::<BBAR>(g, s, t, f),
+            Some(x) => total_forces_full::<BBAR>(g, x.try_into().expect("q4: 10 extra rows"), s, t, f),
+        }
+    }
+}
+
+/// The geometry of the never-yielded pass of a stateful block (`Shape::total_geometry`, ours,
+/// session 11): rows `ax, bx, ay, by, 1 / det J` (`det J` of the centre, the one of a
+/// parallelogram), and for a pack holding a non-parallelogram (some `h` not zero) the extra
+/// rows `hx, hy`, `1 / det J_k` and the B-bar weights `det J_k / sum_j det J_j` of the 4 Gauss
+/// points. The strain of point `(xi, eta)` is then `(adj J grad_xi u) / det J` with
+/// `J = [[ax + eta hx, ay + eta hy], [bx + xi hx, by + xi hy]]` and the force
+/// `f_a = t sum_k dN_a(k) . (adj J_k^T sigma_k)` (the Gauss weights are 1): the elastic
+/// kernel's parent form (`parent_stress`), with the law's stress in place of `D eps`.
+pub(crate) fn total_geometry(x: &[[[f64; 2]; 4]; LANES], geo: &mut [[f64; LANES]], extra: &mut [[f64; LANES]]) -> bool {
+    let mut full = false;
+    for (l, el) in x.iter().enumerate() {
+        let (ax, bx, hx) = abh(el[0][0], el[1][0], el[2][0], el[3][0]);
+        let (ay, by, hy) = abh(el[0][1], el[1][1], el[2][1], el[3][1]);
+        (geo[0][l], geo[1][l], geo[2][l], geo[3][l], geo[4][l]) = (ax, bx, ay, by, 1.0 / (ax * by - ay * bx));
+        (extra[0][l], extra[1][l]) = (hx, hy);
+        let det: [f64; 4] = std::array::from_fn(|g| {
+            let [xi, eta] = Q4_GP[g];
+            (ax + eta * hx) * (by + xi * hy) - (ay + eta * hy) * (bx + xi * hx)
+        });
+        let sum = (det[0] + det[1]) + (det[2] + det[3]);
+        for g in 0..4 {
+            extra[2 + g][l] = 1.0 / det[g];
+            extra[6 + g][l] = det[g] / sum;
+        }
+        full |= hx != 0.0 || hy != 0.0;
+    }
+    full
+}
+
+/// The strain `[exx, eyy, gxy]` of a point from the Jacobian `j = [j11, j12, j21, j22]`, its
+/// `1 / det J` and the parent derivatives of u (as `parent_stress`).
+#[inline(always)]
+fn parent_strain(j: [f64; 4], inv: f64, du: [f64; 4]) -> [f64; 3] {
+    let [j11, j12, j21, j22] = j;
+    let [uxs, uxe, uys, uye] = du;
+    [inv * (j22 * uxs - j12 * uxe), inv * (j11 * uye - j21 * uys), inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs))]
+}
+
+/// `adj J^T sigma`: the stress pulled back to the parent axes, `(P_x,s, P_x,e, P_y,s, P_y,e)`.
+#[inline(always)]
+fn pull_back(j: [f64; 4], sxx: f64, syy: f64, sxy: f64) -> (f64, f64, f64, f64) {
+    let [j11, j12, j21, j22] = j;
+    (j22 * sxx - j21 * sxy, j11 * sxy - j12 * sxx, j22 * sxy - j21 * syy, j11 * syy - j12 * sxy)
+}
+
+/// The parent derivatives `a, b, h` of the pack's displacements, lane `l`.
+#[inline(always)]
+fn u_abh(u: &[[[f64; LANES]; 2]; 4], l: usize) -> [(f64, f64, f64); 2] {
+    [abh(u[0][0][l], u[1][0][l], u[2][0][l], u[3][0][l]), abh(u[0][1][l], u[1][1][l], u[2][1][l], u[3][1][l])]
+}
+
+/// [`Q4::total_strains`] of a pack of parallelograms (one Jacobian per element; the B-bar
+/// mean is the mean of the 4 points, whose `det J` are equal).
+#[inline(always)]
+fn total_strains_lean<const BBAR: bool>(g: &[[f64; LANES]; 5], u: &[[[f64; LANES]; 2]; 4], e: &mut [[[f64; LANES]; 4]; 4]) {
+    for l in 0..LANES {
+        let [(aux, bux, hux), (auy, buy, huy)] = u_abh(u, l);
+        let j = [g[0][l], g[2][l], g[1][l], g[3][l]];
+        let inv = g[4][l];
+        let mut ev = 0.0;
+        for (k, &[xi, eta]) in Q4_GP.iter().enumerate() {
+            let p = parent_strain(j, inv, [aux + eta * hux, bux + xi * hux, auy + eta * huy, buy + xi * huy]);
+            (e[k][0][l], e[k][1][l], e[k][2][l]) = (p[0], p[1], p[2]);
+            ev += p[0] + p[1];
+        }
+        if BBAR {
+            ev *= 0.25;
+            for ek in e.iter_mut() {
+                let c = 0.5 * (ev - (ek[0][l] + ek[1][l]));
+                ek[0][l] += c;
+                ek[1][l] += c;
+            }
+        }
+    }
+}
+
+/// [`Q4::total_strains`] of a pack holding a non-parallelogram (a Jacobian per point; the
+/// B-bar mean weighted by `det J`).
+#[inline(always)]
+fn total_strains_full<const BBAR: bool>(g: &[[f64; LANES]; 5], x: &[[f64; LANES]; 10], u: &[[[f64; LANES]; 2]; 4], e: &mut [[[f64; LANES]; 4]; 4]) {
+    for l in 0..LANES {
+        let [(aux, bux, hux), (auy, buy, huy)] = u_abh(u, l);
+        let (ax, bx, ay, by, hx, hy) = (g[0][l], g[1][l], g[2][l], g[3][l], x[0][l], x[1][l]);
+        let mut ev = 0.0;
+        for (k, &[xi, eta]) in Q4_GP.iter().enumerate() {
+            let j = [ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy];
+            let p = parent_strain(j, x[2 + k][l], [aux + eta * hux, bux + xi * hux, auy + eta * huy, buy + xi * huy]);
+            (e[k][0][l], e[k][1][l], e[k][2][l]) = (p[0], p[1], p[2]);
+            ev += x[6 + k][l] * (p[0] + p[1]);
+        }
+        if BBAR {
+            for ek in e.iter_mut() {
+                let c = 0.5 * (ev - (ek[0][l] + ek[1][l]));
+                ek[0][l] += c;
+                ek[1][l] += c;
+            }
+        }
+    }
+}
+
+/// [`Q4::total_forces`] of a pack of parallelograms. B-bar: `Bbar^T sigma = B^T (sigma - p I
+/// + p_bar I)` with `p = (sxx + syy) / 2` of the point and `p_bar` its mean over the element
+/// weighted by `det J` (`sum_k c_k Bbar_k^T s_k` with the mean gradient `sum_k c_k B_k / sum c`).
+#[inline(always)]
+fn total_forces_lean<const BBAR: bool>(g: &[[f64; LANES]; 5], s: &[[[f64; LANES]; 4]; 4], t: f64, f: &mut [[[f64; LANES]; 2]; 4]) {
+    for l in 0..LANES {
+        let j = [g[0][l], g[2][l], g[1][l], g[3][l]];
+        let mut pbar = 0.0;
+        if BBAR {
+            for sk in s.iter() {
+                pbar += sk[0][l] + sk[1][l];
+            }
+            pbar *= 0.125;
+        }
+        let mut acc = [[0.0; 4]; 2];
+        for (k, &[xi, eta]) in Q4_GP.iter().enumerate() {
+            let (mut sxx, mut syy, sxy) = (s[k][0][l], s[k][1][l], s[k][2][l]);
+            if BBAR {
+                let c = pbar - 0.5 * (sxx + syy);
+                sxx += c;
+                syy += c;
+            }
+            add_point(&mut acc, xi, eta, pull_back(j, t * sxx, t * syy, t * sxy));
+        }
+        assemble(acc, l, f);
+    }
+}
+
+/// [`Q4::total_forces`] of a pack holding a non-parallelogram.
+#[inline(always)]
+fn total_forces_full<const BBAR: bool>(g: &[[f64; LANES]; 5], x: &[[f64; LANES]; 10], s: &[[[f64; LANES]; 4]; 4], t: f64, f: &mut [[[f64; LANES]; 2]; 4]) {
+    for l in 0..LANES {
+        let (ax, bx, ay, by, hx, hy) = (g[0][l], g[1][l], g[2][l], g[3][l], x[0][l], x[1][l]);
+        let mut pbar = 0.0;
+        if BBAR {
+            for (k, sk) in s.iter().enumerate() {
+                pbar += x[6 + k][l] * (sk[0][l] + sk[1][l]);
+            }
+            pbar *= 0.5;
+        }
+        let mut acc = [[0.0; 4]; 2];
+        for (k, &[xi, eta]) in Q4_GP.iter().enumerate() {
+            let j = [ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy];
+            let (mut sxx, mut syy, sxy) = (s[k][0][l], s[k][1][l], s[k][2][l]);
+            if BBAR {
+                let c = pbar - 0.5 * (sxx + syy);
+                sxx += c;
+                syy += c;
+            }
+            add_point(&mut acc, xi, eta, pull_back(j, t * sxx, t * syy, t * sxy));
+        }
+        assemble(acc, l, f);
+    }
 }
 
 /// Geometry of `LANES` elements, all a pack needs when every element of it is a parallelogram
