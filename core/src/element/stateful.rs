@@ -279,6 +279,37 @@ fn store_lanes(s: &[[f64; LANES]; 4], st: &mut [[f64; 4]], ng: usize, k: usize, 
     }
 }
 
+/// `up = ul[..][..][l]`: the last displacements of a never-yielded element, written with
+/// non-temporal stores on x86-64 (`movnti`, SSE2: the line goes to memory without being read
+/// first, half the traffic of a plain store; nothing reads it before the pack leaves the
+/// shortcut or an output asks). The chunk ends its never-yielded pass with [`fence`].
+#[inline(always)]
+fn store_streaming<const N: usize>(up: &mut [[f64; 2]; N], ul: &[[[f64; LANES]; 2]; N], l: usize) {
+    #[cfg(target_arch = "x86_64")]
+    for a in 0..N {
+        for d in 0..2 {
+            // SAFETY: a valid, 8-byte aligned f64 slot (`movnti` needs natural alignment only);
+            // SSE2 is part of x86-64.
+            unsafe { std::arch::x86_64::_mm_stream_si64(&mut up[a][d] as *mut f64 as *mut i64, ul[a][d][l].to_bits() as i64) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    for a in 0..N {
+        up[a] = [ul[a][0][l], ul[a][1][l]];
+    }
+}
+
+/// Orders the non-temporal stores of [`store_streaming`] before anything after it (another
+/// thread reading `u_prev` after the pass: `sfence`).
+#[inline(always)]
+fn fence() {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of x86-64.
+    unsafe {
+        std::arch::x86_64::_mm_sfence()
+    };
+}
+
 /// Adds the pack's internal work to `wk` and scatters the forces of its elements (`conn`).
 #[inline(always)]
 fn scatter_lanes<const N: usize>(conn: &[[u32; N]], fe: &[[[f64; LANES]; 2]; N], w_acc: &[f64; LANES], wk: &mut [f64], f: SharedForces) {
@@ -690,10 +721,10 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         }
         for (l, c) in conn.iter().enumerate() {
             for a in 0..N {
-                up[l][a] = [ul[a][0][l], ul[a][1][l]];
                 // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
                 unsafe { f.add(c[a] as usize, [fe[a][0][l], fe[a][1][l]]) };
             }
+            store_streaming(&mut up[l], &ul, l);
         }
         true
     }
@@ -921,6 +952,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 unsafe {
                     if self.shortcut {
                         self.packs_total_avx512(e0, e1, u, f, st, hs, up, wk, yl);
+                        fence();
                     }
                     self.packs_avx2::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
                 }
@@ -932,11 +964,13 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 // as for the elastic kernel).
                 unsafe {
                     self.packs_avx2::<PASS_TOTAL>(e0, e1, u, f, st, hs, up, wk, yl);
+                    fence();
                     self.packs_avx2::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
                 }
                 return;
             }
             self.packs::<PASS_TOTAL>(e0, e1, u, f, st, hs, up, wk, yl);
+            fence();
             self.packs::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
             return;
         }

@@ -390,3 +390,103 @@ fn never_yielded_shortcut_matches_the_stored_path() {
         assert!(last > 0 && last < b.len(), "bbar {bbar}: {last} of {} elements plastic: the test needs both kinds", b.len());
     }
 }
+
+/// The never-yielded pass in `q4`'s own form (parent coordinates, `Shape::total_strains` and
+/// `total_forces`, session 11) against the same pass on the generic isoparametric geometry
+/// (`StatefulBlock::generic_total`: gradients, Jacobians and the B-bar mean gradient at the
+/// Gauss points, the form of session 10). Meshes of 8 x 3 Q4 (three packs) plus a part pack
+/// of 5: parallelograms (sheared grid: the lean form), every element distorted (the full form),
+/// and one row of packs distorted (both forms in one block); B-bar on and off; a non-uniform
+/// field raised in 30 steps past the first yield. Reference: the generic form, whose B-bar
+/// mean is `sum_k w_k det J_k B_k / sum_k w_k det J_k` from the gradients themselves.
+/// Tolerances: every nodal force within 1e-12 of the largest while no point has yielded, the
+/// plastic state of every element equal at every step (a pack leaves the shortcut at the same
+/// step: the elastic test sees the same strain to round-off; the cohesion is the median need
+/// of the last step, so about half the points cross the surface), the forces within 1e-9
+/// after (both then run the stored path, seeded from strains equal to round-off).
+#[test]
+fn q4_total_form_matches_the_generic_shortcut() {
+    use crate::elements::Q4;
+    use flem_core::element::block::Block;
+    use flem_core::element::law::StatefulOpts;
+    use flem_core::element::stateful::StatefulBlock;
+    use flem_core::ids::ElemId;
+    let (nx, ny) = (8usize, 3usize);
+    let meshes: [(&str, fn(f64, f64) -> [f64; 2]); 3] = [
+        ("parallelogram", |x, y| [x + 0.25 * y, 0.75 * y]),
+        ("distorted", |x, y| [x + 0.2 * (0.7 * y + 0.3 * x).sin(), y + 0.15 * (0.9 * x).cos()]),
+        ("mixed", |x, y| if y >= 1.0 && y <= 2.0 { [x + 0.2 * (0.7 * y + 0.3 * x).sin() * (y - 1.0), y + 0.15 * (0.9 * x).cos() * (y - 1.0)] } else { [x, y] }),
+    ];
+    for (name, xy) in meshes {
+        let mut nodes: Vec<[f64; 2]> = (0..=ny).flat_map(|j| (0..=nx).map(move |i| (i, j))).map(|(i, j)| xy(i as f64, j as f64)).collect();
+        let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+        let mut cells: Vec<[u32; 4]> = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                cells.push([id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        // A part pack of 5 more elements on top (a row of its own nodes).
+        let top = nodes.len() as u32;
+        for i in 0..=5 {
+            let p = xy(i as f64, (ny + 1) as f64);
+            nodes.push([p[0] + 0.05 * i as f64, p[1] + 0.1 * (i % 2) as f64]);
+        }
+        for i in 0..5 {
+            cells.push([id(i, ny), id(i + 1, ny), top + i as u32 + 1, top + i as u32]);
+        }
+        let nn = nodes.len();
+        let field = |a: f64| -> Vec<[f64; 2]> { nodes.iter().map(|p| [a * (0.02 * p[1] * p[1] - 0.01 * p[0]), a * (-0.015 * p[1] + 0.004 * p[0] * p[1])]).collect() };
+        let block = |c: f64, bbar: bool, generic: bool| -> Box<dyn Block> {
+            let l = MohrCoulombCfg { cohesion: c, friction_angle_deg: 30.0, dilation_angle_deg: 5.0, tension_cutoff: None, softening: None }.law(&mat());
+            let mut b = StatefulBlock::<Q4, MohrCoulomb, 4>::new("r".into(), mat(), l, StatefulOpts { bbar, large_strain: false, elastic_shortcut: true });
+            if generic {
+                b = b.generic_total();
+            }
+            for (e, c) in cells.iter().enumerate() {
+                b.push(ElemId::new(e), c.map(|k| nodes[k as usize]), *c);
+            }
+            b.prepare(nn);
+            Box::new(b)
+        };
+        for bbar in [true, false] {
+            // The median cohesion the points need at the last step (elastic stresses).
+            let mut probe = block(1e9, bbar, true);
+            let u1 = field(1.0);
+            probe.update_internal_forces(&u1, &mut vec![[0.0; 2]; nn], None);
+            let (sp, cp) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
+            let mut need: Vec<f64> = probe
+                .point_stress(&u1)
+                .unwrap()
+                .iter()
+                .map(|s| {
+                    let (m, r) = (0.5 * (s[0] + s[1]), (0.25 * (s[0] - s[1]).powi(2) + s[2] * s[2]).sqrt());
+                    let (s1, s3) = ((m + r).max(s[3]), (m - r).min(s[3]));
+                    ((s1 - s3) + (s1 + s3) * sp) / (2.0 * cp)
+                })
+                .collect();
+            need.sort_by(f64::total_cmp);
+            let c = need[need.len() / 2];
+            let (mut a, mut b) = (block(c, bbar, false), block(c, bbar, true));
+            let mut yielded_once = false;
+            for step in 1..=30 {
+                let u = field(step as f64 / 30.0);
+                let (mut fa, mut fb) = (vec![[0.0; 2]; nn], vec![[0.0; 2]; nn]);
+                a.update_internal_forces(&u, &mut fa, None);
+                b.update_internal_forces(&u, &mut fb, None);
+                let plastic = |blk: &Box<dyn Block>| (0..blk.len()).map(|i| blk.plastic(i).unwrap().1).collect::<Vec<_>>();
+                let (pa, pb) = (plastic(&a), plastic(&b));
+                assert_eq!(pa, pb, "{name} bbar {bbar} step {step}: plastic states");
+                yielded_once |= pb.iter().any(|&s| s > 0);
+                let tol = if yielded_once { 1e-9 } else { 1e-12 };
+                let fmax = fb.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+                assert!(fmax > 0.0);
+                for (x, y) in fa.iter().flatten().zip(fb.iter().flatten()) {
+                    assert!((x - y).abs() <= tol * fmax, "{name} bbar {bbar} step {step}: force {x} against {y}");
+                }
+            }
+            let last = (0..b.len()).filter(|&i| b.plastic(i).unwrap().1 > 0).count();
+            assert!(last > 0 && last < b.len(), "{name} bbar {bbar}: {last} of {} plastic: the test needs both", b.len());
+        }
+    }
+}
