@@ -33,8 +33,11 @@
 //! Never-yielded shortcut (ours, `StatefulOpts::elastic_shortcut`, default on; small strain,
 //! no modes, a law with `MaterialLaw::elastic_start`): a pack of `LANES` elements none of
 //! whose points ever failed the law's initial elastic test gives its points the stress of the
-//! total strain (`MaterialLaw::initial_lanes`; geometry from the corners) and reads nothing
-//! stored (`update_pack_total`; it writes the last displacements). When a point first fails,
+//! total strain (`MaterialLaw::initial_lanes`) and reads nothing stored (`update_pack_total`;
+//! it writes the last displacements, non-temporal stores). Its geometry is the element kind's
+//! own form when the kind has one (`Shape::TOTAL_ROWS`, `total_strains`, `total_forces`; `q4`:
+//! its parent coordinates, session 11), else the generic isoparametric one from the corners
+//! (`total_generic`). When a point first fails,
 //! the pack is seeded from the last step (`seed_pack`: stress of the total strain there, the
 //! elastic energy as work), flagged `yielded` for good, and takes the stored path. A chunk
 //! runs its never-yielded packs first, then the stored ones (one order of the force sums,
@@ -671,10 +674,10 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     }
 
     /// The never-yielded shortcut of pack `p` (small strain, no modes): the strain of every
-    /// point from the total displacements, on geometry computed from the corners
-    /// (`geometry_lanes`: 64 bytes per element read instead of the stored gradients), the
-    /// law's stress from the initial state and its elastic test (`MaterialLaw::initial_lanes`),
-    /// the forces. Nothing stored is read; only the last displacements are written. When
+    /// point from the total displacements, on the kind's own geometry (`Shape::total_strains`,
+    /// `tg`/`tx`) or the generic one from the corners (`total_generic`), the law's stress from
+    /// the initial state and its elastic test (`MaterialLaw::initial_lanes`), the forces.
+    /// Nothing stored is read; only the last displacements are written (`store_streaming`). When
     /// every point of the pack's `n` elements is elastic it scatters the forces, sets `up`
     /// and returns true; otherwise it changes nothing and returns false (the caller then
     /// seeds the pack's stored state from the last displacements, `seed_pack`, marks it

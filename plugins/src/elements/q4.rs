@@ -20,6 +20,12 @@
 //! `element::internal_force` rearranged (equal to round-off, tested to 1e-12 relative). The
 //! thickness and the Gauss weight are folded into the D matrix.
 //!
+//! **Never-yielded pass of a stateful block** (ours, session 11; `Shape::total_strains`,
+//! `total_forces`, see [`total_geometry`]): the same parent form with the law's stress in
+//! place of `D eps`, B-bar as `B^T (sigma - p I + p_bar I)` (`p_bar` the `det J`-weighted mean
+//! of the points' in-plane mean stress); 40 bytes per element for a pack of parallelograms,
+//! 120 for others; equal to the generic isoparametric pass to round-off (tested 1e-12).
+//!
 //! ```toml
 //! [[material]]
 //! young_modulus = 1000.0
