@@ -53,6 +53,14 @@ pub trait Block: Send + Sync {
     /// Stress of every copy at its corner (0.9999-scaled natural coordinates), written at the
     /// copy's index `elem_first_copy[elem] + corner`.
     fn corner_stress(&self, u: &[[f64; 2]], elem_first_copy: &[u32], out: &mut [[f64; 3]]);
+    /// `max_row sum_j |(A_k)_rj|` of every copy `k` of the block's elements, written at
+    /// `elem_first_copy[elem] + corner`, where `A_k` (3 x 2N) maps the element's corner
+    /// displacements to `corner_stress` at that corner (the certified skip's Lipschitz constant,
+    /// `cracking::skip`). False when the block cannot say (the caller then probes
+    /// `corner_stress` with unit displacements); the default.
+    fn corner_lipschitz(&self, _elem_first_copy: &[u32], _out: &mut [f64]) -> bool {
+        false
+    }
     /// Stress at every Gauss point of every element (in `Shape::GAUSS` order), written at
     /// `first_gp[elem] + g`: the nonlocal failure check's input (`cracking::nonlocal`).
     fn gauss_stress(&self, u: &[[f64; 2]], first_gp: &[u32], out: &mut [[f64; 3]]);
@@ -454,6 +462,31 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
                 out[base + a] = self.d.stress(element::strain(&g[a], &ue));
             }
         }
+    }
+    /// The operator of `corner_stress` is `D B(g_a)` with `g_a` the corner gradients: a unit
+    /// `u_x` of corner `b` gives `[d11 g_bx, d12 g_bx, d33 g_by]`, a unit `u_y` gives
+    /// `[d12 g_by, d11 g_by, d33 g_bx]` (exactly the products the probing would see), so the
+    /// row sums come from the gradients in one pass. Elements with internal fields
+    /// (`RECOVERY_LEN > 0`) have another operator: they are probed.
+    fn corner_lipschitz(&self, first: &[u32], out: &mut [f64]) -> bool {
+        if S::RECOVERY_LEN > 0 {
+            return false;
+        }
+        let cg = self.corner_g.get_or_init(|| self.x.iter().map(|x| std::array::from_fn(|a| element::gradients::<S, N>(x, element::corner_xi::<S, N>(a)).0)).collect());
+        let d = &self.d;
+        for (i, g) in cg.iter().enumerate() {
+            let base = first[self.elems[i].idx()] as usize;
+            for a in 0..N {
+                let mut r = [0.0f64; 3];
+                for gb in &g[a] {
+                    r[0] += (d.d11 * gb[0]).abs() + (d.d12 * gb[1]).abs();
+                    r[1] += (d.d12 * gb[0]).abs() + (d.d11 * gb[1]).abs();
+                    r[2] += (d.d33 * gb[1]).abs() + (d.d33 * gb[0]).abs();
+                }
+                out[base + a] = r[0].max(r[1]).max(r[2]);
+            }
+        }
+        true
     }
     fn gauss_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
         // The gradients of `element::stress_at` at the Gauss points (bit for bit), computed once

@@ -344,6 +344,14 @@ impl Model {
         }
     }
 
+    /// `max_row sum_j |(A_k)_rj|` of the corner-stress operator of every copy (`Block::corner_lipschitz`),
+    /// when every block can give it; false otherwise (`out` then undefined).
+    pub fn corner_lipschitz(&self, out: &mut Vec<f64>) -> bool {
+        out.clear();
+        out.resize(self.topo.copy_point.len(), 0.0);
+        self.blocks.iter().all(|b| b.corner_lipschitz(&self.topo.elem_first_copy, out))
+    }
+
     /// Nodal stress of every cluster: the average over its copies (paper 2.1).
     pub fn nodal_stress(&self, u: &[[f64; 2]], corner: &mut Vec<[f64; 3]>, out: &mut Vec<[f64; 3]>) {
         self.nodal_stress_with(u, corner, out, &mut Vec::new());
