@@ -140,32 +140,59 @@ pub trait Block: Send + Sync {
 /// The chunk loop of an element block (`ElementBlock::chunk_fn`).
 pub type ChunkFn<B> = fn(&B, usize, &[[f64; 2]], SharedForces);
 
-// A pack's first-writer bits of one corner are one byte, bit `l` for lane `l`.
-const _: () = assert!(LANES <= 8);
-
 /// The first writers of the zero-free force pass (issue 24, session 11).
 ///
 /// The schedule fixes, from the mesh only, the order in which each cluster receives its
 /// contributions: chunks in the schedule's sequence (`lead` then `rest`), inside a chunk the
-/// elements in local order, inside an element the corners in order (`kernel`). So the first
-/// contribution of each cluster is known before any pass: that corner *stores* `0.0 + f`
-/// (`SharedForces::put`), every later one adds, and the force array needs no zeroing sweep
-/// before the pass (at 1e6 Q4 elements the sweep wrote 16 MB per pass, about 0.9 ns of the
-/// 8-12 ns an element-update takes; docs/perf/README.md). The clusters no corner names (a
-/// point of no element of the block; usually none) are zeroed from a list.
+/// packs and their elements in local order (`kernel`). So the pack holding the first
+/// contribution of each cluster is known before any pass. That pack zeroes the cluster's
+/// entry just before it computes (the cache line is then fetched while the pack computes, and
+/// the scatter's add finds it in cache), every contribution adds as before: exactly zeroing
+/// then adding, bit for bit, with no sweep over the whole array before the pass (at 1e6 Q4
+/// elements the sweep wrote 16 MB per pass, about 0.9 ns of the 8-12 ns an element-update
+/// takes; docs/perf/README.md). The clusters no corner names (a point of no element of the
+/// block; usually none) are zeroed from a list before the pass. (A first design let the first
+/// writer store through a per-lane bit mask: branch-free, but about 20 more instructions per
+/// element, and the one-thread kernel lost 7 %; docs/perf/README.md, session 11.)
 #[derive(Clone, Debug, Default)]
-struct FirstWriters<const N: usize> {
+struct FirstWriters {
     /// Planned (`enable_zero_free`).
     on: bool,
     /// A corner was re-pointed (`remap`) and the first writers not yet re-derived
     /// (`refresh_zero_free`): the pass falls back to zeroing then adding.
     stale: bool,
-    /// Per pack and corner, bit `l` set when lane `l`'s corner is its cluster's first writer.
-    mask: Vec<[u8; N]>,
-    /// The clusters (below `n_clusters`) no corner of the block names.
+    /// Per cluster, the pack of its first writer; `u32::MAX` when no corner names it.
+    pack_of: Vec<u32>,
+    /// The clusters pack `p` writes first: `ids[start[p]..start[p + 1]]`.
+    start: Vec<u32>,
+    ids: Vec<u32>,
+    /// The clusters no corner of the block names.
     untouched: Vec<u32>,
-    /// Clusters planned for (the length of the force array).
-    n_clusters: usize,
+}
+
+impl FirstWriters {
+    /// The per-pack lists and the untouched list from `pack_of` (a counting sort).
+    fn from_pack_of(pack_of: Vec<u32>, n_packs: usize) -> Self {
+        let mut start = vec![0u32; n_packs + 1];
+        for &p in pack_of.iter().filter(|&&p| p != u32::MAX) {
+            start[p as usize + 1] += 1;
+        }
+        for p in 0..n_packs {
+            start[p + 1] += start[p];
+        }
+        let mut fill = start.clone();
+        let mut ids = vec![0u32; start[n_packs] as usize];
+        let mut untouched = Vec::new();
+        for (c, &p) in pack_of.iter().enumerate() {
+            if p == u32::MAX {
+                untouched.push(c as u32);
+            } else {
+                ids[fill[p as usize] as usize] = c as u32;
+                fill[p as usize] += 1;
+            }
+        }
+        FirstWriters { on: true, stale: false, pack_of, start, ids, untouched }
+    }
 }
 
 /// The instruction sets the chunk loop is compiled for (`ElementBlock::chunk_fn`), narrowest
@@ -230,7 +257,7 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     sched: Schedule,
     /// The zero-free pass's first writers (`set_internal_forces_pool`; empty until
     /// `enable_zero_free`).
-    fw: FirstWriters<N>,
+    fw: FirstWriters,
     /// Shape-function gradients at each corner's stress point, built at the first failure
     /// check (a scene that never checks does not pay its 8 N^2 doubles per element).
     corner_g: std::sync::OnceLock<Vec<[[[f64; 2]; N]; N]>>,
@@ -270,15 +297,22 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     }
 
     /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.
-    /// `STORE`: the zero-free pass (a cluster's first writer stores, `FirstWriters`); else
-    /// every corner adds.
+    /// `ZERO`: the zero-free pass (each pack first zeroes the clusters it writes first,
+    /// `FirstWriters`).
     #[inline(always)]
-    fn run_chunk_body<const STORE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+    fn run_chunk_body<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
         let cp = self.sched.chunk_packs;
         let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
         let mut ug = [[[0.0; LANES]; 2]; N];
         let mut fg = [[[0.0; LANES]; 2]; N];
         for p in p0..p1 {
+            if ZERO {
+                let fw = &self.fw;
+                for &c in &fw.ids[fw.start[p] as usize..fw.start[p + 1] as usize] {
+                    // SAFETY: as the adds below (this pack's chunk is the first to write `c`).
+                    unsafe { f.zero(c as usize) };
+                }
+            }
             let e0 = p * LANES;
             let conn = &self.conn[e0..(e0 + LANES).min(self.conn.len())];
             for (l, c) in conn.iter().enumerate() {
@@ -292,39 +326,31 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
                 u32::MAX => S::forces(&self.packs[p], &self.dk, &ug, &mut fg),
                 i => S::forces_extra(&self.packs[p], &self.extra[i as usize], &self.dk, &ug, &mut fg),
             }
-            let first = if STORE { self.fw.mask[p] } else { [0; N] };
             for (l, c) in conn.iter().enumerate() {
                 for a in 0..N {
-                    let v = [fg[a][0][l], fg[a][1][l]];
                     // SAFETY: chunks running at the same time write disjoint clusters: under the
                     // dataflow (Schedule::run_dataflow) a chunk starts only when every earlier
                     // chunk sharing a cluster with it is done, and the later ones wait for it.
-                    unsafe {
-                        if STORE {
-                            f.put(c[a] as usize, v, (first[a] >> l) & 1 != 0)
-                        } else {
-                            f.add(c[a] as usize, v)
-                        }
-                    };
+                    unsafe { f.add(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
                 }
             }
         }
     }
     /// [`Self::run_chunk_body`] compiled for the baseline instruction set.
-    fn run_chunk_plain<const STORE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<STORE>(k, u, f)
+    fn run_chunk_plain<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX2 (4 lanes per vector instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn run_chunk_avx2<const STORE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<STORE>(k, u, f)
+    fn run_chunk_avx2<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX-512 (8 lanes: one pack per instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-    fn run_chunk_avx512<const STORE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<STORE>(k, u, f)
+    fn run_chunk_avx512<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO>(k, u, f)
     }
     /// The chunk loop for `simd` (`None` when this CPU lacks it). The three are the same
     /// code compiled for wider registers: each lane does the same IEEE operations in the same
@@ -333,26 +359,26 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     pub fn chunk_fn(simd: Simd) -> Option<ChunkFn<Self>> {
         Self::chunk_fn_of::<false>(simd)
     }
-    /// [`Self::chunk_fn`], the adding (`STORE = false`) or the zero-free loop.
-    fn chunk_fn_of<const STORE: bool>(simd: Simd) -> Option<ChunkFn<Self>> {
+    /// [`Self::chunk_fn`], the adding (`ZERO = false`) or the zero-free loop.
+    fn chunk_fn_of<const ZERO: bool>(simd: Simd) -> Option<ChunkFn<Self>> {
         match simd {
-            Simd::Plain => Some(Self::run_chunk_plain::<STORE>),
+            Simd::Plain => Some(Self::run_chunk_plain::<ZERO>),
             #[cfg(target_arch = "x86_64")]
             Simd::Avx2 if simd.detected() => {
                 // SAFETY: the CPU has AVX2 (`detected`, on the line above).
-                Some(|b, k, u, f| unsafe { b.run_chunk_avx2::<STORE>(k, u, f) })
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx2::<ZERO>(k, u, f) })
             }
             #[cfg(target_arch = "x86_64")]
             Simd::Avx512 if simd.detected() => {
                 // SAFETY: the CPU has AVX-512 F, VL and DQ (`detected`, on the line above).
-                Some(|b, k, u, f| unsafe { b.run_chunk_avx512::<STORE>(k, u, f) })
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx512::<ZERO>(k, u, f) })
             }
             _ => None,
         }
     }
     /// The chunk loop of [`Simd::best`].
-    fn best_chunk_fn<const STORE: bool>() -> ChunkFn<Self> {
-        Self::chunk_fn_of::<STORE>(Simd::best()).unwrap_or(Self::run_chunk_plain::<STORE>)
+    fn best_chunk_fn<const ZERO: bool>() -> ChunkFn<Self> {
+        Self::chunk_fn_of::<ZERO>(Simd::best()).unwrap_or(Self::run_chunk_plain::<ZERO>)
     }
     /// `f[c] += F_int` of every element, one thread, with the chunk loop of `simd`; false
     /// (nothing added) when this CPU lacks it.
@@ -377,7 +403,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     /// Whether the zero-free pass is planned and fresh for a force array of `len` clusters.
     fn zero_free_fits(&self, len: usize) -> bool {
         let fw = &self.fw;
-        fw.on && !fw.stale && len == fw.n_clusters && fw.mask.len() == self.packs.len()
+        fw.on && !fw.stale && len == fw.pack_of.len() && fw.start.len() == self.packs.len() + 1
     }
     /// Zeroes the clusters no corner names (the zero-free pass writes every other one).
     fn zero_untouched(&self, f: &mut [[f64; 2]]) {
@@ -412,30 +438,26 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         }
     }
     /// The first writers from scratch (`FirstWriters`): the chunks in sequence order, their
-    /// elements in order, the corners in order; the first to name a cluster writes it first.
+    /// elements in order; the first to name a cluster writes it first.
     fn build_first_writers(&mut self, n_clusters: usize) {
         let ce = self.sched.chunk_packs * LANES;
-        let mut seen = vec![false; n_clusters];
-        let mut mask = vec![[0u8; N]; self.packs.len()];
+        let mut pack_of = vec![u32::MAX; n_clusters];
         for &k in self.sched.lead.iter().chain(&self.sched.rest) {
             let k = k as usize;
             for i in k * ce..((k + 1) * ce).min(self.conn.len()) {
-                for a in 0..N {
-                    let c = self.conn[i][a] as usize;
-                    if c >= n_clusters {
+                for &c in &self.conn[i] {
+                    let Some(p) = pack_of.get_mut(c as usize) else {
                         // A corner outside the planned range: no zero-free pass.
                         self.fw = FirstWriters::default();
                         return;
-                    }
-                    if !seen[c] {
-                        seen[c] = true;
-                        mask[i / LANES][a] |= 1 << (i % LANES);
+                    };
+                    if *p == u32::MAX {
+                        *p = (i / LANES) as u32;
                     }
                 }
             }
         }
-        let untouched = (0..n_clusters).filter(|&c| !seen[c]).map(|c| c as u32).collect();
-        self.fw = FirstWriters { on: true, stale: false, mask, untouched, n_clusters };
+        self.fw = FirstWriters::from_pack_of(pack_of, self.packs.len());
     }
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
         self.elems.push(e);
@@ -536,28 +558,14 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             pos[k as usize] = s as u32;
         }
         let rank = |c: &&(u32, u8)| (pos[c.0 as usize / ce], c.0, c.1);
-        let fw = &mut self.fw;
-        for &(i, a) in corners {
-            fw.mask[i as usize / LANES][a as usize] &= !(1u8 << (i as usize % LANES));
-        }
+        let mut pack_of = std::mem::take(&mut self.fw.pack_of);
+        // New clusters that no corner here names stay untouched.
+        pack_of.resize(n_clusters, u32::MAX);
         for &c in clusters {
-            match corners.iter().filter(|&&(i, a)| self.conn[i as usize][a as usize] == c).min_by_key(rank) {
-                Some(&(i, a)) => {
-                    fw.mask[i as usize / LANES][a as usize] |= 1 << (i as usize % LANES);
-                    fw.untouched.retain(|&x| x != c);
-                }
-                None if !fw.untouched.contains(&c) => fw.untouched.push(c),
-                None => {}
-            }
+            let first = corners.iter().filter(|&&(i, a)| self.conn[i as usize][a as usize] == c).min_by_key(rank);
+            pack_of[c as usize] = first.map_or(u32::MAX, |&(i, _)| i / LANES as u32);
         }
-        // New clusters that no corner here names (none when `clusters` holds every new one).
-        for c in fw.n_clusters..n_clusters {
-            if !clusters.contains(&(c as u32)) && !fw.untouched.contains(&(c as u32)) {
-                fw.untouched.push(c as u32);
-            }
-        }
-        fw.n_clusters = n_clusters;
-        fw.stale = false;
+        self.fw = FirstWriters::from_pack_of(pack_of, self.packs.len());
     }
     fn prepare(&mut self, n_clusters: usize) {
         let (d, t) = (self.d, self.mat.thickness);
@@ -590,8 +598,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             + self.extra_of.capacity() * 4
             + (self.sched.order.capacity() + self.sched.lead.capacity() + self.sched.rest.capacity() + self.sched.region_start.capacity()) * 4
             + (self.sched.wait_start.capacity() + self.sched.wait_on.capacity()) * 4
-            + self.fw.mask.capacity() * N
-            + self.fw.untouched.capacity() * 4
+            + (self.fw.start.capacity() + self.fw.ids.capacity() + self.fw.untouched.capacity()) * 4
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         let t = self.mat.thickness;

@@ -33,12 +33,11 @@
 //! **Zero-free pass** (issue 24, session 11). Since the sequence fixes each cluster's order of
 //! contributions from the mesh alone, the first contribution of every cluster is known before
 //! any pass. A model of one stateless block (`Model::internal_forces`,
-//! `Model::update_internal_forces`) lets that first writer store `0.0 + f` instead of adding
-//! (`SharedForces::put`, branch-free; the first writers are one bit per lane and corner of
-//! each pack, built with the schedule by `ElementBlock`, re-derived at the split points after
-//! a split by `Model::apply_record`), so the force array is not zeroed before the pass: the
-//! same bits, the sign of zero included (tests/zero_free.rs), one sweep of 16 bytes per cluster
-//! less. Every other caller (several blocks, stateful or co-rotational blocks, the `add_*`
+//! `Model::update_internal_forces`) lets the pack of that first writer zero the cluster just
+//! before it computes (`SharedForces::zero`; per pack, the list of the clusters it writes
+//! first, built with the schedule by `ElementBlock`, re-derived at the split points after a
+//! split by `Model::apply_record`), so the force array is not zeroed before the pass: the same
+//! bits (tests/zero_free.rs), one sweep of 16 bytes per cluster less. Every other caller (several blocks, stateful or co-rotational blocks, the `add_*`
 //! methods) zeroes and adds.
 //!
 //! **Threads, node update, measurement.** A step gathers `u` for a pack, computes its 8
@@ -428,22 +427,16 @@ impl SharedForces {
         x[0] += v[0];
         x[1] += v[1];
     }
-    /// `f[c] = 0.0 + v` when `first`, else `f[c] += v` (the zero-free force pass: `first` marks
-    /// the cluster's first contribution in the schedule's sequence, `ElementBlock`'s first
-    /// writers). Without a branch: the old value's bits are masked to +0.0, then `v` is added,
-    /// so a first writer gives exactly what zeroing then adding gives, the sign of a zero
-    /// included (`0.0 + -0.0 = +0.0`), whatever `f[c]` held (even a NaN).
+    /// `f[c] = 0` (the zero-free force pass: the pack of the cluster's first writer zeroes
+    /// it, `ElementBlock`'s first writers).
     ///
     /// # Safety
     /// As [`Self::add`].
     #[inline(always)]
-    pub unsafe fn put(&self, c: usize, v: [f64; 2], first: bool) {
+    pub unsafe fn zero(&self, c: usize) {
         assert!(c < self.len);
         // SAFETY: in bounds (checked), exclusive by the caller's contract.
-        let x = unsafe { &mut *self.ptr.add(c) };
-        let keep = (first as u64).wrapping_sub(1);
-        x[0] = f64::from_bits(x[0].to_bits() & keep) + v[0];
-        x[1] = f64::from_bits(x[1].to_bits() & keep) + v[1];
+        unsafe { *self.ptr.add(c) = [0.0; 2] };
     }
 }
 
