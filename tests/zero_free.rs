@@ -1,6 +1,6 @@
-//! The zero-free force pass (issue 24, session 11): a one-block model's element pass stores
-//! each cluster's first contribution instead of adding it onto a zeroed array
-//! (`Block::set_internal_forces_pool`, `element::block`'s `FirstWriters`).
+//! The zero-free force pass (issue 24, session 11): a one-block model's element pass does not
+//! zero the force array first; the pack holding each cluster's first contribution zeroes it
+//! just before it adds (`Block::set_internal_forces_pool`, `element::block`'s `FirstWriters`).
 //!
 //! Reference: the additive pass of the same block into an array zeroed first, one thread (what
 //! `Model::internal_forces` did before). Tolerance: none (bit equality, the sign of every zero
@@ -45,7 +45,8 @@ fn zero_then_add(m: &Model, u: &[[f64; 2]]) -> Vec<[f64; 2]> {
 
 /// Checks the model's passes (`internal_forces`, `update_internal_forces`) against
 /// [`zero_then_add`] on 1 to 4 threads, from garbage-filled arrays; returns how many force
-/// components are a signed zero whose sign a bare store (no `0.0 +`) would get wrong.
+/// components are a signed zero whose sign a pass that stored the first contribution instead
+/// of adding it onto +0.0 would get wrong (the fields must exercise them).
 fn check_model(m: &mut Model, name: &str) -> usize {
     assert!(m.zero_free(), "{name}: a one-block elastic model takes the zero-free pass");
     let x = m.cluster_x0();
