@@ -7,7 +7,8 @@
 //!   element-updates per second and ns per element-update, Q4 and T3, at each size, for each
 //!   thread count, with the check that forces are bit-identical to one thread;
 //! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state),
-//!   and the bytes an update streams (`Block::kernel_bytes` + 64 per cluster), against the
+//!   and the bytes an update streams (`Block::kernel_bytes` + 48 per cluster, 64 when the
+//!   force array is zeroed before the pass: `zeroing_sweep`), against the
 //!   triad measured in the same run (issue 24);
 //! - the full `Simulation::step` against the bare kernel and against a bare central-difference
 //!   step (kernel + the textbook update loop written here), and a whole stage (`run_stage`,
@@ -137,10 +138,13 @@ fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, 
     // The bytes an element-update must move at the least: the block data the force pass
     // streams once (`Block::kernel_bytes`: packs and their extra parts, connectivity, schedule;
     // not the corner coordinates and ids, which it does not read), and per cluster u read
-    // (16 B), f_int zeroed, read and written (48 B; issue 24: before, every byte the block
-    // held was counted and the zeroing was not).
+    // (16 B), f_int read and written (32 B), and zeroed before (16 B) unless the model's pass
+    // writes every entry (`Model::zero_free`, issue 24 session 11; before it every byte the
+    // block held was counted and the zeroing was not).
     let block_bytes = m.blocks.iter().map(|b| b.kernel_bytes()).sum::<usize>() as f64 / ne as f64;
-    let min_bytes = block_bytes + 64.0 * nc as f64 / ne as f64;
+    let zero_free = m.zero_free();
+    let cluster_bytes = if zero_free { 48.0 } else { 64.0 };
+    let min_bytes = block_bytes + cluster_bytes * nc as f64 / ne as f64;
     for &t in &o.threads {
         m.set_threads(t)?;
         let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
@@ -155,7 +159,7 @@ fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, 
         let eff = min_bytes * ne as f64 / s / 1e9;
         let tri = triad.iter().find(|(n, _)| *n == m.threads()).map(|x| x.1);
         per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "cpu_ns_per_elem_update": cpu * 1e9 / ne as f64, "bit_identical_to_first": identical,
-            "bytes_per_elem_update_min": min_bytes, "effective_gb_per_s": eff, "triad_gb_per_s": tri, "fraction_of_triad": tri.map(|t| eff / t)}));
+            "bytes_per_elem_update_min": min_bytes, "zeroing_sweep": !zero_free, "bytes_per_cluster": cluster_bytes, "effective_gb_per_s": eff, "triad_gb_per_s": tri, "fraction_of_triad": tri.map(|t| eff / t)}));
     }
     let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
     // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
