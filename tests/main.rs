@@ -22,3 +22,4 @@ mod skip;
 mod slope;
 mod softening;
 mod verification;
+mod zero_free;

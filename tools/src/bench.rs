@@ -7,7 +7,8 @@
 //!   element-updates per second and ns per element-update, Q4 and T3, at each size, for each
 //!   thread count, with the check that forces are bit-identical to one thread;
 //! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state),
-//!   and the bytes an update streams (`Block::kernel_bytes` + 64 per cluster), against the
+//!   and the bytes an update streams (`Block::kernel_bytes` + 48 per cluster, 64 when the
+//!   force array is zeroed before the pass: `zeroing_sweep`), against the
 //!   triad measured in the same run (issue 24);
 //! - the full `Simulation::step` against the bare kernel and against a bare central-difference
 //!   step (kernel + the textbook update loop written here), and a whole stage (`run_stage`,
@@ -16,6 +17,9 @@
 //!   checks run and nothing splits) against the share `t_check / (k t_step)` they should cost;
 //!   `overhead` with the certified skip (the default, issue 24: every check after the first is
 //!   certified and skipped here), `every_point_overhead` evaluating every point at every check.
+//!   Each stage starts on a fresh model, so each pays the first check's one-time set-up
+//!   (corner gradients, the skip's Lipschitz constants), also timed alone (`first_check_ms`,
+//!   and its share of a checking stage, `first_check_in_stage_share`).
 use std::path::Path;
 use std::time::Instant;
 
@@ -134,10 +138,13 @@ fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, 
     // The bytes an element-update must move at the least: the block data the force pass
     // streams once (`Block::kernel_bytes`: packs and their extra parts, connectivity, schedule;
     // not the corner coordinates and ids, which it does not read), and per cluster u read
-    // (16 B), f_int zeroed, read and written (48 B; issue 24: before, every byte the block
-    // held was counted and the zeroing was not).
+    // (16 B), f_int read and written (32 B), and zeroed before (16 B) unless the model's pass
+    // writes every entry (`Model::zero_free`, issue 24 session 11; before it every byte the
+    // block held was counted and the zeroing was not).
     let block_bytes = m.blocks.iter().map(|b| b.kernel_bytes()).sum::<usize>() as f64 / ne as f64;
-    let min_bytes = block_bytes + 64.0 * nc as f64 / ne as f64;
+    let zero_free = m.zero_free();
+    let cluster_bytes = if zero_free { 48.0 } else { 64.0 };
+    let min_bytes = block_bytes + cluster_bytes * nc as f64 / ne as f64;
     for &t in &o.threads {
         m.set_threads(t)?;
         let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
@@ -152,7 +159,7 @@ fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, 
         let eff = min_bytes * ne as f64 / s / 1e9;
         let tri = triad.iter().find(|(n, _)| *n == m.threads()).map(|x| x.1);
         per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "cpu_ns_per_elem_update": cpu * 1e9 / ne as f64, "bit_identical_to_first": identical,
-            "bytes_per_elem_update_min": min_bytes, "effective_gb_per_s": eff, "triad_gb_per_s": tri, "fraction_of_triad": tri.map(|t| eff / t)}));
+            "bytes_per_elem_update_min": min_bytes, "zeroing_sweep": !zero_free, "bytes_per_cluster": cluster_bytes, "effective_gb_per_s": eff, "triad_gb_per_s": tri, "fraction_of_triad": tri.map(|t| eff / t)}));
     }
     let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
     // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
@@ -313,9 +320,26 @@ fn step_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> 
         }
         checks.push((k, base, skip, every));
     }
+    // The first check of a model pays a one-time set-up (the corner gradients of the nodal
+    // stress, the certified skip's Lipschitz constants): timed alone on a fresh simulation
+    // (one step, then the check); it is inside every stage above, which start fresh.
+    let first_check = {
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            let mut t = sim(&scene_text(nx, ny, kind, threads, n_steps, Some(1)))?;
+            t.step()?;
+            let (time, step) = (t.state.time, t.state.step);
+            let (cr, cfg) = (t.cracking.as_mut().expect("cracking scene"), t.scene.file.cracking.as_ref().expect("cracking config"));
+            let t0 = Instant::now();
+            cr.check(cfg, &mut t.model, &t.state.u, &t.x0, time, step)?;
+            best = best.min(t0.elapsed().as_secs_f64());
+        }
+        best
+    };
     // The share a check every k steps should cost, from the cost of one check (k = 1 run).
     let per_check = checks[0].2 .0 - checks[0].1 .0;
     let per_check_cpu = checks[0].2 .1 - checks[0].1 .1;
+    let checks_base = checks[0].1 .0;
     let checks: Vec<Value> = checks
         .iter()
         .map(|&(k, (b, bc), (t, c), (te, ce))| {
@@ -337,7 +361,7 @@ fn step_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> 
         "stage_over_bare_step": stage / bare,
         "interleaved": il_adaptive, "interleaved_undamped": il_none,
         "node_update": node_update,
-        "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks},
+        "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks, "first_check_ms": first_check * 1e3, "first_check_in_stage_share": first_check / (n_steps as f64 * checks_base)},
         "failure_check_nonlocal": nonlocal_case(nx, ny, kind, threads, o)?,
     }))
 }

@@ -10,9 +10,12 @@
 //!
 //! `|sigma_c(u) - sigma_c(u_ref)|_inf <= max_{k in c} L_k delta_e(k)`,
 //!
-//! `L_k = max_row sum_j |(A_k)_rj|` (the infinity operator norm, computed once per model by
-//! probing the blocks' own `corner_stress` with unit displacements on a distance-2 colouring of
-//! the clusters; it depends on the element geometry only, so splits do not change it) and
+//! `L_k = max_row sum_j |(A_k)_rj|` (the infinity operator norm, computed once per model: from
+//! the corner gradients when every block can (`Block::corner_lipschitz`: isoparametric kinds,
+//! one pass), else by probing the blocks' own `corner_stress` with unit displacements on a
+//! distance-2 colouring of the clusters (2 x colours passes: ~80 ms at 1e5 Q4, the one-time
+//! cost of the first check that session 10 saw in `flem bench step`); it depends on the element
+//! geometry only, so splits do not change it) and
 //! `delta_e = max_d (max_i du_id - min_i du_id) / 2` (the half range of the corner
 //! displacement changes, i.e. `du` less its best translation). The in-plane principal values
 //! move at most `(1 + sqrt 2)` times the component bound (`|d(sxx + syy)/2| <= eps`,
@@ -96,6 +99,22 @@ impl Skip {
         if self.lip.len() == nk {
             return;
         }
+        let mut direct = Vec::new();
+        if model.corner_lipschitz(&mut direct) {
+            // Every block gives its operator's row sums from its gradients in one pass (the
+            // probing below costs 2 x colours corner-stress passes: ~80 ms at 1e5 Q4).
+            self.lip = direct.into_iter().map(|l| l * (1.0 + Self::ROUND)).collect();
+            return;
+        }
+        self.lip = Self::probed_lip(model);
+    }
+
+    /// `L_k` of every copy by probing the blocks' `corner_stress` with unit displacements
+    /// (the general path; `Block::corner_lipschitz` is the shortcut; public for the tests that
+    /// hold one against the other).
+    pub fn probed_lip(model: &Model) -> Vec<f64> {
+        let topo = &model.topo;
+        let nk = topo.copy_cluster.len();
         let nc = topo.n_clusters();
         // Elements of each cluster (CSR), then a greedy distance-2 colouring: no two clusters
         // of one colour share an element, so a unit displacement on one colour class moves at
@@ -151,7 +170,7 @@ impl Skip {
                 }
             }
         }
-        self.lip = sums.iter().map(|s| s[0].max(s[1]).max(s[2]) * (1.0 + Self::ROUND)).collect();
+        sums.iter().map(|s| s[0].max(s[1]).max(s[2]) * (1.0 + Self::ROUND)).collect()
     }
 
     /// Takes `u` and the criterion's margins (`margin[c]`, stress units, after the round-off

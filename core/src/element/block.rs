@@ -37,6 +37,29 @@ pub trait Block: Send + Sync {
     fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>);
     /// Builds the blocked kernel data and the parallel schedule (after the last `push`).
     fn prepare(&mut self, n_clusters: usize);
+    /// `f = F_int` of every element, every entry of `f` written (no zeroing sweep before:
+    /// the zero-free force pass, issue 24 session 11), on `pool` when given; the same bits as
+    /// zeroing `f` then `add_internal_forces_pool`. False, `f` untouched, when the block cannot
+    /// (default; no [`Self::enable_zero_free`], or `f` is not as long as the clusters it
+    /// planned for). Only a stateless block may return true: the model's step calls this
+    /// instead of `update_internal_forces` (`Model::update_internal_forces`).
+    fn set_internal_forces_pool(&self, _u: &[[f64; 2]], _f: &mut [[f64; 2]], _pool: Option<&rayon::ThreadPool>) -> bool {
+        false
+    }
+    /// Plans the zero-free pass ([`Self::set_internal_forces_pool`]) over `n_clusters`
+    /// clusters (after `prepare`; `Model::new` asks the block of a one-block model); false
+    /// when the block has no zero-free pass (default).
+    fn enable_zero_free(&mut self, _n_clusters: usize) -> bool {
+        false
+    }
+    /// Whether [`Self::enable_zero_free`] planned the zero-free pass.
+    fn zero_free(&self) -> bool {
+        false
+    }
+    /// After a split (`Model::apply_record`, once the corners are re-pointed): re-derives the
+    /// zero-free pass's first writers of `clusters`, given `corners`, every `(element, corner)`
+    /// of the block on those clusters; `n_clusters` is the new cluster count. Default: nothing.
+    fn refresh_zero_free(&mut self, _corners: &[(u32, u8)], _clusters: &[u32], _n_clusters: usize) {}
     /// Bytes held by the block (geometry, connectivity, kernel data, schedule).
     fn memory_bytes(&self) -> usize;
     /// Bytes of the block's own data that one force pass streams (kernel packs and their
@@ -53,6 +76,14 @@ pub trait Block: Send + Sync {
     /// Stress of every copy at its corner (0.9999-scaled natural coordinates), written at the
     /// copy's index `elem_first_copy[elem] + corner`.
     fn corner_stress(&self, u: &[[f64; 2]], elem_first_copy: &[u32], out: &mut [[f64; 3]]);
+    /// `max_row sum_j |(A_k)_rj|` of every copy `k` of the block's elements, written at
+    /// `elem_first_copy[elem] + corner`, where `A_k` (3 x 2N) maps the element's corner
+    /// displacements to `corner_stress` at that corner (the certified skip's Lipschitz constant,
+    /// `cracking::skip`). False when the block cannot say (the caller then probes
+    /// `corner_stress` with unit displacements); the default.
+    fn corner_lipschitz(&self, _elem_first_copy: &[u32], _out: &mut [f64]) -> bool {
+        false
+    }
     /// Stress at every Gauss point of every element (in `Shape::GAUSS` order), written at
     /// `first_gp[elem] + g`: the nonlocal failure check's input (`cracking::nonlocal`).
     fn gauss_stress(&self, u: &[[f64; 2]], first_gp: &[u32], out: &mut [[f64; 3]]);
@@ -117,6 +148,61 @@ pub trait Block: Send + Sync {
 /// The chunk loop of an element block (`ElementBlock::chunk_fn`).
 pub type ChunkFn<B> = fn(&B, usize, &[[f64; 2]], SharedForces);
 
+/// The first writers of the zero-free force pass (issue 24, session 11).
+///
+/// The schedule fixes, from the mesh only, the order in which each cluster receives its
+/// contributions: chunks in the schedule's sequence (`lead` then `rest`), inside a chunk the
+/// packs and their elements in local order (`kernel`). So the pack holding the first
+/// contribution of each cluster is known before any pass. That pack zeroes the cluster's
+/// entry just before it computes (the cache line is then fetched while the pack computes, and
+/// the scatter's add finds it in cache), every contribution adds as before: exactly zeroing
+/// then adding, bit for bit, with no sweep over the whole array before the pass (at 1e6 Q4
+/// elements the sweep wrote 16 MB per pass, about 0.9 ns of the 8-12 ns an element-update
+/// takes; docs/perf/README.md). The clusters no corner names (a point of no element of the
+/// block; usually none) are zeroed from a list before the pass. (A first design let the first
+/// writer store through a per-lane bit mask: branch-free, but about 20 more instructions per
+/// element, and the one-thread kernel lost 7 %; docs/perf/README.md, session 11.)
+#[derive(Clone, Debug, Default)]
+struct FirstWriters {
+    /// Planned (`enable_zero_free`).
+    on: bool,
+    /// A corner was re-pointed (`remap`) and the first writers not yet re-derived
+    /// (`refresh_zero_free`): the pass falls back to zeroing then adding.
+    stale: bool,
+    /// Per cluster, the pack of its first writer; `u32::MAX` when no corner names it.
+    pack_of: Vec<u32>,
+    /// The clusters pack `p` writes first: `ids[start[p]..start[p + 1]]`.
+    start: Vec<u32>,
+    ids: Vec<u32>,
+    /// The clusters no corner of the block names.
+    untouched: Vec<u32>,
+}
+
+impl FirstWriters {
+    /// The per-pack lists and the untouched list from `pack_of` (a counting sort).
+    fn from_pack_of(pack_of: Vec<u32>, n_packs: usize) -> Self {
+        let mut start = vec![0u32; n_packs + 1];
+        for &p in pack_of.iter().filter(|&&p| p != u32::MAX) {
+            start[p as usize + 1] += 1;
+        }
+        for p in 0..n_packs {
+            start[p + 1] += start[p];
+        }
+        let mut fill = start.clone();
+        let mut ids = vec![0u32; start[n_packs] as usize];
+        let mut untouched = Vec::new();
+        for (c, &p) in pack_of.iter().enumerate() {
+            if p == u32::MAX {
+                untouched.push(c as u32);
+            } else {
+                ids[fill[p as usize] as usize] = c as u32;
+                fill[p as usize] += 1;
+            }
+        }
+        FirstWriters { on: true, stale: false, pack_of, start, ids, untouched }
+    }
+}
+
 /// The instruction sets the chunk loop is compiled for (`ElementBlock::chunk_fn`), narrowest
 /// first.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -177,6 +263,9 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     /// D with thickness and Gauss weight folded in.
     dk: [f64; 3],
     sched: Schedule,
+    /// The zero-free pass's first writers (`set_internal_forces_pool`; empty until
+    /// `enable_zero_free`).
+    fw: FirstWriters,
     /// Shape-function gradients at each corner's stress point, built at the first failure
     /// check (a scene that never checks does not pay its 8 N^2 doubles per element).
     corner_g: std::sync::OnceLock<Vec<[[[f64; 2]; N]; N]>>,
@@ -206,6 +295,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             extra_of: Vec::new(),
             dataflow: std::sync::Mutex::new((0, Vec::new())),
             sched: Schedule::default(),
+            fw: FirstWriters::default(),
             corner_g: std::sync::OnceLock::new(),
             gauss_g: std::sync::OnceLock::new(),
             omega_bound: std::sync::OnceLock::new(),
@@ -215,13 +305,22 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     }
 
     /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.
+    /// `ZERO`: the zero-free pass (each pack first zeroes the clusters it writes first,
+    /// `FirstWriters`).
     #[inline(always)]
-    fn run_chunk_body(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+    fn run_chunk_body<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
         let cp = self.sched.chunk_packs;
         let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
         let mut ug = [[[0.0; LANES]; 2]; N];
         let mut fg = [[[0.0; LANES]; 2]; N];
         for p in p0..p1 {
+            if ZERO {
+                let fw = &self.fw;
+                for &c in &fw.ids[fw.start[p] as usize..fw.start[p + 1] as usize] {
+                    // SAFETY: as the adds below (this pack's chunk is the first to write `c`).
+                    unsafe { f.zero(c as usize) };
+                }
+            }
             let e0 = p * LANES;
             let conn = &self.conn[e0..(e0 + LANES).min(self.conn.len())];
             for (l, c) in conn.iter().enumerate() {
@@ -246,44 +345,48 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         }
     }
     /// [`Self::run_chunk_body`] compiled for the baseline instruction set.
-    fn run_chunk_plain(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body(k, u, f)
+    fn run_chunk_plain<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX2 (4 lanes per vector instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn run_chunk_avx2(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body(k, u, f)
+    fn run_chunk_avx2<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX-512 (8 lanes: one pack per instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-    fn run_chunk_avx512(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body(k, u, f)
+    fn run_chunk_avx512<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO>(k, u, f)
     }
     /// The chunk loop for `simd` (`None` when this CPU lacks it). The three are the same
     /// code compiled for wider registers: each lane does the same IEEE operations in the same
     /// order (Rust never contracts a multiply and an add into an FMA), so the forces are the
     /// same bit for bit whichever runs (tested in flem-plugins' element tests).
     pub fn chunk_fn(simd: Simd) -> Option<ChunkFn<Self>> {
+        Self::chunk_fn_of::<false>(simd)
+    }
+    /// [`Self::chunk_fn`], the adding (`ZERO = false`) or the zero-free loop.
+    fn chunk_fn_of<const ZERO: bool>(simd: Simd) -> Option<ChunkFn<Self>> {
         match simd {
-            Simd::Plain => Some(Self::run_chunk_plain),
+            Simd::Plain => Some(Self::run_chunk_plain::<ZERO>),
             #[cfg(target_arch = "x86_64")]
             Simd::Avx2 if simd.detected() => {
                 // SAFETY: the CPU has AVX2 (`detected`, on the line above).
-                Some(|b, k, u, f| unsafe { b.run_chunk_avx2(k, u, f) })
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx2::<ZERO>(k, u, f) })
             }
             #[cfg(target_arch = "x86_64")]
             Simd::Avx512 if simd.detected() => {
                 // SAFETY: the CPU has AVX-512 F, VL and DQ (`detected`, on the line above).
-                Some(|b, k, u, f| unsafe { b.run_chunk_avx512(k, u, f) })
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx512::<ZERO>(k, u, f) })
             }
             _ => None,
         }
     }
     /// The chunk loop of [`Simd::best`].
-    fn best_chunk_fn() -> ChunkFn<Self> {
-        Self::chunk_fn(Simd::best()).unwrap_or(Self::run_chunk_plain)
+    fn best_chunk_fn<const ZERO: bool>() -> ChunkFn<Self> {
+        Self::chunk_fn_of::<ZERO>(Simd::best()).unwrap_or(Self::run_chunk_plain::<ZERO>)
     }
     /// `f[c] += F_int` of every element, one thread, with the chunk loop of `simd`; false
     /// (nothing added) when this CPU lacks it.
@@ -292,6 +395,77 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         let shared = SharedForces::new(f);
         self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
         true
+    }
+    /// The zero-free pass (`Block::set_internal_forces_pool`) on one thread with the chunk
+    /// loop of `simd`; false (`f` untouched) when this CPU lacks it or the pass is not planned.
+    pub fn set_internal_forces_simd(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], simd: Simd) -> bool {
+        let Some(run) = Self::chunk_fn_of::<true>(simd) else { return false };
+        if !self.zero_free_fits(f.len()) {
+            return false;
+        }
+        self.zero_untouched(f);
+        let shared = SharedForces::new(f);
+        self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
+        true
+    }
+    /// Whether the zero-free pass is planned and fresh for a force array of `len` clusters.
+    fn zero_free_fits(&self, len: usize) -> bool {
+        let fw = &self.fw;
+        fw.on && !fw.stale && len == fw.pack_of.len() && fw.start.len() == self.packs.len() + 1
+    }
+    /// Zeroes the clusters no corner names (the zero-free pass writes every other one).
+    fn zero_untouched(&self, f: &mut [[f64; 2]]) {
+        for &c in &self.fw.untouched {
+            f[c as usize] = [0.0; 2];
+        }
+    }
+    /// Runs every chunk with `run` (`best_chunk_fn`), on `pool` when given (see `kernel`).
+    fn run_chunks(&self, run: ChunkFn<Self>, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
+        assert_eq!(self.packs.len(), self.len().div_ceil(LANES), "ElementBlock::prepare was not called after the last push");
+        let shared = SharedForces::new(f);
+        match pool {
+            Some(pool) if self.len() >= PAR_MIN_ELEMS && pool.current_num_threads() > 1 => {
+                if let Ok(mut g) = self.dataflow.try_lock() {
+                    let (epoch, done) = &mut *g;
+                    if done.len() != self.sched.n_chunks() {
+                        (*epoch, *done) = (0, (0..self.sched.n_chunks()).map(|_| Default::default()).collect());
+                    }
+                    // A new value, not in any flag (every flag holds an earlier epoch or 0).
+                    *epoch = epoch.wrapping_add(1).max(1);
+                    if *epoch == 1 {
+                        done.iter_mut().for_each(|d| *d.get_mut() = 0);
+                    }
+                    self.sched.run_dataflow(pool, done, *epoch, |k| run(self, k, u, shared));
+                    return;
+                }
+                // Another thread is in this block's dataflow: this call runs on its own thread.
+                self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
+            }
+            // One thread: the chunks in the schedule's local order (the same sums, bit for bit).
+            _ => self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared)),
+        }
+    }
+    /// The first writers from scratch (`FirstWriters`): the chunks in sequence order, their
+    /// elements in order; the first to name a cluster writes it first.
+    fn build_first_writers(&mut self, n_clusters: usize) {
+        let ce = self.sched.chunk_packs * LANES;
+        let mut pack_of = vec![u32::MAX; n_clusters];
+        for &k in self.sched.lead.iter().chain(&self.sched.rest) {
+            let k = k as usize;
+            for i in k * ce..((k + 1) * ce).min(self.conn.len()) {
+                for &c in &self.conn[i] {
+                    let Some(p) = pack_of.get_mut(c as usize) else {
+                        // A corner outside the planned range: no zero-free pass.
+                        self.fw = FirstWriters::default();
+                        return;
+                    };
+                    if *p == u32::MAX {
+                        *p = (i / LANES) as u32;
+                    }
+                }
+            }
+        }
+        self.fw = FirstWriters::from_pack_of(pack_of, self.packs.len());
     }
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
         self.elems.push(e);
@@ -354,35 +528,52 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
     }
     fn remap(&mut self, i: usize, a: usize, cluster: u32) {
         self.conn[i][a] = cluster;
+        // The first writers wait for `refresh_zero_free` (the pass zeroes and adds till then).
+        self.fw.stale = self.fw.on;
     }
     fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         self.add_internal_forces_pool(u, f, None)
     }
     fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
-        assert_eq!(self.packs.len(), self.len().div_ceil(LANES), "ElementBlock::prepare was not called after the last push");
-        let shared = SharedForces::new(f);
-        let run = Self::best_chunk_fn();
-        match pool {
-            Some(pool) if self.len() >= PAR_MIN_ELEMS && pool.current_num_threads() > 1 => {
-                if let Ok(mut g) = self.dataflow.try_lock() {
-                    let (epoch, done) = &mut *g;
-                    if done.len() != self.sched.n_chunks() {
-                        (*epoch, *done) = (0, (0..self.sched.n_chunks()).map(|_| Default::default()).collect());
-                    }
-                    // A new value, not in any flag (every flag holds an earlier epoch or 0).
-                    *epoch = epoch.wrapping_add(1).max(1);
-                    if *epoch == 1 {
-                        done.iter_mut().for_each(|d| *d.get_mut() = 0);
-                    }
-                    self.sched.run_dataflow(pool, done, *epoch, |k| run(self, k, u, shared));
-                    return;
-                }
-                // Another thread is in this block's dataflow: this call runs on its own thread.
-                self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
-            }
-            // One thread: the chunks in the schedule's local order (the same sums, bit for bit).
-            _ => self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared)),
+        self.run_chunks(Self::best_chunk_fn::<false>(), u, f, pool)
+    }
+    fn set_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) -> bool {
+        if !self.zero_free_fits(f.len()) {
+            return false;
         }
+        self.zero_untouched(f);
+        self.run_chunks(Self::best_chunk_fn::<true>(), u, f, pool);
+        true
+    }
+    fn enable_zero_free(&mut self, n_clusters: usize) -> bool {
+        if self.packs.len() != self.len().div_ceil(LANES) {
+            return false;
+        }
+        self.build_first_writers(n_clusters);
+        self.fw.on
+    }
+    fn zero_free(&self) -> bool {
+        self.fw.on
+    }
+    fn refresh_zero_free(&mut self, corners: &[(u32, u8)], clusters: &[u32], n_clusters: usize) {
+        if !self.fw.on {
+            return;
+        }
+        let ce = self.sched.chunk_packs * LANES;
+        // Position of each chunk in the sequence: a corner's rank is (position, element, corner).
+        let mut pos = vec![0u32; self.sched.n_chunks()];
+        for (s, &k) in self.sched.lead.iter().chain(&self.sched.rest).enumerate() {
+            pos[k as usize] = s as u32;
+        }
+        let rank = |c: &&(u32, u8)| (pos[c.0 as usize / ce], c.0, c.1);
+        let mut pack_of = std::mem::take(&mut self.fw.pack_of);
+        // New clusters that no corner here names stay untouched.
+        pack_of.resize(n_clusters, u32::MAX);
+        for &c in clusters {
+            let first = corners.iter().filter(|&&(i, a)| self.conn[i as usize][a as usize] == c).min_by_key(rank);
+            pack_of[c as usize] = first.map_or(u32::MAX, |&(i, _)| i / LANES as u32);
+        }
+        self.fw = FirstWriters::from_pack_of(pack_of, self.packs.len());
     }
     fn prepare(&mut self, n_clusters: usize) {
         let (d, t) = (self.d, self.mat.thickness);
@@ -398,6 +589,10 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             }
         }
         self.sched = Schedule::build(&self.conn, n_clusters);
+        if self.fw.on {
+            // A new schedule, new first writers.
+            self.build_first_writers(n_clusters);
+        }
     }
     fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
@@ -411,6 +606,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             + self.extra_of.capacity() * 4
             + (self.sched.order.capacity() + self.sched.lead.capacity() + self.sched.rest.capacity() + self.sched.region_start.capacity()) * 4
             + (self.sched.wait_start.capacity() + self.sched.wait_on.capacity()) * 4
+            + (self.fw.start.capacity() + self.fw.ids.capacity() + self.fw.untouched.capacity()) * 4
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         let t = self.mat.thickness;
@@ -454,6 +650,31 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
                 out[base + a] = self.d.stress(element::strain(&g[a], &ue));
             }
         }
+    }
+    /// The operator of `corner_stress` is `D B(g_a)` with `g_a` the corner gradients: a unit
+    /// `u_x` of corner `b` gives `[d11 g_bx, d12 g_bx, d33 g_by]`, a unit `u_y` gives
+    /// `[d12 g_by, d11 g_by, d33 g_bx]` (exactly the products the probing would see), so the
+    /// row sums come from the gradients in one pass. Elements with internal fields
+    /// (`RECOVERY_LEN > 0`) have another operator: they are probed.
+    fn corner_lipschitz(&self, first: &[u32], out: &mut [f64]) -> bool {
+        if S::RECOVERY_LEN > 0 {
+            return false;
+        }
+        let cg = self.corner_g.get_or_init(|| self.x.iter().map(|x| std::array::from_fn(|a| element::gradients::<S, N>(x, element::corner_xi::<S, N>(a)).0)).collect());
+        let d = &self.d;
+        for (i, g) in cg.iter().enumerate() {
+            let base = first[self.elems[i].idx()] as usize;
+            for a in 0..N {
+                let mut r = [0.0f64; 3];
+                for gb in &g[a] {
+                    r[0] += (d.d11 * gb[0]).abs() + (d.d12 * gb[1]).abs();
+                    r[1] += (d.d12 * gb[0]).abs() + (d.d11 * gb[1]).abs();
+                    r[2] += (d.d33 * gb[1]).abs() + (d.d33 * gb[0]).abs();
+                }
+                out[base + a] = r[0].max(r[1]).max(r[2]);
+            }
+        }
+        true
     }
     fn gauss_stress(&self, u: &[[f64; 2]], first: &[u32], out: &mut [[f64; 3]]) {
         // The gradients of `element::stress_at` at the Gauss points (bit for bit), computed once

@@ -217,6 +217,11 @@ impl Model {
         for blk in blocks.iter_mut() {
             blk.prepare(topo.n_clusters());
         }
+        if let [blk] = blocks.as_mut_slice() {
+            // One block (the common case): its forces are the model's, so its pass may write
+            // every entry instead of adding onto zeros (`Block::set_internal_forces_pool`).
+            blk.enable_zero_free(topo.n_clusters());
+        }
         for (b, blk) in blocks.iter().enumerate() {
             for (i, e) in blk.elems().iter().enumerate() {
                 elem_slot[e.idx()] = (b as u32, i as u32);
@@ -264,6 +269,40 @@ impl Model {
                 self.blocks[b as usize].remap(i as usize, a, nc.id.0);
             }
         }
+        self.refresh_zero_free(rec);
+    }
+
+    /// The zero-free pass's first writers after a split (`Block::refresh_zero_free`): every
+    /// cluster at a split point is re-derived from all the copies of the point.
+    fn refresh_zero_free(&mut self, rec: &SplitRecord) {
+        if !self.blocks.iter().any(|b| b.zero_free()) {
+            return;
+        }
+        let mut points: Vec<PointId> = rec.new_clusters.iter().map(|nc| nc.point).collect();
+        points.sort_unstable();
+        points.dedup();
+        let mut corners = vec![Vec::new(); self.blocks.len()];
+        let mut clusters = Vec::new();
+        for p in points {
+            for &k in self.topo.point_copies.row(p.idx()) {
+                let e = self.topo.copy_elem[k.idx()];
+                let a = k.idx() - self.topo.elem_first_copy[e.idx()] as usize;
+                let (b, i) = self.elem_slot[e.idx()];
+                corners[b as usize].push((i, a as u8));
+            }
+            clusters.extend(self.topo.point_clusters[p.idx()].iter().map(|c| c.0));
+        }
+        let n = self.topo.n_clusters();
+        for (blk, corners) in self.blocks.iter_mut().zip(&corners) {
+            blk.refresh_zero_free(corners, &clusters, n);
+        }
+    }
+
+    /// Whether the model's force pass writes every entry instead of zeroing the array first
+    /// (one block that plans it: `Block::set_internal_forces_pool`; `flem bench step`'s byte
+    /// count).
+    pub fn zero_free(&self) -> bool {
+        matches!(self.blocks.as_slice(), [b] if b.zero_free())
     }
 
     /// Reference position of every cluster.
@@ -275,8 +314,15 @@ impl Model {
         self.topo.n_elems()
     }
 
-    /// Internal forces of every block into `f` (zeroed first), on the model's pool if any.
+    /// Internal forces of every block into `f` (zeroed first), on the model's pool if any. A
+    /// model of one block whose pass writes every entry (`Block::set_internal_forces_pool`,
+    /// the same bits) skips the zeroing sweep.
     pub fn internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        if let [b] = self.blocks.as_slice() {
+            if b.set_internal_forces_pool(u, f, self.pool.as_deref()) {
+                return;
+            }
+        }
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
         for b in &self.blocks {
             b.add_internal_forces_pool(u, f, self.pool.as_deref());
@@ -284,10 +330,16 @@ impl Model {
     }
 
     /// Internal forces of the step into `f` (zeroed first): stateful blocks update their
-    /// stress and history here (`Block::update_internal_forces`); call it once per step.
+    /// stress and history here (`Block::update_internal_forces`); call it once per step. One
+    /// stateless block skips the zeroing sweep as in [`Self::internal_forces`].
     pub fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
-        f.iter_mut().for_each(|x| *x = [0.0; 2]);
         let pool = self.pool.as_deref();
+        if let [b] = self.blocks.as_slice() {
+            if b.set_internal_forces_pool(u, f, pool) {
+                return;
+            }
+        }
+        f.iter_mut().for_each(|x| *x = [0.0; 2]);
         for b in self.blocks.iter_mut() {
             b.update_internal_forces(u, f, pool);
         }
@@ -342,6 +394,14 @@ impl Model {
         for b in &self.blocks {
             b.corner_stress(u, &self.topo.elem_first_copy, out);
         }
+    }
+
+    /// `max_row sum_j |(A_k)_rj|` of the corner-stress operator of every copy (`Block::corner_lipschitz`),
+    /// when every block can give it; false otherwise (`out` then undefined).
+    pub fn corner_lipschitz(&self, out: &mut Vec<f64>) -> bool {
+        out.clear();
+        out.resize(self.topo.copy_point.len(), 0.0);
+        self.blocks.iter().all(|b| b.corner_lipschitz(&self.topo.elem_first_copy, out))
     }
 
     /// Nodal stress of every cluster: the average over its copies (paper 2.1).

@@ -14,6 +14,20 @@ pub enum CellKind {
     Q4,
 }
 
+/// `[mesh] element` of the generated meshes: a cell type, with an error that names the key
+/// (the mesh table is read through its `type` tag, which loses the value's position in the
+/// file, so serde's own message pointed at the table's first line).
+pub fn de_mesh_element<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<CellKind, D::Error> {
+    let s = String::deserialize(d)?;
+    match s.as_str() {
+        "q4" => Ok(CellKind::Q4),
+        "t3" => Ok(CellKind::T3),
+        _ => Err(serde::de::Error::custom(format!(
+            "mesh.element = \"{s}\" is not a cell type: give \"q4\" (quadrilaterals) or \"t3\" (triangles); the element kind computed on them (q4, qm6, t3, ...) is chosen per material with [[material]] element"
+        ))),
+    }
+}
+
 impl CellKind {
     pub fn nodes(self) -> usize {
         match self {

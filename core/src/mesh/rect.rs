@@ -36,7 +36,7 @@ pub struct Rectangle {
     pub height: f64,
     pub nx: usize,
     pub ny: usize,
-    #[serde(default = "default_q4")]
+    #[serde(default = "default_q4", deserialize_with = "crate::mesh::raw::de_mesh_element")]
     pub element: CellKind,
     #[serde(default)]
     pub origin: [f64; 2],

@@ -39,7 +39,7 @@ pub struct Part {
     pub height: f64,
     pub nx: usize,
     pub ny: usize,
-    #[serde(default = "q4")]
+    #[serde(default = "q4", deserialize_with = "crate::mesh::raw::de_mesh_element")]
     pub element: CellKind,
 }
 
