@@ -425,7 +425,14 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         let shared = SharedForces::new(f);
         match pool {
             Some(pool) if self.len() >= PAR_MIN_ELEMS && pool.current_num_threads() > 1 => {
-                if let Ok(mut g) = self.dataflow.try_lock() {
+                // A pass that panicked (and was caught by the caller) poisons the lock; its
+                // flags hold older epochs only, so the next pass may take it as it is.
+                let lock = match self.dataflow.try_lock() {
+                    Ok(g) => Some(g),
+                    Err(std::sync::TryLockError::Poisoned(e)) => Some(e.into_inner()),
+                    Err(std::sync::TryLockError::WouldBlock) => None,
+                };
+                if let Some(mut g) = lock {
                     let (epoch, done) = &mut *g;
                     if done.len() != self.sched.n_chunks() {
                         (*epoch, *done) = (0, (0..self.sched.n_chunks()).map(|_| Default::default()).collect());
@@ -569,9 +576,19 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         let mut pack_of = std::mem::take(&mut self.fw.pack_of);
         // New clusters that no corner here names stay untouched.
         pack_of.resize(n_clusters, u32::MAX);
+        // The earliest corner naming each cluster, in one pass over the corners (linear: a
+        // long pre-cut separates ~1e4 points in one record).
+        let mut first: std::collections::HashMap<u32, Option<&(u32, u8)>> = clusters.iter().map(|&c| (c, None)).collect();
+        for corner in corners {
+            let c = self.conn[corner.0 as usize][corner.1 as usize];
+            if let Some(best) = first.get_mut(&c) {
+                if best.is_none_or(|b| rank(&corner) < rank(&b)) {
+                    *best = Some(corner);
+                }
+            }
+        }
         for &c in clusters {
-            let first = corners.iter().filter(|&&(i, a)| self.conn[i as usize][a as usize] == c).min_by_key(rank);
-            pack_of[c as usize] = first.map_or(u32::MAX, |&(i, _)| i / LANES as u32);
+            pack_of[c as usize] = first[&c].map_or(u32::MAX, |&(i, _)| i / LANES as u32);
         }
         self.fw = FirstWriters::from_pack_of(pack_of, self.packs.len());
     }
@@ -596,7 +613,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
     }
     fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
-        self.elems.capacity() * size_of::<ElemId>() + self.x.capacity() * size_of::<[[f64; 2]; N]>() + self.kernel_bytes()
+        self.elems.capacity() * size_of::<ElemId>() + self.x.capacity() * size_of::<[[f64; 2]; N]>() + self.fw.pack_of.capacity() * size_of::<u32>() + self.kernel_bytes()
     }
     fn kernel_bytes(&self) -> usize {
         use std::mem::size_of;
