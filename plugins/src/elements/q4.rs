@@ -186,6 +186,23 @@ fn total_strains_full<const BBAR: bool>(g: &[[f64; LANES]; 5], x: &[[f64; LANES]
     }
 }
 
+/// Lane `l`'s corner forces of the point stresses `s` (`j(xi, eta)`: the Jacobian at a Gauss
+/// point; B-bar: each point's in-plane mean stress replaced by `pbar`), shared by both forms.
+#[inline(always)]
+fn point_forces<const BBAR: bool>(j: impl Fn(f64, f64) -> [f64; 4], s: &[[[f64; LANES]; 4]; 4], pbar: f64, t: f64, l: usize, f: &mut [[[f64; LANES]; 2]; 4]) {
+    let mut acc = [[0.0; 4]; 2];
+    for (k, &[xi, eta]) in Q4_GP.iter().enumerate() {
+        let (mut sxx, mut syy, sxy) = (s[k][0][l], s[k][1][l], s[k][2][l]);
+        if BBAR {
+            let c = pbar - 0.5 * (sxx + syy);
+            sxx += c;
+            syy += c;
+        }
+        add_point(&mut acc, xi, eta, pull_back(j(xi, eta), t * sxx, t * syy, t * sxy));
+    }
+    assemble(acc, l, f);
+}
+
 /// [`Q4::total_forces`] of a pack of parallelograms. B-bar: `Bbar^T sigma = B^T (sigma - p I
 /// + p_bar I)` with `p = (sxx + syy) / 2` of the point and `p_bar` its mean over the element
 /// weighted by `det J` (`sum_k c_k Bbar_k^T s_k` with the mean gradient `sum_k c_k B_k / sum c`).
@@ -200,17 +217,7 @@ fn total_forces_lean<const BBAR: bool>(g: &[[f64; LANES]; 5], s: &[[[f64; LANES]
             }
             pbar *= 0.125;
         }
-        let mut acc = [[0.0; 4]; 2];
-        for (k, &[xi, eta]) in Q4_GP.iter().enumerate() {
-            let (mut sxx, mut syy, sxy) = (s[k][0][l], s[k][1][l], s[k][2][l]);
-            if BBAR {
-                let c = pbar - 0.5 * (sxx + syy);
-                sxx += c;
-                syy += c;
-            }
-            add_point(&mut acc, xi, eta, pull_back(j, t * sxx, t * syy, t * sxy));
-        }
-        assemble(acc, l, f);
+        point_forces::<BBAR>(|_, _| j, s, pbar, t, l, f);
     }
 }
 
@@ -226,18 +233,7 @@ fn total_forces_full<const BBAR: bool>(g: &[[f64; LANES]; 5], x: &[[f64; LANES];
             }
             pbar *= 0.5;
         }
-        let mut acc = [[0.0; 4]; 2];
-        for (k, &[xi, eta]) in Q4_GP.iter().enumerate() {
-            let j = [ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy];
-            let (mut sxx, mut syy, sxy) = (s[k][0][l], s[k][1][l], s[k][2][l]);
-            if BBAR {
-                let c = pbar - 0.5 * (sxx + syy);
-                sxx += c;
-                syy += c;
-            }
-            add_point(&mut acc, xi, eta, pull_back(j, t * sxx, t * syy, t * sxy));
-        }
-        assemble(acc, l, f);
+        point_forces::<BBAR>(|xi, eta| [ax + eta * hx, ay + eta * hy, bx + xi * hx, by + xi * hy], s, pbar, t, l, f);
     }
 }
 

@@ -32,6 +32,23 @@ fn admissible(l: &MohrCoulomb, s: &[f64; 3], tol: f64) -> bool {
 /// A trial in the face region returns onto F13 = 0 with the plastic strain along the
 /// potential G13 (non-associated, psi = 10 deg): de2p = 0, de1p / de3p = -(1 + sin psi) /
 /// (1 - sin psi), and sigma_tr - sigma = D dep (consistency). Tolerance 1e-9 relative.
+/// The median over points `[sxx, syy, sxy, szz]` of the cohesion that puts each on the
+/// Mohr-Coulomb surface of friction angle `phi_deg` (`(s1 - s3) + (s1 + s3) sin phi = 2 c cos phi`,
+/// compression negative).
+fn median_cohesion_needed(stress: &[[f64; 4]], phi_deg: f64) -> f64 {
+    let (sp, cp) = (phi_deg.to_radians().sin(), phi_deg.to_radians().cos());
+    let mut need: Vec<f64> = stress
+        .iter()
+        .map(|s| {
+            let (m, r) = (0.5 * (s[0] + s[1]), (0.25 * (s[0] - s[1]).powi(2) + s[2] * s[2]).sqrt());
+            let (s1, s3) = ((m + r).max(s[3]), (m - r).min(s[3]));
+            ((s1 - s3) + (s1 + s3) * sp) / (2.0 * cp)
+        })
+        .collect();
+    need.sort_by(f64::total_cmp);
+    need[need.len() / 2]
+}
+
 #[test]
 fn face_return_is_on_the_surface_and_flows_along_the_potential() {
     let l = law(1.0, 30.0, 10.0, None);
@@ -345,19 +362,7 @@ fn never_yielded_shortcut_matches_the_stored_path() {
         let mut f = vec![[0.0; 2]; nn];
         let u1 = field(1.0);
         probe.update_internal_forces(&u1, &mut f, None);
-        let (sp, cp) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
-        let mut need: Vec<f64> = probe
-            .point_stress(&u1)
-            .unwrap()
-            .iter()
-            .map(|s| {
-                let (m, r) = (0.5 * (s[0] + s[1]), (0.25 * (s[0] - s[1]).powi(2) + s[2] * s[2]).sqrt());
-                let (s1, s3) = ((m + r).max(s[3]), (m - r).min(s[3]));
-                ((s1 - s3) + (s1 + s3) * sp) / (2.0 * cp)
-            })
-            .collect();
-        need.sort_by(f64::total_cmp);
-        let c = need[need.len() / 2];
+        let c = median_cohesion_needed(&probe.point_stress(&u1).unwrap(), 30.0);
         assert!(c > 0.0, "the field must load the points in shear");
         let (mut a, mut b) = (block(c, bbar, true), block(c, bbar, false));
         let mut yielded_once = false;
@@ -454,19 +459,7 @@ fn q4_total_form_matches_the_generic_shortcut() {
             let mut probe = block(1e9, bbar, true);
             let u1 = field(1.0);
             probe.update_internal_forces(&u1, &mut vec![[0.0; 2]; nn], None);
-            let (sp, cp) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
-            let mut need: Vec<f64> = probe
-                .point_stress(&u1)
-                .unwrap()
-                .iter()
-                .map(|s| {
-                    let (m, r) = (0.5 * (s[0] + s[1]), (0.25 * (s[0] - s[1]).powi(2) + s[2] * s[2]).sqrt());
-                    let (s1, s3) = ((m + r).max(s[3]), (m - r).min(s[3]));
-                    ((s1 - s3) + (s1 + s3) * sp) / (2.0 * cp)
-                })
-                .collect();
-            need.sort_by(f64::total_cmp);
-            let c = need[need.len() / 2];
+            let c = median_cohesion_needed(&probe.point_stress(&u1).unwrap(), 30.0);
             let (mut a, mut b) = (block(c, bbar, false), block(c, bbar, true));
             let mut yielded_once = false;
             for step in 1..=30 {
