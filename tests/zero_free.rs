@@ -23,12 +23,10 @@ fn bits(v: &[[f64; 2]]) -> Vec<[u64; 2]> {
 /// everywhere; random on the right half and +0.0 / -0.0 on the left (so that many element
 /// forces are signed zeros); -0.0 everywhere.
 fn fields(x: &[[f64; 2]]) -> Vec<Vec<[f64; 2]>> {
-    let mut seed = 0x2545_F491_4F6C_DD1Du64;
+    let mut k = 0u64;
     let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        k += 1;
+        flem_core::cracking::weibull::uniform(0x2545_F491_4F6C_DD1Du64, k) - 0.5
     };
     let random: Vec<[f64; 2]> = x.iter().map(|_| [1e-3 * rnd(), 1e-3 * rnd()]).collect();
     let half: Vec<[f64; 2]> =
