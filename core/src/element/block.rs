@@ -47,8 +47,9 @@ pub trait Block: Send + Sync {
         false
     }
     /// Plans the zero-free pass ([`Self::set_internal_forces_pool`]) over `n_clusters`
-    /// clusters (after `prepare`; `Model::new` asks the block of a one-block model); false
-    /// when the block has no zero-free pass (default).
+    /// clusters (after `prepare`; `Model::new` asks the block of a one-block model, and asks
+    /// again after a split, `Model::apply_record`); false when the block has no zero-free pass
+    /// (default).
     fn enable_zero_free(&mut self, _n_clusters: usize) -> bool {
         false
     }
@@ -56,10 +57,6 @@ pub trait Block: Send + Sync {
     fn zero_free(&self) -> bool {
         false
     }
-    /// After a split (`Model::apply_record`, once the corners are re-pointed): re-derives the
-    /// zero-free pass's first writers of `clusters`, given `corners`, every `(element, corner)`
-    /// of the block on those clusters; `n_clusters` is the new cluster count. Default: nothing.
-    fn refresh_zero_free(&mut self, _corners: &[(u32, u8)], _clusters: &[u32], _n_clusters: usize) {}
     /// Bytes held by the block (geometry, connectivity, kernel data, schedule).
     fn memory_bytes(&self) -> usize;
     /// Bytes of the block's own data that one force pass streams (kernel packs and their
@@ -166,8 +163,8 @@ pub type ChunkFn<B> = fn(&B, usize, &[[f64; 2]], SharedForces);
 struct FirstWriters {
     /// Planned (`enable_zero_free`).
     on: bool,
-    /// A corner was re-pointed (`remap`) and the first writers not yet re-derived
-    /// (`refresh_zero_free`): the pass falls back to zeroing then adding.
+    /// A corner was re-pointed (`remap`) and the first writers not yet rebuilt
+    /// (`enable_zero_free`): the pass falls back to zeroing then adding.
     stale: bool,
     /// Per cluster, the pack of its first writer; `u32::MAX` when no corner names it.
     pack_of: Vec<u32>,
@@ -396,18 +393,6 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
         true
     }
-    /// The zero-free pass (`Block::set_internal_forces_pool`) on one thread with the chunk
-    /// loop of `simd`; false (`f` untouched) when this CPU lacks it or the pass is not planned.
-    pub fn set_internal_forces_simd(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], simd: Simd) -> bool {
-        let Some(run) = Self::chunk_fn_of::<true>(simd) else { return false };
-        if !self.zero_free_fits(f.len()) {
-            return false;
-        }
-        self.zero_untouched(f);
-        let shared = SharedForces::new(f);
-        self.sched.order.iter().for_each(|&k| run(self, k as usize, u, shared));
-        true
-    }
     /// Whether the zero-free pass is planned and fresh for a force array of `len` clusters.
     fn zero_free_fits(&self, len: usize) -> bool {
         let fw = &self.fw;
@@ -535,7 +520,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
     }
     fn remap(&mut self, i: usize, a: usize, cluster: u32) {
         self.conn[i][a] = cluster;
-        // The first writers wait for `refresh_zero_free` (the pass zeroes and adds till then).
+        // The first writers wait to be rebuilt (the pass zeroes and adds till then).
         self.fw.stale = self.fw.on;
     }
     fn add_internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
@@ -561,36 +546,6 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
     }
     fn zero_free(&self) -> bool {
         self.fw.on
-    }
-    fn refresh_zero_free(&mut self, corners: &[(u32, u8)], clusters: &[u32], n_clusters: usize) {
-        if !self.fw.on {
-            return;
-        }
-        let ce = self.sched.chunk_packs * LANES;
-        // Position of each chunk in the sequence: a corner's rank is (position, element, corner).
-        let mut pos = vec![0u32; self.sched.n_chunks()];
-        for (s, &k) in self.sched.lead.iter().chain(&self.sched.rest).enumerate() {
-            pos[k as usize] = s as u32;
-        }
-        let rank = |c: &&(u32, u8)| (pos[c.0 as usize / ce], c.0, c.1);
-        let mut pack_of = std::mem::take(&mut self.fw.pack_of);
-        // New clusters that no corner here names stay untouched.
-        pack_of.resize(n_clusters, u32::MAX);
-        // The earliest corner naming each cluster, in one pass over the corners (linear: a
-        // long pre-cut separates ~1e4 points in one record).
-        let mut first: std::collections::HashMap<u32, Option<&(u32, u8)>> = clusters.iter().map(|&c| (c, None)).collect();
-        for corner in corners {
-            let c = self.conn[corner.0 as usize][corner.1 as usize];
-            if let Some(best) = first.get_mut(&c) {
-                if best.is_none_or(|b| rank(&corner) < rank(&b)) {
-                    *best = Some(corner);
-                }
-            }
-        }
-        for &c in clusters {
-            pack_of[c as usize] = first[&c].map_or(u32::MAX, |&(i, _)| i / LANES as u32);
-        }
-        self.fw = FirstWriters::from_pack_of(pack_of, self.packs.len());
     }
     fn prepare(&mut self, n_clusters: usize) {
         let (d, t) = (self.d, self.mat.thickness);

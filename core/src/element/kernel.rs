@@ -35,8 +35,8 @@
 //! any pass. A model of one stateless block (`Model::internal_forces`,
 //! `Model::update_internal_forces`) lets the pack of that first writer zero the cluster just
 //! before it computes (`SharedForces::zero`; per pack, the list of the clusters it writes
-//! first, built with the schedule by `ElementBlock`, re-derived at the split points after a
-//! split by `Model::apply_record`), so the force array is not zeroed before the pass: the same
+//! first, built with the schedule by `ElementBlock`, rebuilt after a split by
+//! `Model::apply_record`), so the force array is not zeroed before the pass: the same
 //! bits (tests/zero_free.rs), one sweep of 16 bytes per cluster less. Every other caller (several blocks, stateful or co-rotational blocks, the `add_*`
 //! methods) zeroes and adds.
 //!

@@ -269,32 +269,17 @@ impl Model {
                 self.blocks[b as usize].remap(i as usize, a, nc.id.0);
             }
         }
-        self.refresh_zero_free(rec);
+        self.refresh_zero_free();
     }
 
-    /// The zero-free pass's first writers after a split (`Block::refresh_zero_free`): every
-    /// cluster at a split point is re-derived from all the copies of the point.
-    fn refresh_zero_free(&mut self, rec: &SplitRecord) {
-        if !self.blocks.iter().any(|b| b.zero_free()) {
-            return;
-        }
-        let mut points: Vec<PointId> = rec.new_clusters.iter().map(|nc| nc.point).collect();
-        points.sort_unstable();
-        points.dedup();
-        let mut corners = vec![Vec::new(); self.blocks.len()];
-        let mut clusters = Vec::new();
-        for p in points {
-            for &k in self.topo.point_copies.row(p.idx()) {
-                let e = self.topo.copy_elem[k.idx()];
-                let a = k.idx() - self.topo.elem_first_copy[e.idx()] as usize;
-                let (b, i) = self.elem_slot[e.idx()];
-                corners[b as usize].push((i, a as u8));
-            }
-            clusters.extend(self.topo.point_clusters[p.idx()].iter().map(|c| c.0));
-        }
+    /// The zero-free pass's first writers after a split: the block rebuilds them from its
+    /// re-pointed corners (one pass over the corners and the clusters, as at the start).
+    fn refresh_zero_free(&mut self) {
         let n = self.topo.n_clusters();
-        for (blk, corners) in self.blocks.iter_mut().zip(&corners) {
-            blk.refresh_zero_free(corners, &clusters, n);
+        if let [b] = self.blocks.as_mut_slice() {
+            if b.zero_free() {
+                b.enable_zero_free(n);
+            }
         }
     }
 
@@ -314,14 +299,18 @@ impl Model {
         self.topo.n_elems()
     }
 
+    /// The forces of a one-block model by its zero-free pass (`Block::set_internal_forces_pool`);
+    /// false, `f` untouched, when the model has no such pass.
+    fn set_zero_free(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) -> bool {
+        matches!(self.blocks.as_slice(), [b] if b.set_internal_forces_pool(u, f, self.pool.as_deref()))
+    }
+
     /// Internal forces of every block into `f` (zeroed first), on the model's pool if any. A
     /// model of one block whose pass writes every entry (`Block::set_internal_forces_pool`,
     /// the same bits) skips the zeroing sweep.
     pub fn internal_forces(&self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
-        if let [b] = self.blocks.as_slice() {
-            if b.set_internal_forces_pool(u, f, self.pool.as_deref()) {
-                return;
-            }
+        if self.set_zero_free(u, f) {
+            return;
         }
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
         for b in &self.blocks {
@@ -333,12 +322,10 @@ impl Model {
     /// stress and history here (`Block::update_internal_forces`); call it once per step. One
     /// stateless block skips the zeroing sweep as in [`Self::internal_forces`].
     pub fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
-        let pool = self.pool.as_deref();
-        if let [b] = self.blocks.as_slice() {
-            if b.set_internal_forces_pool(u, f, pool) {
-                return;
-            }
+        if self.set_zero_free(u, f) {
+            return;
         }
+        let pool = self.pool.as_deref();
         f.iter_mut().for_each(|x| *x = [0.0; 2]);
         for b in self.blocks.iter_mut() {
             b.update_internal_forces(u, f, pool);

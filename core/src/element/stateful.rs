@@ -438,16 +438,16 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// kind's registered name, `f` builds each element's modes when the block is prepared. The
     /// modes are condensed with the elastic moduli (a fixed `alpha = H u` per element; why:
     /// docs/elements.md). Small strain only (the large-strain path has no modes).
+    pub fn with_enhanced(mut self, name: &'static str, f: EnhancedFn<N>) -> Self {
+        self.enh_fn = Some((name, f));
+        self
+    }
+
     /// The never-yielded pass on the generic isoparametric geometry even for a kind that has
     /// its own form (`Shape::TOTAL_ROWS`): the reference the kind's form is tested against.
     #[doc(hidden)]
     pub fn generic_total(mut self) -> Self {
         self.kind_total = false;
-        self
-    }
-
-    pub fn with_enhanced(mut self, name: &'static str, f: EnhancedFn<N>) -> Self {
-        self.enh_fn = Some((name, f));
         self
     }
 

@@ -334,9 +334,6 @@ fn ratio_of(num: f64, sum: f64, cnt: f64) -> f64 {
 /// The node update of a step (see [`NodeCtx::update`]).
 type UpdateFn = fn(&NodeCtx, usize, &mut [[f64; 2]], &mut [[f64; 2]]) -> [f64; NSUM];
 
-/// The node update of a step: the variant of the scene (contact `C`, damping mode `L`) and of
-/// the step (`full`, `stats`), vectorised for `simd` when this CPU has it (`node_simd.rs`: the
-/// same results bit for bit), else the scalar [`NodeCtx::update`].
 /// [`pick_update`] for a scene's contact flag and damping mode (0 none, 1 viscous, 2 with the
 /// local term, 3 with a constant eta) known at run time.
 fn pick_variant(contact: bool, damp: u8, full: bool, stats: bool, simd: Simd) -> UpdateFn {
@@ -352,6 +349,9 @@ fn pick_variant(contact: bool, damp: u8, full: bool, stats: bool, simd: Simd) ->
     }
 }
 
+/// The node update of a step: the variant of the scene (contact `C`, damping mode `L`) and of
+/// the step (`full`, `stats`), vectorised for `simd` when this CPU has it (`node_simd.rs`: the
+/// same results bit for bit), else the scalar [`NodeCtx::update`].
 fn pick_update<const C: bool, const L: u8>(full: bool, stats: bool, simd: Simd) -> UpdateFn {
     let vector = match (full, stats) {
         (true, _) => node_simd::vector_update::<C, L, true, true>(simd),

@@ -45,13 +45,24 @@ inventory::submit! { flem_core::plugin::dynload::DynLawBlocks(build_stateful::<f
 /// which cancels against the Gauss weight's det J): `(P_x,s, P_x,e, P_y,s, P_y,e)`.
 #[inline(always)]
 pub(crate) fn parent_stress(j: [f64; 4], inv: f64, du: [f64; 4], d: &[f64; 3]) -> (f64, f64, f64, f64) {
+    let [d11, d12, d33] = *d;
+    let [exx, eyy, gxy] = parent_strain(j, inv, du);
+    pull_back(j, d11 * exx + d12 * eyy, d12 * exx + d11 * eyy, d33 * gxy)
+}
+
+/// The strain `[exx, eyy, gxy]` of a point from the Jacobian `j = [j11, j12, j21, j22]`, its
+/// `1 / det J` and the parent derivatives of u (`adj J grad_xi u / det J`).
+#[inline(always)]
+pub(crate) fn parent_strain(j: [f64; 4], inv: f64, du: [f64; 4]) -> [f64; 3] {
     let [j11, j12, j21, j22] = j;
     let [uxs, uxe, uys, uye] = du;
-    let [d11, d12, d33] = *d;
-    let exx = inv * (j22 * uxs - j12 * uxe);
-    let eyy = inv * (j11 * uye - j21 * uys);
-    let gxy = inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs));
-    let (sxx, syy, sxy) = (d11 * exx + d12 * eyy, d12 * exx + d11 * eyy, d33 * gxy);
+    [inv * (j22 * uxs - j12 * uxe), inv * (j11 * uye - j21 * uys), inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs))]
+}
+
+/// `adj J^T sigma`: the stress pulled back to the parent axes, `(P_x,s, P_x,e, P_y,s, P_y,e)`.
+#[inline(always)]
+pub(crate) fn pull_back(j: [f64; 4], sxx: f64, syy: f64, sxy: f64) -> (f64, f64, f64, f64) {
+    let [j11, j12, j21, j22] = j;
     (j22 * sxx - j21 * sxy, j11 * sxy - j12 * sxx, j22 * sxy - j21 * syy, j11 * syy - j12 * sxy)
 }
 

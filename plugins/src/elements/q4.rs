@@ -38,7 +38,7 @@ use flem_core::element::registry::ElementKind;
 use flem_core::element::{Dmat, Shape};
 use flem_core::mesh::CellKind;
 
-use super::parent_stress;
+use super::{parent_strain, parent_stress, pull_back};
 
 /// Bilinear quadrilateral, 2 x 2 Gauss points.
 #[derive(Copy, Clone, Default, Debug)]
@@ -113,22 +113,6 @@ pub(crate) fn total_geometry(x: &[[[f64; 2]; 4]; LANES], geo: &mut [[f64; LANES]
         full |= hx != 0.0 || hy != 0.0;
     }
     full
-}
-
-/// The strain `[exx, eyy, gxy]` of a point from the Jacobian `j = [j11, j12, j21, j22]`, its
-/// `1 / det J` and the parent derivatives of u (as `parent_stress`).
-#[inline(always)]
-fn parent_strain(j: [f64; 4], inv: f64, du: [f64; 4]) -> [f64; 3] {
-    let [j11, j12, j21, j22] = j;
-    let [uxs, uxe, uys, uye] = du;
-    [inv * (j22 * uxs - j12 * uxe), inv * (j11 * uye - j21 * uys), inv * ((j22 * uys - j12 * uye) + (j11 * uxe - j21 * uxs))]
-}
-
-/// `adj J^T sigma`: the stress pulled back to the parent axes, `(P_x,s, P_x,e, P_y,s, P_y,e)`.
-#[inline(always)]
-fn pull_back(j: [f64; 4], sxx: f64, syy: f64, sxy: f64) -> (f64, f64, f64, f64) {
-    let [j11, j12, j21, j22] = j;
-    (j22 * sxx - j21 * sxy, j11 * sxy - j12 * sxx, j22 * sxy - j21 * syy, j11 * syy - j12 * sxy)
 }
 
 /// The parent derivatives `a, b, h` of the pack's displacements, lane `l`.
