@@ -1,14 +1,16 @@
-//! The sparse Cholesky factor of `K_ff` with a geometric nested-dissection ordering (ours), on
-//! faer's low-level symbolic and numeric Cholesky.
+//! The sparse Cholesky factor of `K_ff` with a geometric nested-dissection ordering (ours),
+//! faer's supernodal symbolic analysis, and our tree-parallel supernodal numeric factorisation
+//! on faer's dense kernels.
 //!
 //! faer's high-level `SymbolicLlt::try_new` orders the matrix by approximate minimum degree
 //! (AMD): on a 2D finite-element mesh of 5e5 dofs that ordering costs a quarter of the whole
 //! solve, and its fill is larger than nested dissection's (George 1973: for a 2D mesh of `n`
 //! nodes nested dissection gives `O(n log n)` fill and `O(n^1.5)` flops, the optimum). The
 //! dofs here have coordinates (their cluster's reference position), so the dissection is
-//! geometric: split the dofs at the median of the longer side of their bounding box, take as
-//! separator the dofs of the first half that are coupled (a non-zero of `K`) to the second,
-//! order first half, second half, separator; recurse down to `LEAF` dofs. The cut is at the
+//! geometric: split the vertices (a node's dofs, kept together) at the median of the longer side
+//! of their bounding box, take as separator the vertices of the first half that are coupled (a
+//! non-zero of `K`) to the second, order first half, second half, separator; recurse down to
+//! `LEAF` vertices. The cut is at the
 //! median coordinate by value, so that a grid line is never cut in two. Any permutation is
 //! valid (the factor is exact whatever the ordering; only fill and time change), so cracks,
 //! holes and duplicated points at split nodes cost at most fill, never correctness.
@@ -20,24 +22,41 @@
 //! events solver's fresh factorisations reuse it (`extend_ordering`: dofs added by splits go
 //! next to the dof they were split from), so a refactorisation after splits skips the ordering.
 //!
+//! Numeric factorisation (ours, `Factor::new`): left-looking supernodal Cholesky as in CHOLMOD
+//! (Chen, Davis, Hager, Rajamanickam 2008) and faer, on faer's supernodal structure, with
+//! faer's dense `triangular::matmul`/`matmul`, `cholesky_in_place` and triangular solve for
+//! each supernode. A supernode reads only its descendants in the supernodal elimination tree,
+//! so disjoint subtrees are independent: subtrees with at least 1/(16 t) of the work run as
+//! rayon tasks of their own, the supernodes above them after their tasks join (with the dense
+//! kernels on `Par::rayon(t)`). faer 0.24's own supernodal numeric walks the supernodes one
+//! after the other and parallelises only inside the dense kernels, which gained 0.98 -> 0.88 s
+//! on two threads at 5e5 dofs; the subtree tasks give 0.95 -> 0.55 s (docs/perf/implicit.md).
+//!
 //! Threads: from [`PAR_MIN_DOFS`] dofs on, the numeric factorisation and the triangular solves
-//! take `Par::rayon(n)` with the calling pool's thread count (`rayon::current_num_threads`);
-//! faer's supernodal kernels split work by blocks of the output, so the factor is bit-identical
-//! whatever `n` (the unit test below checks it on 1 and 2 threads).
-use std::sync::Arc;
+//! take `Par::rayon(n)` with the calling pool's thread count (`rayon::current_num_threads`).
+//! Every supernode's arithmetic (its gather, its updates in increasing order of the updating
+//! supernode, its dense kernels, which split work by blocks of the output) is the same whichever
+//! thread runs it, so the factor is bit-identical whatever `n` (the unit test below checks it
+//! on 1 and 2 threads).
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::perm::Perm;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
-use faer::sparse::linalg::LltError;
-use faer::sparse::{SparseColMat, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering};
+use faer::sparse::linalg::{LltError, SupernodalThreshold};
+use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMatRef};
+use faer::reborrow::{IntoConst, Reborrow, ReborrowMut};
+use faer::{Accum, Conj, MatMut, MatRef, Par, Side};
 
-/// Dissection stops at this many dofs (the leaf keeps its coordinate order). Measured on
-/// `flem bench implicit`'s 5e5-dof mesh: leaves of 8 give 56.0 M entries in `L` (AMD: 59.5 M),
-/// leaves of 24, 48 and 128 give more; ordering the leaves by AMD (as METIS orders its leaves by
+/// Dissection stops at this many vertices (the leaf keeps its coordinate order). Measured on
+/// `flem bench implicit`'s 5e5-dof mesh: dof leaves of 8 gave 56.0 M entries in `L` (AMD: 59.5 M),
+/// leaves of 24, 48 and 128 gave more; ordering the leaves by AMD (as METIS orders its leaves by
 /// minimum degree) gave no less fill at leaves of 48 (56.4 M) and cost a quarter of a second.
-const LEAF: usize = 8;
+/// Vertex leaves of 4 (8 dofs): 56.1 M, with the ordering 0.14 -> 0.07 s.
+const LEAF: usize = 4;
 
 /// Below this many dofs the factorisation and the solves run on one thread: faer's parallel
 /// supernodal tasks cost more than they save on small fronts (the events solver's 2e4-dof plate
@@ -60,14 +79,42 @@ pub fn par(n: usize) -> Par {
 pub fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>, xy: &[[f64; 2]]) -> Vec<usize> {
     let n = pattern.nrows();
     assert_eq!(xy.len(), n);
-    // Symmetric adjacency (both triangles), without the diagonal.
+    // Vertices: runs of consecutive dofs at the same point (a node's x and y dofs). The
+    // dissection runs on the vertex graph (half the items and a quarter of the couplings of the
+    // dof graph for 2-dof nodes) and each vertex's dofs stay together in the ordering.
+    let mut first = vec![0usize];
+    for k in 1..n {
+        if xy[k] != xy[k - 1] {
+            first.push(k);
+        }
+    }
+    first.push(n);
+    let nv = first.len() - 1;
+    let mut vert = vec![0u32; n];
+    for v in 0..nv {
+        vert[first[v]..first[v + 1]].fill(v as u32);
+    }
+    let vxy: Vec<[f64; 2]> = (0..nv).map(|v| xy[first[v]]).collect();
+    let order = dissect(pattern, &vert, &vxy);
+    let mut out = Vec::with_capacity(n);
+    for v in order {
+        out.extend(first[v]..first[v + 1]);
+    }
+    out
+}
+
+/// The dissection of the vertex graph (`vert[dof]` = vertex; `xy` per vertex).
+fn dissect(pattern: SymbolicSparseColMatRef<'_, usize>, vert: &[u32], xy: &[[f64; 2]]) -> Vec<usize> {
+    let n = xy.len();
+    // Symmetric adjacency (both triangles) of the vertices, without self-loops, deduplicated.
     let (cp, ri) = (pattern.col_ptr(), pattern.row_idx());
     let mut deg = vec![0usize; n + 1];
-    for j in 0..n {
+    for j in 0..pattern.ncols() {
         for &i in &ri[cp[j]..cp[j + 1]] {
-            if i != j {
-                deg[i] += 1;
-                deg[j] += 1;
+            let (vi, vj) = (vert[i] as usize, vert[j] as usize);
+            if vi != vj {
+                deg[vi] += 1;
+                deg[vj] += 1;
             }
         }
     }
@@ -76,17 +123,33 @@ pub fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>, xy: &[[f64
         start[k + 1] = start[k] + deg[k];
     }
     let mut fill = start.clone();
-    let mut adj = vec![0u32; start[n]];
-    for j in 0..n {
+    let mut raw = vec![0u32; start[n]];
+    for j in 0..pattern.ncols() {
         for &i in &ri[cp[j]..cp[j + 1]] {
-            if i != j {
-                adj[fill[i]] = j as u32;
-                fill[i] += 1;
-                adj[fill[j]] = i as u32;
-                fill[j] += 1;
+            let (vi, vj) = (vert[i] as usize, vert[j] as usize);
+            if vi != vj {
+                raw[fill[vi]] = vj as u32;
+                fill[vi] += 1;
+                raw[fill[vj]] = vi as u32;
+                fill[vj] += 1;
             }
         }
     }
+    let mut seen = vec![u32::MAX; n];
+    let mut adj = Vec::with_capacity(raw.len());
+    let mut s0 = 0;
+    for k in 0..n {
+        for &m in &raw[start[k]..start[k + 1]] {
+            if seen[m as usize] != k as u32 {
+                seen[m as usize] = k as u32;
+                adj.push(m);
+            }
+        }
+        start[k] = s0;
+        s0 = adj.len();
+    }
+    start[n] = s0;
+    drop(raw);
     // Reach of each dof: the largest coordinate difference to a coupled dof, per axis. A dof
     // below the cut value `v` can be coupled to one at or above it only if `x + reach >= v`, so
     // the separator search looks at the dofs near the cut only.
@@ -208,31 +271,366 @@ pub fn extend_ordering(old: &[usize], n: usize, parent: &[usize]) -> Vec<usize> 
     out
 }
 
+/// The symbolic analysis: faer's supernodal symbolic Cholesky (with the ordering) and the plan of
+/// our numeric factorisation on it (which supernodes update which, the supernodal elimination
+/// tree and its work per subtree).
+pub struct Symbolic {
+    chol: SymbolicCholesky<usize>,
+    plan: Plan,
+}
+
+impl Symbolic {
+    /// Stored entries of `L`.
+    pub fn len_val(&self) -> usize {
+        self.chol.len_val()
+    }
+}
+
 /// Symbolic Cholesky of the lower triangle `pattern` with the ordering `order` (`order[new] = old`).
-pub fn symbolic(pattern: SymbolicSparseColMatRef<'_, usize>, order: &[usize]) -> Result<Arc<SymbolicCholesky<usize>>, String> {
+/// Always supernodal (our numeric factorisation below runs on supernodes).
+pub fn symbolic(pattern: SymbolicSparseColMatRef<'_, usize>, order: &[usize]) -> Result<Arc<Symbolic>, String> {
     let n = order.len();
     let mut inv = vec![0usize; n];
     for (new, &old) in order.iter().enumerate() {
         inv[old] = new;
     }
     let perm = Perm::new_checked(order.to_vec().into_boxed_slice(), inv.into_boxed_slice(), n);
-    factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Custom(perm.as_ref()), Default::default()).map(Arc::new).map_err(|e| format!("{e:?}"))
+    let params = CholeskySymbolicParams { supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL, ..Default::default() };
+    let chol = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Custom(perm.as_ref()), params).map_err(|e| format!("{e:?}"))?;
+    let plan = match chol.raw() {
+        SymbolicCholeskyRaw::Supernodal(s) => Plan::new(s),
+        SymbolicCholeskyRaw::Simplicial(_) => return Err("faer returned a simplicial analysis where a supernodal one was asked for".into()),
+    };
+    Ok(Arc::new(Symbolic { chol, plan }))
+}
+
+/// What the numeric factorisation needs beyond faer's supernodal structure.
+///
+/// Left-looking supernodal Cholesky (as CHOLMOD and faer): supernode `s` gathers its columns of
+/// `A`, subtracts the update `L_d,mid_bot L_d,mid^T` of every earlier supernode `d` whose row
+/// pattern meets `s`'s columns (`updaters`, in increasing `d`), then factors its diagonal block
+/// and solves its off-diagonal block. A supernode reads only supernodes of its own subtree in the
+/// supernodal elimination tree, so disjoint subtrees run in parallel (ours: faer 0.24's
+/// supernodal numeric walks the supernodes in sequence and parallelises only inside each dense
+/// kernel, which gains little on small fronts). Every supernode's arithmetic is the same whatever
+/// the thread that runs it and whatever the thread count: the factor is bit-identical.
+struct Plan {
+    /// Updaters of each supernode (CSR over supernodes; increasing within a row).
+    upd_ptr: Vec<usize>,
+    upd: Vec<usize>,
+    /// Children of each supernode in the supernodal elimination tree (CSR), and the roots.
+    child_ptr: Vec<usize>,
+    child: Vec<usize>,
+    roots: Vec<usize>,
+    /// Work estimate (flops) of each subtree, and the whole.
+    work: Vec<f64>,
+    total: f64,
+    /// Largest update block (rows x columns) and widest supernode: scratch sizes.
+    max_update: usize,
+    max_width: usize,
+}
+
+impl Plan {
+    fn new(s: &SymbolicSupernodalCholesky<usize>) -> Plan {
+        let ns = s.n_supernodes();
+        let (sb, se, cpr, ri) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_row_idx(), s.row_idx());
+        let n = se.last().copied().unwrap_or(0);
+        let mut col2s = vec![0usize; n];
+        for k in 0..ns {
+            col2s[sb[k]..se[k]].fill(k);
+        }
+        // Updaters: d updates every supernode its (sorted) row pattern meets.
+        let mut pairs: Vec<(usize, usize)> = Vec::new();
+        let mut parent = vec![usize::MAX; ns];
+        let mut work = vec![0.0f64; ns];
+        let (mut max_update, mut max_width) = (0usize, 0usize);
+        for d in 0..ns {
+            let pat = &ri[cpr[d]..cpr[d + 1]];
+            let (w, h) = ((se[d] - sb[d]) as f64, pat.len() as f64);
+            work[d] = w * w * w / 3.0 + h * w * w + h * h * w;
+            max_width = max_width.max(se[d] - sb[d]);
+            if let Some(&r) = pat.first() {
+                parent[d] = col2s[r];
+            }
+            let mut i = 0;
+            while i < pat.len() {
+                let t = col2s[pat[i]];
+                let mut j = i;
+                while j < pat.len() && pat[j] < se[t] {
+                    j += 1;
+                }
+                max_update = max_update.max((pat.len() - i) * (j - i));
+                pairs.push((t, d));
+                i = j;
+            }
+        }
+        let (upd_ptr, upd) = csr(ns, pairs.iter().copied());
+        let (child_ptr, child) = csr(ns, (0..ns).filter(|&k| parent[k] != usize::MAX).map(|k| (parent[k], k)));
+        let roots: Vec<usize> = (0..ns).filter(|&k| parent[k] == usize::MAX).collect();
+        for k in 0..ns {
+            if parent[k] != usize::MAX {
+                debug_assert!(parent[k] > k);
+                let w = work[k];
+                work[parent[k]] += w;
+            }
+        }
+        let total = roots.iter().map(|&r| work[r]).sum();
+        Plan { upd_ptr, upd, child_ptr, child, roots, work, total, max_update, max_width }
+    }
+
+    fn children(&self, k: usize) -> &[usize] {
+        &self.child[self.child_ptr[k]..self.child_ptr[k + 1]]
+    }
+}
+
+/// Rows `(row, value)` grouped by row into CSR, stable (values keep their order within a row).
+fn csr(n: usize, pairs: impl Iterator<Item = (usize, usize)> + Clone) -> (Vec<usize>, Vec<usize>) {
+    let mut ptr = vec![0usize; n + 1];
+    for (r, _) in pairs.clone() {
+        ptr[r + 1] += 1;
+    }
+    for k in 0..n {
+        ptr[k + 1] += ptr[k];
+    }
+    let mut fill = ptr.clone();
+    let mut val = vec![0usize; ptr[n]];
+    for (r, v) in pairs {
+        val[fill[r]] = v;
+        fill[r] += 1;
+    }
+    (ptr, val)
+}
+
+/// Scratch of one task: the global-to-local row map of the supernode in hand (all `usize::MAX`
+/// between supernodes), the update block, and the dense Cholesky's workspace.
+struct Work {
+    map: Vec<usize>,
+    w: Vec<f64>,
+    mem: MemBuffer,
+}
+
+/// The numeric factorisation's shared state. `L` is written through a raw pointer: each
+/// supernode writes only its own block of `values`, and reads only blocks of supernodes in its
+/// subtree, which are complete before it starts (the subtree's tasks have joined).
+struct Numeric<'a> {
+    s: &'a SymbolicSupernodalCholesky<usize>,
+    plan: &'a Plan,
+    a: SparseColMatRef<'a, usize, f64>,
+    values: *mut f64,
+    len: usize,
+    /// Subtrees with at least this much work run as tasks of their own.
+    cut: f64,
+    par: Par,
+    pool: Mutex<Vec<Work>>,
+    failed: Mutex<Option<usize>>,
+    stop: AtomicBool,
+}
+
+// SAFETY: the raw pointer is written by disjoint supernode blocks only (see `Numeric`).
+unsafe impl Sync for Numeric<'_> {}
+
+impl Numeric<'_> {
+    fn work(&self) -> Work {
+        if let Some(w) = self.pool.lock().unwrap_or_else(|e| e.into_inner()).pop() {
+            return w;
+        }
+        let n = self.s.nrows();
+        let req = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(self.plan.max_width, self.par, Default::default());
+        Work { map: vec![usize::MAX; n], w: vec![0.0; self.plan.max_update], mem: MemBuffer::new(req) }
+    }
+
+    fn give_back(&self, w: Work) {
+        self.pool.lock().unwrap_or_else(|e| e.into_inner()).push(w);
+    }
+
+    /// Factors the subtree rooted at `k`: children with enough work as parallel tasks, the rest
+    /// in this task, then `k` itself.
+    fn subtree(&self, k: usize) {
+        if self.plan.work[k] < self.cut {
+            let mut w = self.work();
+            self.sequential(k, &mut w);
+            self.give_back(w);
+            return;
+        }
+        let kids = self.plan.children(k);
+        rayon::scope(|sc| {
+            for &c in kids.iter().filter(|&&c| self.plan.work[c] >= self.cut) {
+                sc.spawn(move |_| self.subtree(c));
+            }
+            let small: Vec<usize> = kids.iter().copied().filter(|&c| self.plan.work[c] < self.cut).collect();
+            if !small.is_empty() {
+                let mut w = self.work();
+                for c in small {
+                    self.sequential(c, &mut w);
+                }
+                self.give_back(w);
+            }
+        });
+        let mut w = self.work();
+        self.node(k, &mut w, self.par);
+        self.give_back(w);
+    }
+
+    /// The subtree rooted at `k`, children before parents, in this thread.
+    fn sequential(&self, k: usize, w: &mut Work) {
+        // Post-order walk with an explicit stack of (node, next child).
+        let mut stack = vec![(k, 0usize)];
+        while let Some(&mut (v, ref mut next)) = stack.last_mut() {
+            let kids = self.plan.children(v);
+            if *next < kids.len() {
+                let c = kids[*next];
+                *next += 1;
+                stack.push((c, 0));
+            } else {
+                stack.pop();
+                self.node(v, w, Par::Seq);
+            }
+        }
+    }
+
+    /// Supernode `k`: gather `A`, subtract the updates, factor the diagonal block, solve the rest.
+    fn node(&self, k: usize, wk: &mut Work, par: Par) {
+        if self.stop.load(Ordering::Relaxed) {
+            return;
+        }
+        let s = self.s;
+        let (sb, se, cpr, cpv, ri) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
+        let (s0, s1) = (sb[k], se[k]);
+        let pat = &ri[cpr[k]..cpr[k + 1]];
+        let ncols = s1 - s0;
+        let nrows = ncols + pat.len();
+        debug_assert!(cpv[k + 1] <= self.len);
+        // SAFETY: block `k` of `values` is this supernode's own (no other task writes it), and
+        // the blocks read below belong to finished supernodes of this subtree.
+        // Zeroed before any reference to it exists (the buffer is allocated uninitialised), and
+        // written before it is read: a fresh page's first access is then a write (one fault),
+        // not a read of the shared zero page followed by a copy-on-write fault, whose TLB
+        // shootdown interrupts the other threads.
+        let ls = unsafe {
+            let p = self.values.add(cpv[k]);
+            std::ptr::write_bytes(p, 0, cpv[k + 1] - cpv[k]);
+            std::slice::from_raw_parts_mut(p, cpv[k + 1] - cpv[k])
+        };
+        let map = &mut wk.map;
+        for (i, &r) in pat.iter().enumerate() {
+            map[r] = ncols + i;
+        }
+        let local = |r: usize, map: &[usize]| if r < s1 { r - s0 } else { map[r] };
+        for j in s0..s1 {
+            let col = (j - s0) * nrows;
+            for (i, &v) in self.a.row_idx_of_col(j).zip(self.a.val_of_col(j)) {
+                if i >= j {
+                    ls[local(i, map) + col] += v;
+                }
+            }
+        }
+        for &d in &self.plan.upd[self.plan.upd_ptr[k]..self.plan.upd_ptr[k + 1]] {
+            let dpat = &ri[cpr[d]..cpr[d + 1]];
+            let dc = se[d] - sb[d];
+            let dr = dc + dpat.len();
+            let p0 = dpat.partition_point(|&r| r < s0);
+            let q = dpat[p0..].partition_point(|&r| r < s1);
+            let m = dpat.len() - p0;
+            // SAFETY: `d` is a finished descendant of `k` (see above).
+            let ld = unsafe { std::slice::from_raw_parts(self.values.add(cpv[d]) as *const f64, cpv[d + 1] - cpv[d]) };
+            let ld = MatRef::from_column_major_slice(ld, dr, dc);
+            let (_, bot) = ld.split_at_row(dc + p0);
+            let (mid, low) = bot.split_at_row(q);
+            let wbuf = &mut wk.w[..m * q];
+            let mut wm = MatMut::from_column_major_slice_mut(wbuf, m, q);
+            {
+                let (wt, wb) = wm.rb_mut().split_at_row_mut(q);
+                triangular::matmul(wt, BlockStructure::TriangularLower, Accum::Replace, mid, BlockStructure::Rectangular, mid.transpose(), BlockStructure::Rectangular, 1.0, par);
+                if m > q {
+                    faer::linalg::matmul::matmul(wb, Accum::Replace, low, mid.transpose(), 1.0, par);
+                }
+            }
+            let wbuf = &wk.w[..m * q];
+            for jj in 0..q {
+                let col = (dpat[p0 + jj] - s0) * nrows;
+                let wcol = &wbuf[jj * m..(jj + 1) * m];
+                for ii in jj..m {
+                    ls[local(dpat[p0 + ii], map) + col] -= wcol[ii];
+                }
+            }
+        }
+        for &r in pat {
+            map[r] = usize::MAX;
+        }
+        let lm = MatMut::from_column_major_slice_mut(ls, nrows, ncols);
+        let (mut top, bot) = lm.split_at_row_mut(ncols);
+        match faer::linalg::cholesky::llt::factor::cholesky_in_place(top.rb_mut(), Default::default(), par, MemStack::new(&mut wk.mem), Default::default()) {
+            Ok(_) => faer::linalg::triangular_solve::solve_lower_triangular_in_place(top.rb(), bot.transpose_mut(), par),
+            Err(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) => {
+                let mut f = self.failed.lock().unwrap_or_else(|e| e.into_inner());
+                *f = Some(f.map_or(s0 + index, |g: usize| g.min(s0 + index)));
+                self.stop.store(true, Ordering::Relaxed);
+            }
+        }
+    }
 }
 
 /// A numeric Cholesky factor on a shared symbolic analysis.
 #[derive(Clone)]
 pub struct Factor {
-    sym: Arc<SymbolicCholesky<usize>>,
+    sym: Arc<Symbolic>,
     values: Vec<f64>,
 }
 
 impl Factor {
     /// Numeric `L L^T` of `a` (lower triangle, the pattern the symbolic analysis was made for).
-    /// `Err(LltError::Numeric(_))`: a non-positive pivot.
-    pub fn new(sym: Arc<SymbolicCholesky<usize>>, a: &SparseColMat<usize, f64>, par: Par) -> Result<Self, LltError> {
-        let mut values = vec![0.0; sym.len_val()];
-        let mut mem = MemBuffer::try_new(sym.factorize_numeric_llt_scratch::<f64>(par, Default::default())).map_err(|_| LltError::Generic(faer::sparse::FaerError::OutOfMemory))?;
-        sym.factorize_numeric_llt::<f64>(&mut values, a.as_ref(), Side::Lower, Default::default(), par, MemStack::new(&mut mem), Default::default())?;
+    /// `Err(LltError::Numeric(_))`: a non-positive pivot (the first one met; its index is
+    /// the permuted column).
+    pub fn new(sym: Arc<Symbolic>, a: &SparseColMat<usize, f64>, par: Par) -> Result<Self, LltError> {
+        let SymbolicCholeskyRaw::Supernodal(s) = sym.chol.raw() else { unreachable!("`symbolic` makes supernodal analyses only") };
+        let n = a.nrows();
+        let oom = |_| LltError::Generic(faer::sparse::FaerError::OutOfMemory);
+        // A permuted to the factor's ordering (lower triangle, rows unsorted).
+        let nnz = a.compute_nnz();
+        let (mut pv, mut pc, mut pr) = (vec![0.0f64; nnz], vec![0usize; n + 1], vec![0usize; nnz]);
+        let perm = sym.chol.perm().expect("custom ordering");
+        let mut mem = MemBuffer::try_new(faer::sparse::utils::permute_self_adjoint_scratch::<usize>(n)).map_err(oom)?;
+        let ap = faer::sparse::utils::permute_self_adjoint_to_unsorted(&mut pv, &mut pc, &mut pr, a.as_ref(), perm, Side::Lower, Side::Lower, MemStack::new(&mut mem));
+        // Not zeroed here: each supernode zeroes its own block, in the thread that factors it.
+        let len = sym.chol.len_val();
+        let mut values: Vec<f64> = Vec::new();
+        values.try_reserve_exact(len).map_err(|_| LltError::Generic(faer::sparse::FaerError::OutOfMemory))?;
+        let threads = match par {
+            Par::Seq => 1,
+            Par::Rayon(t) => t.get(),
+        };
+        let num = Numeric {
+            s,
+            plan: &sym.plan,
+            a: ap.into_const(),
+            values: values.as_mut_ptr(),
+            len,
+            cut: if threads > 1 { sym.plan.total / (16 * threads) as f64 } else { f64::INFINITY },
+            par,
+            pool: Mutex::new(Vec::new()),
+            failed: Mutex::new(None),
+            stop: AtomicBool::new(false),
+        };
+        if threads > 1 {
+            rayon::scope(|sc| {
+                for &r in &sym.plan.roots {
+                    let num = &num;
+                    sc.spawn(move |_| num.subtree(r));
+                }
+            });
+        } else {
+            let mut w = num.work();
+            for &r in &sym.plan.roots {
+                num.sequential(r, &mut w);
+            }
+        }
+        if let Some(index) = num.failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            // Blocks of supernodes skipped after the failure were never written.
+            return Err(LltError::Numeric(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }));
+        }
+        // SAFETY: every supernode ran (no failure) and wrote its whole block: the blocks tile
+        // `0..len` (faer's `col_ptr_for_val`).
+        unsafe { values.set_len(len) };
         Ok(Factor { sym, values })
     }
 
@@ -243,8 +641,8 @@ impl Factor {
 
     /// Solves `A X = B` in place (`B` has the factor's rows, any number of columns).
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, par: Par) {
-        let mut mem = MemBuffer::new(self.sym.solve_in_place_scratch::<f64>(rhs.ncols(), par));
-        LltRef::new(&self.sym, &self.values).solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut mem));
+        let mut mem = MemBuffer::new(self.sym.chol.solve_in_place_scratch::<f64>(rhs.ncols(), par));
+        LltRef::new(&self.sym.chol, &self.values).solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut mem));
     }
 
     /// Solves `A x = b` for one vector.
@@ -323,8 +721,11 @@ mod tests {
         let order = nested_dissection(a.symbolic(), &xy);
         assert!(is_perm(&order));
         let sym = symbolic(a.symbolic(), &order).unwrap();
-        // Large enough for faer's supernodal (blocked, parallel) path.
-        assert!(matches!(sym.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_)));
+        // Several subtrees with enough work to run as tasks of their own on two threads.
+        // The crack splits the grid in two components (two roots); each has subtrees with
+        // enough work to run as tasks of their own on two threads.
+        assert_eq!(sym.plan.roots.len(), 2);
+        assert!(sym.plan.work.iter().filter(|&&w| w >= sym.plan.total / 32.0).count() > 4);
         let b: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
         let f1 = Factor::new(sym.clone(), &a, Par::Seq).unwrap();
         let x1 = f1.solve(&b, Par::Seq);
@@ -340,11 +741,32 @@ mod tests {
         let kx = super::super::sym_mul(&a, &x1);
         let r = (0..n).map(|i| (b[i] - kx[i]).abs()).fold(0.0, f64::max);
         assert!(r < 1e-13 * 6.0 * 5.0, "residual {r}");
-        let amd = factorize_symbolic_cholesky(a.symbolic(), Side::Lower, SymmetricOrdering::Amd, Default::default()).unwrap();
-        let fa = Factor::new(Arc::new(amd), &a, Par::Seq).unwrap();
-        let xa = fa.solve(&b, Par::Seq);
+        let xa = faer::prelude::Solve::solve(&a.sp_cholesky(Side::Lower).unwrap(), faer::ColRef::from_slice(&b));
+        let xa: Vec<f64> = xa.iter().copied().collect();
         let d = (0..n).map(|i| (x1[i] - xa[i]).abs()).fold(0.0, f64::max);
         assert!(d < 1e-12, "nested dissection vs AMD: {d}");
+    }
+
+    /// A matrix that is not positive definite (one negative diagonal entry in the middle of the
+    /// grid) is refused with a numeric error on one thread and on two, not factored.
+    #[test]
+    fn indefinite_matrix_is_refused_on_any_thread_count() {
+        let (a, xy) = grid(120, 80);
+        let n = a.nrows();
+        let order = nested_dissection(a.symbolic(), &xy);
+        let sym = symbolic(a.symbolic(), &order).unwrap();
+        let mut t = Vec::new();
+        let sa = a.as_ref();
+        for j in 0..n {
+            for (i, &v) in sa.row_idx_of_col(j).zip(sa.val_of_col(j)) {
+                t.push(faer::sparse::Triplet::new(i, j, if i == j && i == n / 2 { -5.0 } else { v }));
+            }
+        }
+        let bad = SparseColMat::try_new_from_triplets(n, n, &t).unwrap();
+        assert!(matches!(Factor::new(sym.clone(), &bad, Par::Seq), Err(LltError::Numeric(_))));
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        assert!(pool.install(|| matches!(Factor::new(sym.clone(), &bad, Par::rayon(2)), Err(LltError::Numeric(_)))));
+        assert!(Factor::new(sym, &a, Par::Seq).is_ok());
     }
 
     /// Extending an ordering keeps the old dofs' relative order and puts each new dof right after

@@ -19,9 +19,10 @@
 //! not `try_new_from_triplets`, whose sort cost as much as the factorisation). The fill-reducing
 //! ordering is a geometric nested dissection of the dofs (`factor.rs`, ours; faer's default AMD
 //! cost a quarter of the solve at 5e5 dofs and gives 6 % more fill there), handed to
-//! `cholesky::factorize_symbolic_cholesky(.., SymmetricOrdering::Custom(perm), ..)`; the numeric
-//! factorisation (`SymbolicCholesky::factorize_numeric_llt`) and the triangular solves run on the
-//! calling thread pool (`Par::rayon(n)`, bit-identical whatever `n`). The pattern, the ordering,
+//! `cholesky::factorize_symbolic_cholesky(.., SymmetricOrdering::Custom(perm), ..)` (always
+//! supernodal); the numeric factorisation is ours (`factor.rs`: faer's supernodal structure and
+//! dense kernels, independent subtrees as parallel tasks) and it and the triangular solves run on
+//! the calling thread pool (`Par::rayon(n)`, bit-identical whatever `n`). The pattern, the ordering,
 //! the symbolic and the numeric factorisation are kept and reused while the fingerprint
 //! (clusters, fixities, connectivity, geometry, materials) is unchanged: a later stage then costs
 //! one right-hand side from the force kernel and two triangular solves. A fresh solve checks its
@@ -56,7 +57,6 @@ use std::time::Instant;
 use std::sync::Arc;
 
 use faer::prelude::*;
-use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use faer::Side;
@@ -79,7 +79,7 @@ struct Cache {
     fingerprint: u64,
     pattern: Option<SymbolicSparseColMat<usize>>,
     /// The nested-dissection ordering (`factor.rs`, `order[new] = old`) and the symbolic analysis.
-    symbolic: Option<(Vec<usize>, Arc<SymbolicCholesky<usize>>)>,
+    symbolic: Option<(Vec<usize>, Arc<factor::Symbolic>)>,
     /// The assembled `K_ff` and its numeric factor, kept after a successful solve: `K` depends
     /// only on what the fingerprint covers, so a later solve needs only a new right-hand side.
     factor: Option<(SparseColMat<usize, f64>, factor::Factor)>,
@@ -407,7 +407,7 @@ pub(crate) fn dof_coords(model: &Model, eq: &[usize], n: usize) -> Vec<[f64; 2]>
 }
 
 /// Numeric LLT on a (reused) symbolic factorisation. `Err(None)`: a non-positive pivot.
-fn factor(sym: Arc<SymbolicCholesky<usize>>, a: &SparseColMat<usize, f64>, tm: &mut Timings) -> Result<factor::Factor, Option<String>> {
+fn factor(sym: Arc<factor::Symbolic>, a: &SparseColMat<usize, f64>, tm: &mut Timings) -> Result<factor::Factor, Option<String>> {
     let t0 = Instant::now();
     let r = match factor::Factor::new(sym, a, factor::par(a.nrows())) {
         Ok(l) => Ok(l),
