@@ -43,13 +43,11 @@ use std::sync::{Arc, Mutex};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::matmul::triangular::{self, BlockStructure};
-use faer::perm::Perm;
-use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering};
-use faer::sparse::linalg::{LltError, SupernodalThreshold};
-use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMatRef};
-use faer::reborrow::{IntoConst, Reborrow, ReborrowMut};
-use faer::{Accum, Conj, MatMut, MatRef, Par, Side};
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
+use faer::sparse::linalg::LltError;
+use faer::sparse::{SparseColMat, SymbolicSparseColMat, SymbolicSparseColMatRef};
+use faer::{Accum, Conj, MatMut, MatRef, Par};
 
 /// Dissection stops at this many vertices (the leaf keeps its coordinate order). Measured on
 /// `flem bench implicit`'s 5e5-dof mesh: dof leaves of 8 gave 56.0 M entries in `L` (AMD: 59.5 M),
@@ -271,37 +269,101 @@ pub fn extend_ordering(old: &[usize], n: usize, parent: &[usize]) -> Vec<usize> 
     out
 }
 
-/// The symbolic analysis: faer's supernodal symbolic Cholesky (with the ordering) and the plan of
-/// our numeric factorisation on it (which supernodes update which, the supernodal elimination
-/// tree and its work per subtree).
+/// The symbolic analysis: the ordering, the permuted lower pattern of `K` (and where each
+/// stored entry of the unpermuted one goes in it), faer's supernodal structure of `L`, and the
+/// plan of our numeric factorisation on it.
 pub struct Symbolic {
-    chol: SymbolicCholesky<usize>,
+    /// `fwd[new] = old`.
+    fwd: Vec<usize>,
+    /// Entries of the unpermuted lower pattern, per column: `n` and the column pointers (to check
+    /// that a matrix has the pattern this analysis was made for), and each entry's position in
+    /// the permuted lower pattern `(lcp, lri)` (rows unsorted within a column).
+    acp: Vec<usize>,
+    to_perm: Vec<u32>,
+    lcp: Vec<usize>,
+    lri: Vec<u32>,
+    sn: SymbolicSupernodalCholesky<usize>,
     plan: Plan,
 }
 
 impl Symbolic {
     /// Stored entries of `L`.
     pub fn len_val(&self) -> usize {
-        self.chol.len_val()
+        self.sn.len_val()
     }
 }
 
 /// Symbolic Cholesky of the lower triangle `pattern` with the ordering `order` (`order[new] = old`).
-/// Always supernodal (our numeric factorisation below runs on supernodes).
+///
+/// The pattern is permuted once here (both triangles' patterns, and the map that later puts a
+/// matrix's values in place with one pass); the elimination tree and column counts come from
+/// faer's `prefactorize_symbolic_cholesky`, the supernodes from faer's
+/// `factorize_supernodal_symbolic_cholesky` (its default relaxed amalgamation). faer's
+/// high-level `factorize_symbolic_cholesky` does the same but permutes the pattern through a
+/// general routine, and its numeric factorisation permutes every matrix again.
 pub fn symbolic(pattern: SymbolicSparseColMatRef<'_, usize>, order: &[usize]) -> Result<Arc<Symbolic>, String> {
+    use faer::sparse::linalg::cholesky::{simplicial, supernodal};
     let n = order.len();
-    let mut inv = vec![0usize; n];
+    if pattern.nrows() != n || pattern.ncols() != n {
+        return Err(format!("pattern {}x{} for an ordering of {n}", pattern.nrows(), pattern.ncols()));
+    }
+    let mut inv = vec![usize::MAX; n];
     for (new, &old) in order.iter().enumerate() {
+        if old >= n || inv[old] != usize::MAX {
+            return Err(format!("the ordering is not a permutation of 0..{n}"));
+        }
         inv[old] = new;
     }
-    let perm = Perm::new_checked(order.to_vec().into_boxed_slice(), inv.into_boxed_slice(), n);
-    let params = CholeskySymbolicParams { supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL, ..Default::default() };
-    let chol = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Custom(perm.as_ref()), params).map_err(|e| format!("{e:?}"))?;
-    let plan = match chol.raw() {
-        SymbolicCholeskyRaw::Supernodal(s) => Plan::new(s),
-        SymbolicCholeskyRaw::Simplicial(_) => return Err("faer returned a simplicial analysis where a supernodal one was asked for".into()),
-    };
-    Ok(Arc::new(Symbolic { chol, plan }))
+    // Permuted lower (numeric) and upper (faer's symbolic analyses read the upper triangle)
+    // patterns, by counting sort.
+    let mut acp = vec![0usize; n + 1];
+    let (mut lcnt, mut ucnt) = (vec![0usize; n + 1], vec![0usize; n + 1]);
+    for j in 0..n {
+        let rows = pattern.row_idx_of_col_raw(j);
+        acp[j + 1] = acp[j] + rows.len();
+        for &i in rows {
+            if i < j {
+                return Err(format!("entry ({i}, {j}) above the diagonal of a lower-triangle pattern"));
+            }
+            let (a, b) = (inv[i], inv[j]);
+            lcnt[a.min(b) + 1] += 1;
+            ucnt[a.max(b) + 1] += 1;
+        }
+    }
+    for k in 0..n {
+        lcnt[k + 1] += lcnt[k];
+        ucnt[k + 1] += ucnt[k];
+    }
+    let nnz = acp[n];
+    if nnz > u32::MAX as usize {
+        return Err(format!("{nnz} stored entries in the lower triangle: more than this solver indexes (2^32)"));
+    }
+    let (lcp, ucp) = (lcnt.clone(), ucnt.clone());
+    // 32-bit where only we read (the map and our numeric's rows): less memory to touch.
+    let (mut lri, mut uri, mut to_perm) = (vec![0u32; nnz], vec![0usize; nnz], vec![0u32; nnz]);
+    let mut p = 0;
+    for j in 0..n {
+        for &i in pattern.row_idx_of_col_raw(j) {
+            let (a, b) = (inv[i], inv[j]);
+            let (lo, hi) = (a.min(b), a.max(b));
+            to_perm[p] = lcnt[lo] as u32;
+            lri[lcnt[lo]] = hi as u32;
+            lcnt[lo] += 1;
+            uri[ucnt[hi]] = lo;
+            ucnt[hi] += 1;
+            p += 1;
+        }
+    }
+    let upper = SymbolicSparseColMat::new_unsorted_checked(n, n, ucp, None, uri);
+    let mut etree = vec![0isize; n];
+    let mut counts = vec![0usize; n];
+    let req = simplicial::prefactorize_symbolic_cholesky_scratch::<usize>(n, nnz).or(supernodal::factorize_supernodal_symbolic_cholesky_scratch::<usize>(n));
+    let mut mem = MemBuffer::try_new(req).map_err(|_| "out of memory".to_string())?;
+    let stack = MemStack::new(&mut mem);
+    let et = simplicial::prefactorize_symbolic_cholesky(&mut etree, &mut counts, upper.as_ref(), stack);
+    let sn = supernodal::factorize_supernodal_symbolic_cholesky(upper.as_ref(), et, &counts, stack, Default::default()).map_err(|e| format!("{e:?}"))?;
+    let plan = Plan::new(&sn);
+    Ok(Arc::new(Symbolic { fwd: order.to_vec(), acp, to_perm, lcp, lri, sn, plan }))
 }
 
 /// What the numeric factorisation needs beyond faer's supernodal structure.
@@ -415,7 +477,10 @@ struct Work {
 struct Numeric<'a> {
     s: &'a SymbolicSupernodalCholesky<usize>,
     plan: &'a Plan,
-    a: SparseColMatRef<'a, usize, f64>,
+    /// `A` permuted, lower triangle (column pointers, rows, values).
+    acp: &'a [usize],
+    ari: &'a [u32],
+    av: &'a [f64],
     values: *mut f64,
     len: usize,
     /// Subtrees with at least this much work run as tasks of their own.
@@ -518,10 +583,8 @@ impl Numeric<'_> {
         let local = |r: usize, map: &[usize]| if r < s1 { r - s0 } else { map[r] };
         for j in s0..s1 {
             let col = (j - s0) * nrows;
-            for (i, &v) in self.a.row_idx_of_col(j).zip(self.a.val_of_col(j)) {
-                if i >= j {
-                    ls[local(i, map) + col] += v;
-                }
+            for p in self.acp[j]..self.acp[j + 1] {
+                ls[local(self.ari[p] as usize, map) + col] += self.av[p];
             }
         }
         for &d in &self.plan.upd[self.plan.upd_ptr[k]..self.plan.upd_ptr[k + 1]] {
@@ -577,23 +640,61 @@ pub struct Factor {
     values: Vec<f64>,
 }
 
+/// The values buffer of the last factor dropped, kept for the next factorisation (ours). `L`'s
+/// values are a solve's largest allocation (56 M entries, 450 MB, at 5e5 dofs), and on this
+/// project's machines (virtual machines that hand freed memory back to the host) the first
+/// touch of fresh pages costs about 0.5 ms per MB: ~0.2 s of a 1 s factorisation at 5e5 dofs. A
+/// later factorisation (a new topology between stages, the events solver's refactorisations,
+/// the benchmark's repeats) reuses the kept pages. At most one buffer, the largest, is kept;
+/// [`release_spare`] frees it.
+static SPARE: Mutex<Vec<f64>> = Mutex::new(Vec::new());
+
+/// Frees the buffer kept for the next factorisation (see `SPARE`).
+pub fn release_spare() {
+    drop(std::mem::take(&mut *SPARE.lock().unwrap_or_else(|e| e.into_inner())));
+}
+
+impl Drop for Factor {
+    fn drop(&mut self) {
+        let v = std::mem::take(&mut self.values);
+        let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+        if v.capacity() > spare.capacity() {
+            *spare = v;
+        }
+    }
+}
+
 impl Factor {
     /// Numeric `L L^T` of `a` (lower triangle, the pattern the symbolic analysis was made for).
     /// `Err(LltError::Numeric(_))`: a non-positive pivot (the first one met; its index is
     /// the permuted column).
     pub fn new(sym: Arc<Symbolic>, a: &SparseColMat<usize, f64>, par: Par) -> Result<Self, LltError> {
-        let SymbolicCholeskyRaw::Supernodal(s) = sym.chol.raw() else { unreachable!("`symbolic` makes supernodal analyses only") };
-        let n = a.nrows();
-        let oom = |_| LltError::Generic(faer::sparse::FaerError::OutOfMemory);
-        // A permuted to the factor's ordering (lower triangle, rows unsorted).
-        let nnz = a.compute_nnz();
-        let (mut pv, mut pc, mut pr) = (vec![0.0f64; nnz], vec![0usize; n + 1], vec![0usize; nnz]);
-        let perm = sym.chol.perm().expect("custom ordering");
-        let mut mem = MemBuffer::try_new(faer::sparse::utils::permute_self_adjoint_scratch::<usize>(n)).map_err(oom)?;
-        let ap = faer::sparse::utils::permute_self_adjoint_to_unsorted(&mut pv, &mut pc, &mut pr, a.as_ref(), perm, Side::Lower, Side::Lower, MemStack::new(&mut mem));
+        let s = &sym.sn;
+        let n = sym.fwd.len();
+        let sa = a.symbolic();
+        if sa.nrows() != n || sa.ncols() != n || (0..n).any(|j| sym.acp[j + 1] - sym.acp[j] != sa.row_idx_of_col_raw(j).len()) {
+            return Err(LltError::Generic(faer::sparse::FaerError::IndexOverflow));
+        }
+        // A's values in the permuted lower pattern: one pass.
+        let mut av = vec![0.0f64; sym.to_perm.len()];
+        let mut p = 0;
+        for j in 0..n {
+            for &v in a.val_of_col(j) {
+                av[sym.to_perm[p] as usize] = v;
+                p += 1;
+            }
+        }
         // Not zeroed here: each supernode zeroes its own block, in the thread that factors it.
-        let len = sym.chol.len_val();
-        let mut values: Vec<f64> = Vec::new();
+        let len = s.len_val();
+        let mut values = {
+            let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+            if spare.capacity() >= len {
+                std::mem::take(&mut *spare)
+            } else {
+                Vec::new()
+            }
+        };
+        values.clear();
         values.try_reserve_exact(len).map_err(|_| LltError::Generic(faer::sparse::FaerError::OutOfMemory))?;
         let threads = match par {
             Par::Seq => 1,
@@ -602,7 +703,9 @@ impl Factor {
         let num = Numeric {
             s,
             plan: &sym.plan,
-            a: ap.into_const(),
+            acp: &sym.lcp,
+            ari: &sym.lri,
+            av: &av,
             values: values.as_mut_ptr(),
             len,
             cut: if threads > 1 { sym.plan.total / (16 * threads) as f64 } else { f64::INFINITY },
@@ -640,9 +743,22 @@ impl Factor {
     }
 
     /// Solves `A X = B` in place (`B` has the factor's rows, any number of columns).
-    pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, par: Par) {
-        let mut mem = MemBuffer::new(self.sym.chol.solve_in_place_scratch::<f64>(rhs.ncols(), par));
-        LltRef::new(&self.sym.chol, &self.values).solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut mem));
+    pub fn solve_in_place(&self, mut rhs: MatMut<'_, f64>, par: Par) {
+        let (n, k) = (rhs.nrows(), rhs.ncols());
+        let fwd = &self.sym.fwd;
+        let mut x = faer::Mat::<f64>::zeros(n, k);
+        for c in 0..k {
+            for (new, &old) in fwd.iter().enumerate() {
+                x[(new, c)] = rhs[(old, c)];
+            }
+        }
+        let mut mem = MemBuffer::new(self.sym.sn.solve_in_place_scratch::<f64>(k, par));
+        SupernodalLltRef::new(&self.sym.sn, &self.values).solve_in_place_with_conj(Conj::No, x.as_mut(), par, MemStack::new(&mut mem));
+        for c in 0..k {
+            for (new, &old) in fwd.iter().enumerate() {
+                rhs[(old, c)] = x[(new, c)];
+            }
+        }
     }
 
     /// Solves `A x = b` for one vector.
@@ -741,7 +857,7 @@ mod tests {
         let kx = super::super::sym_mul(&a, &x1);
         let r = (0..n).map(|i| (b[i] - kx[i]).abs()).fold(0.0, f64::max);
         assert!(r < 1e-13 * 6.0 * 5.0, "residual {r}");
-        let xa = faer::prelude::Solve::solve(&a.sp_cholesky(Side::Lower).unwrap(), faer::ColRef::from_slice(&b));
+        let xa = faer::prelude::Solve::solve(&a.sp_cholesky(faer::Side::Lower).unwrap(), faer::ColRef::from_slice(&b));
         let xa: Vec<f64> = xa.iter().copied().collect();
         let d = (0..n).map(|i| (x1[i] - xa[i]).abs()).fold(0.0, f64::max);
         assert!(d < 1e-12, "nested dissection vs AMD: {d}");
