@@ -504,6 +504,8 @@ struct Plan {
     /// Largest update block (rows x columns) and widest supernode: scratch sizes.
     max_update: usize,
     max_width: usize,
+    /// Longest row pattern below a supernode's diagonal block.
+    max_rows: usize,
 }
 
 impl Plan {
@@ -519,12 +521,13 @@ impl Plan {
         let mut pairs: Vec<(usize, usize)> = Vec::new();
         let mut parent = vec![usize::MAX; ns];
         let mut work = vec![0.0f64; ns];
-        let (mut max_update, mut max_width) = (0usize, 0usize);
+        let (mut max_update, mut max_width, mut max_rows) = (0usize, 0usize, 0usize);
         for d in 0..ns {
             let pat = &ri[cpr[d]..cpr[d + 1]];
             let (w, h) = ((se[d] - sb[d]) as f64, pat.len() as f64);
             work[d] = w * w * w / 3.0 + h * w * w + h * h * w;
             max_width = max_width.max(se[d] - sb[d]);
+            max_rows = max_rows.max(pat.len());
             if let Some(&r) = pat.first() {
                 parent[d] = col2s[r];
             }
@@ -551,7 +554,7 @@ impl Plan {
             }
         }
         let total = roots.iter().map(|&r| work[r]).sum();
-        Plan { upd_ptr, upd, child_ptr, child, roots, work, total, max_update, max_width }
+        Plan { upd_ptr, upd, child_ptr, child, roots, work, total, max_update, max_width, max_rows }
     }
 
     fn children(&self, k: usize) -> &[usize] {
@@ -581,6 +584,8 @@ fn csr(n: usize, pairs: impl Iterator<Item = (usize, usize)> + Clone) -> (Vec<us
 /// between supernodes), the update block, and the dense Cholesky's workspace.
 struct Work {
     map: Vec<usize>,
+    /// Rows of the supernode in hand that an update's rows go to.
+    rel: Vec<usize>,
     w: Vec<f64>,
     mem: MemBuffer,
 }
@@ -615,7 +620,7 @@ impl Numeric<'_> {
         }
         let n = self.s.nrows();
         let req = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(self.plan.max_width, self.par, Default::default());
-        Work { map: vec![usize::MAX; n], w: vec![0.0; self.plan.max_update], mem: MemBuffer::new(req) }
+        Work { map: vec![usize::MAX; n], rel: vec![0; self.plan.max_rows], w: vec![0.0; self.plan.max_update], mem: MemBuffer::new(req) }
     }
 
     fn give_back(&self, w: Work) {
@@ -722,12 +727,17 @@ impl Numeric<'_> {
                     faer::linalg::matmul::matmul(wb, Accum::Replace, low, mid.transpose(), 1.0, par);
                 }
             }
+            // Where each row of the update goes, once per update (not once per entry).
+            let rel = &mut wk.rel[..m];
+            for (r, &g) in rel.iter_mut().zip(&dpat[p0..]) {
+                *r = local(g, map);
+            }
             let wbuf = &wk.w[..m * q];
             for jj in 0..q {
-                let col = (dpat[p0 + jj] - s0) * nrows;
+                let col = rel[jj] * nrows;
                 let wcol = &wbuf[jj * m..(jj + 1) * m];
                 for ii in jj..m {
-                    ls[local(dpat[p0 + ii], map) + col] -= wcol[ii];
+                    ls[rel[ii] + col] -= wcol[ii];
                 }
             }
         }
