@@ -27,17 +27,19 @@
 //! faer's dense `triangular::matmul`/`matmul`, `cholesky_in_place` and triangular solve for
 //! each supernode. A supernode reads only its descendants in the supernodal elimination tree,
 //! so disjoint subtrees are independent: subtrees with at least 1/(16 t) of the work run as
-//! rayon tasks of their own, the supernodes above them after their tasks join (with the dense
-//! kernels on `Par::rayon(t)`). faer 0.24's own supernodal numeric walks the supernodes one
-//! after the other and parallelises only inside the dense kernels, which gained 0.98 -> 0.88 s
-//! on two threads at 5e5 dofs; the subtree tasks give 0.95 -> 0.55 s (docs/perf/implicit.md).
+//! rayon tasks of their own, the supernodes above them after their tasks join. faer 0.24's own
+//! supernodal numeric walks the supernodes one after the other and parallelises only inside the
+//! dense kernels, which gained 0.98 -> 0.88 s on two threads at 5e5 dofs; the subtree tasks
+//! give 0.95 -> 0.55 s (docs/perf/implicit.md).
 //!
-//! Threads: from [`PAR_MIN_DOFS`] dofs on, the numeric factorisation and the triangular solves
-//! take `Par::rayon(n)` with the calling pool's thread count (`rayon::current_num_threads`).
-//! Every supernode's arithmetic (its gather, its updates in increasing order of the updating
-//! supernode, its dense kernels, which split work by blocks of the output) is the same whichever
-//! thread runs it, so the factor is bit-identical whatever `n` (the unit test below checks it
-//! on 1 and 2 threads).
+//! Threads: from [`PAR_MIN_DOFS`] dofs on, the numeric factorisation runs its subtree tasks on
+//! the calling pool (`rayon::current_num_threads`) and the triangular solves with several
+//! right-hand sides take `Par::rayon(n)`. Every supernode's arithmetic (its gather, its updates
+//! in increasing order of the updating supernode, its dense kernels, all on `Par::Seq`) is the
+//! same whichever thread runs it, and a single right-hand side is solved on one thread, because
+//! faer's matrix-vector product with `Par::Rayon` sums per-thread partial products: the factor
+//! and the solutions are bit-identical whatever `n` (the unit tests below check 1, 2 and 4
+//! threads at 2.4e5 dofs, where that product takes its parallel path).
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -77,6 +79,9 @@ pub fn par(n: usize) -> Par {
 pub fn nested_dissection(pattern: SymbolicSparseColMatRef<'_, usize>, xy: &[[f64; 2]]) -> Vec<usize> {
     let n = pattern.nrows();
     assert_eq!(xy.len(), n);
+    if n == 0 {
+        return Vec::new();
+    }
     // Vertices: runs of consecutive dofs at the same point (a node's x and y dofs). The
     // dissection runs on the vertex graph (half the items and a quarter of the couplings of the
     // dof graph for 2-dof nodes) and each vertex's dofs stay together in the ordering.
@@ -211,8 +216,9 @@ fn dissect(pattern: SymbolicSparseColMatRef<'_, usize>, vert: &[u32], xy: &[[f64
                     mid += 1;
                 }
             }
-            if mid == part.len() {
-                // All on one line across the long side: a rank split.
+            if mid == 0 || mid == part.len() {
+                // All on one line across the long side (or coordinates that do not compare,
+                // NaN): a rank split.
                 mid = half;
             }
         }
@@ -275,10 +281,11 @@ pub fn extend_ordering(old: &[usize], n: usize, parent: &[usize]) -> Vec<usize> 
 pub struct Symbolic {
     /// `fwd[new] = old`.
     fwd: Vec<usize>,
-    /// Entries of the unpermuted lower pattern, per column: `n` and the column pointers (to check
-    /// that a matrix has the pattern this analysis was made for), and each entry's position in
-    /// the permuted lower pattern `(lcp, lri)` (rows unsorted within a column).
-    acp: Vec<usize>,
+    /// FNV-1a hash of the unpermuted pattern's row indices, column by column (a matrix handed
+    /// to `Factor::new` must have this pattern).
+    rows_hash: u64,
+    /// Each stored entry of the unpermuted lower pattern (column by column): its position in the
+    /// permuted lower pattern `(lcp, lri)` (rows unsorted within a column).
     to_perm: Vec<u32>,
     lcp: Vec<usize>,
     lri: Vec<u32>,
@@ -366,7 +373,24 @@ pub fn symbolic(pattern: SymbolicSparseColMatRef<'_, usize>, order: &[usize]) ->
     let et = unsafe { simplicial::EliminationTreeRef::<usize>::from_inner(&etree) };
     let sn = supernodal::factorize_supernodal_symbolic_cholesky(upper.as_ref(), et, &counts, stack, Default::default()).map_err(|e| format!("{e:?}"))?;
     let plan = Plan::new(&sn);
-    Ok(Arc::new(Symbolic { fwd: order.to_vec(), acp, to_perm, lcp, lri, sn, plan }))
+    Ok(Arc::new(Symbolic { fwd: order.to_vec(), rows_hash: rows_hash(pattern), to_perm, lcp, lri, sn, plan }))
+}
+
+/// FNV-1a hash of a pattern's row indices, column by column (with each column's length).
+fn rows_hash(pattern: SymbolicSparseColMatRef<'_, usize>) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut mix = |x: usize| {
+        h ^= x as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    };
+    for j in 0..pattern.ncols() {
+        let rows = pattern.row_idx_of_col_raw(j);
+        mix(rows.len());
+        for &i in rows {
+            mix(i);
+        }
+    }
+    h
 }
 
 /// The elimination tree of the upper-triangle pattern `(cp, ri)` (Liu 1986, with path
@@ -604,7 +628,6 @@ struct Numeric<'a> {
     len: usize,
     /// Subtrees with at least this much work run as tasks of their own.
     cut: f64,
-    par: Par,
     pool: Mutex<Vec<Work>>,
     failed: Mutex<Option<usize>>,
     stop: AtomicBool,
@@ -619,7 +642,7 @@ impl Numeric<'_> {
             return w;
         }
         let n = self.s.nrows();
-        let req = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(self.plan.max_width, self.par, Default::default());
+        let req = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(self.plan.max_width, Par::Seq, Default::default());
         Work { map: vec![usize::MAX; n], rel: vec![0; self.plan.max_rows], w: vec![0.0; self.plan.max_update], mem: MemBuffer::new(req) }
     }
 
@@ -651,7 +674,7 @@ impl Numeric<'_> {
             }
         });
         let mut w = self.work();
-        self.node(k, &mut w, self.par);
+        self.node(k, &mut w);
         self.give_back(w);
     }
 
@@ -667,13 +690,17 @@ impl Numeric<'_> {
                 stack.push((c, 0));
             } else {
                 stack.pop();
-                self.node(v, w, Par::Seq);
+                self.node(v, w);
             }
         }
     }
 
     /// Supernode `k`: gather `A`, subtract the updates, factor the diagonal block, solve the rest.
-    fn node(&self, k: usize, wk: &mut Work, par: Par) {
+    /// The dense kernels run on one thread (`Par::Seq`) whatever the pool: the parallelism is
+    /// the subtrees', and no kernel's arithmetic can depend on the thread count (faer's matrix-
+    /// vector product with `Par::Rayon` splits the inner dimension into per-thread partial sums).
+    fn node(&self, k: usize, wk: &mut Work) {
+        let par = Par::Seq;
         if self.stop.load(Ordering::Relaxed) {
             return;
         }
@@ -796,7 +823,9 @@ impl Factor {
         let s = &sym.sn;
         let n = sym.fwd.len();
         let sa = a.symbolic();
-        if sa.nrows() != n || sa.ncols() != n || (0..n).any(|j| sym.acp[j + 1] - sym.acp[j] != sa.row_idx_of_col_raw(j).len()) {
+        // The values are placed by the analysis's map: `a` must have the analysed pattern (an
+        // internal invariant of the callers, which keep the pattern with the analysis).
+        if sa.nrows() != n || sa.ncols() != n || rows_hash(sa) != sym.rows_hash {
             return Err(LltError::Generic(faer::sparse::FaerError::IndexOverflow));
         }
         // A's values in the permuted lower pattern: one pass.
@@ -812,7 +841,8 @@ impl Factor {
         let len = s.len_val();
         let mut values = {
             let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
-            if spare.capacity() >= len {
+            // Not a buffer much larger than needed: a small factor would hold it.
+            if spare.capacity() >= len && spare.capacity() <= 2 * len.max(1 << 16) {
                 std::mem::take(&mut *spare)
             } else {
                 Vec::new()
@@ -833,7 +863,6 @@ impl Factor {
             values: values.as_mut_ptr(),
             len,
             cut: if threads > 1 { sym.plan.total / (16 * threads) as f64 } else { f64::INFINITY },
-            par,
             pool: Mutex::new(Vec::new()),
             failed: Mutex::new(None),
             stop: AtomicBool::new(false),
@@ -852,7 +881,12 @@ impl Factor {
             }
         }
         if let Some(index) = num.failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
-            // Blocks of supernodes skipped after the failure were never written.
+            // Blocks of supernodes skipped after the failure were never written; the buffer
+            // (length 0) goes back to the spare.
+            let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+            if values.capacity() > spare.capacity() {
+                *spare = values;
+            }
             return Err(LltError::Numeric(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }));
         }
         // SAFETY: every supernode ran (no failure) and wrote its whole block: the blocks tile
@@ -867,8 +901,14 @@ impl Factor {
     }
 
     /// Solves `A X = B` in place (`B` has the factor's rows, any number of columns).
+    /// One right-hand side is solved on one thread: faer's supernodal solve then runs
+    /// matrix-vector products, whose `Par::Rayon` form sums per-thread partial products (the
+    /// result would depend on the thread count; measured: 323 of 239 700 entries differ between
+    /// one and two threads). Several columns go through faer's matrix products, which split the
+    /// output only.
     pub fn solve_in_place(&self, mut rhs: MatMut<'_, f64>, par: Par) {
         let (n, k) = (rhs.nrows(), rhs.ncols());
+        let par = if k == 1 { Par::Seq } else { par };
         let fwd = &self.sym.fwd;
         let mut x = faer::Mat::<f64>::zeros(n, k);
         for c in 0..k {
@@ -985,6 +1025,39 @@ mod tests {
         let xa: Vec<f64> = xa.iter().copied().collect();
         let d = (0..n).map(|i| (x1[i] - xa[i]).abs()).fold(0.0, f64::max);
         assert!(d < 1e-12, "nested dissection vs AMD: {d}");
+    }
+
+    /// At a size where faer's kernels take their parallel paths (2.4e5 dofs: fronts of several
+    /// hundred rows, matrix-vector products above faer's 65 536-entry threshold), the factor and
+    /// the solves (one and three right-hand sides) are bit-identical on 1, 2 and 4 threads.
+    #[test]
+    fn large_factor_and_solves_are_bit_identical_on_1_2_4_threads() {
+        let (a, xy) = grid(600, 400);
+        let n = a.nrows();
+        let sym = symbolic(a.symbolic(), &nested_dissection(a.symbolic(), &xy)).unwrap();
+        let b: Vec<f64> = (0..3 * n).map(|i| ((i * 7919) % 17) as f64 - 8.0).collect();
+        let run = |t: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+            pool.install(|| {
+                let par = if t == 1 { Par::Seq } else { Par::rayon(t) };
+                let f = Factor::new(sym.clone(), &a, par).unwrap();
+                let x1 = f.solve(&b[..n], par);
+                let mut x3 = b.clone();
+                f.solve_in_place(MatMut::from_column_major_slice_mut(&mut x3, n, 3), par);
+                (f.values.clone(), x1, x3)
+            })
+        };
+        let one = run(1);
+        for t in [2, 4] {
+            let other = run(t);
+            assert!(one.0 == other.0, "factor differs between 1 and {t} threads");
+            assert!(one.1 == other.1, "one-column solve differs between 1 and {t} threads");
+            assert!(one.2 == other.2, "three-column solve differs between 1 and {t} threads");
+        }
+        // And it solves (reference: the residual, 1e-12 relative).
+        let kx = super::super::sym_mul(&a, &one.1);
+        let r = (0..n).map(|i| (b[i] - kx[i]).abs()).fold(0.0, f64::max);
+        assert!(r < 1e-12 * 8.0 * 5.0, "residual {r}");
     }
 
     /// A matrix that is not positive definite (one negative diagonal entry in the middle of the

@@ -21,8 +21,9 @@
 //! cost a quarter of the solve at 5e5 dofs and gives 6 % more fill there), handed to
 //! `cholesky::factorize_symbolic_cholesky(.., SymmetricOrdering::Custom(perm), ..)` (always
 //! supernodal); the numeric factorisation is ours (`factor.rs`: faer's supernodal structure and
-//! dense kernels, independent subtrees as parallel tasks) and it and the triangular solves run on
-//! the calling thread pool (`Par::rayon(n)`, bit-identical whatever `n`). The pattern, the ordering,
+//! dense kernels, independent subtrees as parallel tasks on the calling thread pool; the
+//! triangular solves of several right-hand sides take `Par::rayon(n)`): bit-identical whatever
+//! `n` (factor.rs). The pattern, the ordering,
 //! the symbolic and the numeric factorisation are kept and reused while the fingerprint
 //! (clusters, fixities, connectivity, geometry, materials) is unchanged: a later stage then costs
 //! one right-hand side from the force kernel and two triangular solves. A fresh solve checks its
