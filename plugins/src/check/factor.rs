@@ -293,13 +293,6 @@ pub struct Symbolic {
     plan: Plan,
 }
 
-impl Symbolic {
-    /// Stored entries of `L`.
-    pub fn len_val(&self) -> usize {
-        self.sn.len_val()
-    }
-}
-
 /// Symbolic Cholesky of the lower triangle `pattern` with the ordering `order` (`order[new] = old`).
 ///
 /// The pattern is permuted once here (both triangles' patterns, and the map that later puts a
@@ -625,7 +618,6 @@ struct Numeric<'a> {
     ari: &'a [u32],
     av: &'a [f64],
     values: *mut f64,
-    len: usize,
     /// Subtrees with at least this much work run as tasks of their own.
     cut: f64,
     pool: Mutex<Vec<Work>>,
@@ -710,7 +702,6 @@ impl Numeric<'_> {
         let pat = &ri[cpr[k]..cpr[k + 1]];
         let ncols = s1 - s0;
         let nrows = ncols + pat.len();
-        debug_assert!(cpv[k + 1] <= self.len);
         // SAFETY: block `k` of `values` is this supernode's own (no other task writes it), and
         // the blocks read below belong to finished supernodes of this subtree.
         // Zeroed before any reference to it exists (the buffer is allocated uninitialised), and
@@ -861,7 +852,6 @@ impl Factor {
             ari: &sym.lri,
             av: &av,
             values: values.as_mut_ptr(),
-            len,
             cut: if threads > 1 { sym.plan.total / (16 * threads) as f64 } else { f64::INFINITY },
             pool: Mutex::new(Vec::new()),
             failed: Mutex::new(None),

@@ -18,9 +18,9 @@
 //! cluster graph (`assemble.rs`: `SymbolicSparseColMat::new_checked`, values scattered in place;
 //! not `try_new_from_triplets`, whose sort cost as much as the factorisation). The fill-reducing
 //! ordering is a geometric nested dissection of the dofs (`factor.rs`, ours; faer's default AMD
-//! cost a quarter of the solve at 5e5 dofs and gives 6 % more fill there), handed to
-//! `cholesky::factorize_symbolic_cholesky(.., SymmetricOrdering::Custom(perm), ..)` (always
-//! supernodal); the numeric factorisation is ours (`factor.rs`: faer's supernodal structure and
+//! cost a quarter of the solve at 5e5 dofs and gives 6 % more fill there); the symbolic analysis
+//! is ours up to faer's `supernodal::factorize_supernodal_symbolic_cholesky`, and the numeric
+//! factorisation is ours (`factor.rs`: faer's supernodal structure and
 //! dense kernels, independent subtrees as parallel tasks on the calling thread pool; the
 //! triangular solves of several right-hand sides take `Par::rayon(n)`): bit-identical whatever
 //! `n` (factor.rs). The pattern, the ordering,
@@ -79,8 +79,8 @@ struct Cache {
     /// Hash of (number of clusters, fixity bits, connectivity) the data below is for.
     fingerprint: u64,
     pattern: Option<SymbolicSparseColMat<usize>>,
-    /// The nested-dissection ordering (`factor.rs`, `order[new] = old`) and the symbolic analysis.
-    symbolic: Option<(Vec<usize>, Arc<factor::Symbolic>)>,
+    /// The symbolic analysis (it holds the nested-dissection ordering, `factor.rs`).
+    symbolic: Option<Arc<factor::Symbolic>>,
     /// The assembled `K_ff` and its numeric factor, kept after a successful solve: `K` depends
     /// only on what the fingerprint covers, so a later solve needs only a new right-hand side.
     factor: Option<(SparseColMat<usize, f64>, factor::Factor)>,
@@ -311,8 +311,7 @@ impl ImplicitSolver {
             let analyse = || {
                 let t = Instant::now();
                 let order = factor::nested_dissection(pat.as_ref(), &dof_coords(model, &eq, n));
-                let sym = factor::symbolic(pat.as_ref(), &order);
-                (sym.map(|s| (order, s)), t.elapsed().as_secs_f64())
+                (factor::symbolic(pat.as_ref(), &order), t.elapsed().as_secs_f64())
             };
             let assemble_values = || {
                 let t = Instant::now();
@@ -328,12 +327,12 @@ impl ImplicitSolver {
             };
             tm.assembly = t_asm;
             if let Some((sym, t_sym)) = analysed {
-                let (order, sym) = sym.map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e}")))?;
-                cache.symbolic = Some((order, sym));
+                let sym = sym.map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e}")))?;
+                cache.symbolic = Some(sym);
                 cache.symbolic_count += 1;
                 tm.symbolic = t_sym;
             }
-            let sym = cache.symbolic.as_ref().expect("set above").1.clone();
+            let sym = cache.symbolic.as_ref().expect("set above").clone();
             let llt = match factor(sym, &a, &mut tm) {
                 Ok(l) => l,
                 Err(None) => return Err(locate_singular(model, fix, &eq, &fr, &a)),
