@@ -1,0 +1,1 @@
+//! No code: see Cargo.toml (feature unification between the workspace and python/).
