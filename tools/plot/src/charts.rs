@@ -1,5 +1,15 @@
-//! Charts of numbers rather than of a run: the speed-accuracy chart of `flem chart` and the
-//! stability map of `flem stability` (issue 9). Log-log where the quantities span decades.
+//! Charts of numbers rather than of a run: the speed-accuracy chart of `flem chart` and
+//! `flem chart-crack`, the stability map of `flem stability` (issue 9), the picture of
+//! `flem converge`. Log-log where the quantities span decades.
+//!
+//! Readable (issue 40): in the speed-accuracy chart one visual channel per dimension, colour =
+//! method, marker shape = mesh, marker fill = element kind ([`series_styles`]; colour-blind-safe
+//! Okabe-Ito colours, a method keeps its colour from chart to chart), one legend entry per
+//! series, drawn beside the plot (plotters' series labels sit inside the plot and covered
+//! points). Log axes come from [`log_axis`], not from plotters' own key points, which label
+//! every minor tick of a short axis ("8e09e01e1"): decades (every second one past nine), or
+//! 1-2-5 below three decades; zeros on a line of their own labelled 0; an axis whose points all
+//! have one value gets one labelled tick and a note beside the legend. Every axis names its unit.
 use std::path::{Path, PathBuf};
 
 use plotters::coord::Shift;
