@@ -130,7 +130,7 @@ fn speed_accuracy_axis_without_range_gets_a_tick_and_a_note() {
         let all: Vec<&str> = t.iter().map(|t| t.s.as_str()).collect();
         assert!(all.contains(&tick), "tick {tick:?} missing: {all:?}");
         let notes = all.iter().filter(|s| s.starts_with("note:")).collect::<Vec<_>>().len();
-        assert!(notes >= 1 && all.join(" ").contains("every point has error"), "no note: {all:?}");
+        assert!(notes >= 1 && all.join(" ").contains(&format!("every point has error {tick}")), "no note: {all:?}");
         // y ticks: that one value only (the x axis, 0.5..2.5 s, labels 1-2-5).
         let bottom = ticks(&t).iter().map(|x| x.y).fold(0.0f64, f64::max);
         let y_ticks: Vec<&str> = ticks(&t).iter().filter(|x| x.y < bottom - 1.0).map(|x| x.s.as_str()).collect();

@@ -255,7 +255,12 @@ pub fn log_axis(values: &[f64], what: &str) -> LogAxis {
 fn sig3(v: f64) -> String {
     if (1e-3..1e4).contains(&v.abs()) {
         let d = (2.0 - v.abs().log10().floor()).max(0.0) as usize;
-        format!("{v:.d$}")
+        let t = format!("{v:.d$}");
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
     } else {
         format!("{v:.2e}")
     }
