@@ -1,6 +1,7 @@
 //! The one integration-test binary (cargo/ripgrep style: `autotests = false`, links once).
 //! Every verification test names its reference and tolerance.
 mod cavity;
+mod charts;
 mod ckpt;
 mod common;
 mod compare;

@@ -388,18 +388,11 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     flem_core::output::atomic_write(&out.join("chart.json"), serde_json::to_string_pretty(&pts)?.as_bytes())?;
     let kind = pts.iter().find(|p| p.method == "explicit").map_or("implicit", |p| p.error_kind());
     let label = match kind {
-        "analytic" => "relative error vs analytic",
-        "reference" => "rel. L2 error vs refined implicit",
-        _ => "rel. L2 error vs implicit (same mesh)",
+        "analytic" => "relative error vs analytic (dimensionless)",
+        "reference" => "rel. L2 error vs refined implicit (dimensionless)",
+        _ => "rel. L2 error vs implicit, same mesh (dimensionless)",
     };
-    let cp: Vec<flem_plot::charts::ChartPoint> = pts
-        .iter()
-        .filter_map(|p| {
-            let pre = if p.element.is_empty() { String::new() } else { format!("{} ", p.element) };
-            let series = if p.method == "implicit" { format!("{pre}implicit (faer)") } else { format!("{pre}{} x{}", p.damping, p.refine) };
-            p.error().map(|e| flem_plot::charts::ChartPoint { series, wall_seconds: p.wall_seconds, error: e, pareto: p.pareto })
-        })
-        .collect();
+    let cp: Vec<flem_plot::charts::ChartPoint> = pts.iter().filter_map(|p| p.error().map(|e| chart_point(p, e))).collect();
     flem_plot::charts::speed_accuracy(&out.join("chart"), &format!("speed vs accuracy: {}", scene.file.title), label, &cp)?;
     // The explicit solver's own error: against the implicit solve of the same mesh.
     let mut solver: Vec<Point> = pts
@@ -412,16 +405,66 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
         })
         .collect();
     mark_pareto(&mut solver);
-    let cp2: Vec<flem_plot::charts::ChartPoint> = solver
-        .iter()
-        .map(|p| flem_plot::charts::ChartPoint {
-            series: format!("{}{} x{}", if p.element.is_empty() { String::new() } else { format!("{} ", p.element) }, p.damping, p.refine),
-            wall_seconds: p.wall_seconds,
-            error: p.err_implicit.unwrap_or(f64::NAN),
-            pareto: p.pareto,
-        })
-        .collect();
-    flem_plot::charts::speed_accuracy(&out.join("chart_solver"), &format!("explicit solver error: {}", scene.file.title), "rel. L2 error vs implicit (same mesh)", &cp2)?;
+    let cp2: Vec<flem_plot::charts::ChartPoint> = solver.iter().map(|p| chart_point(p, p.err_implicit.unwrap_or(f64::NAN))).collect();
+    flem_plot::charts::speed_accuracy(&out.join("chart_solver"), &format!("explicit solver error: {}", scene.file.title), "rel. L2 error vs implicit, same mesh (dimensionless)", &cp2)?;
     eprintln!("{} points ({} on the Pareto front); chart.csv, chart.json, chart.png/svg, chart_solver.png/svg in {}", pts.len(), pts.iter().filter(|p| p.pareto).count(), out.display());
     Ok(())
+}
+
+/// A point of the pictures: colour = method ("implicit (faer)", "explicit adaptive", ...),
+/// marker shape = mesh refinement ("x1", "x2"), marker fill = element kind (`--elements`).
+pub fn chart_point(p: &Point, error: f64) -> flem_plot::charts::ChartPoint {
+    let method = if p.method == "implicit" { "implicit (faer)".to_string() } else { format!("{} {}", p.method, p.damping) };
+    flem_plot::charts::ChartPoint { method, element: p.element.clone(), mesh: format!("x{}", p.refine), wall_seconds: p.wall_seconds, error, pareto: p.pareto }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The series of `flem chart --elements q4,qm6` over the full sweep (implicit and both
+    /// damping schemes, meshes x1 x2 x4, two element kinds): every series is drawn in its own
+    /// style (colour, shape, fill) and has its own legend entry; colour follows the method only,
+    /// shape the mesh only, fill the element kind only (issue 40).
+    #[test]
+    fn chart_series_are_told_apart() {
+        let sw = Sweep::full();
+        let mut pts = Vec::new();
+        for el in ["q4", "qm6"] {
+            for &r in &sw.refines {
+                let p = |method: &str, damping: &str| Point {
+                    method: method.into(),
+                    element: el.into(),
+                    damping: damping.into(),
+                    dt_safety: 0.8,
+                    tolerance: 1e-6,
+                    refine: r,
+                    elements: 40,
+                    steps: 10,
+                    converged: true,
+                    wall_seconds: 0.1,
+                    err_implicit: Some(0.1),
+                    err_reference: None,
+                    err_analytic: None,
+                    pareto: false,
+                };
+                pts.push(p("implicit", "-"));
+                for d in &sw.dampings {
+                    pts.push(p("explicit", d));
+                }
+            }
+        }
+        let cp: Vec<_> = pts.iter().map(|p| chart_point(p, 0.1)).collect();
+        let st = flem_plot::charts::series_styles(&cp).unwrap();
+        assert_eq!(st.len(), 2 * sw.refines.len() * (1 + sw.dampings.len()));
+        for (i, a) in st.iter().enumerate() {
+            for b in &st[i + 1..] {
+                assert!((a.colour, a.shape, a.fill) != (b.colour, b.shape, b.fill), "{} and {} are drawn alike", a.label, b.label);
+                assert_ne!(a.label, b.label);
+                assert_eq!(a.colour == b.colour, a.method == b.method, "colour is the method: {} / {}", a.label, b.label);
+                assert_eq!(a.shape == b.shape, a.mesh == b.mesh, "shape is the mesh: {} / {}", a.label, b.label);
+                assert_eq!(a.fill == b.fill, a.element == b.element, "fill is the element kind: {} / {}", a.label, b.label);
+            }
+        }
+    }
 }

@@ -13,7 +13,10 @@
 //!
 //! Every explicit run stops after `n` splits (its wall time is that of the path compared).
 //! Output per scene: `chart_crack.csv`, `<scene>_initiation.png/svg`, `<scene>_path.png/svg`
-//! (log-log, Pareto front marked; `flem_plot::charts::speed_accuracy`).
+//! (log-log, Pareto front marked; `flem_plot::charts::speed_accuracy`: colour = method, marker
+//! shape = tolerance). An error that is the same for every run gets `<scene>_<error>.md`, a
+//! table, instead of a chart (issue 40: on the scenes of docs/events.md every run follows the
+//! same path).
 use anyhow::Result;
 use flem_core::cracking::initiation::initiation;
 use flem_core::scene::Scene;
@@ -26,7 +29,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 struct Run {
-    series: String,
+    /// "events (ours)" or "explicit" (the colour of the chart).
+    method: String,
+    /// The setting that varies ("tolerance 1e-4"; "" for the events run): the marker shape.
+    setting: String,
     step: f64,
     tolerance: f64,
     wall: f64,
@@ -68,7 +74,8 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
     anyhow::ensure!(!log.splits.is_empty(), "{}: the events run made no split", path.display());
     let n = n_max.min(log.splits.len());
     let edges = |l: &[LoggedSplit]| l.iter().take(n).flat_map(|s| s.edges.iter().copied()).collect::<BTreeSet<u32>>();
-    let mut runs = vec![Run { series: "events (ours)".into(), step: 0.0, tolerance: 0.0, wall, first: level(&log.splits[0]), edges: edges(&log.splits), splits: log.splits.len().min(n) }];
+    let mut runs =
+        vec![Run { method: "events (ours)".into(), setting: String::new(), step: 0.0, tolerance: 0.0, wall, first: level(&log.splits[0]), edges: edges(&log.splits), splits: log.splits.len().min(n) }];
     let t_init = exact / target;
     for tol in [1e-4, 1e-5] {
         for step in [0.05, 0.02, 0.01, 0.005] {
@@ -84,7 +91,7 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
             let wall = t.elapsed().as_secs_f64();
             eprintln!("{stem}: explicit step {step} tol {tol:e}: {} splits, {wall:.2} s", l.splits.len());
             let first = l.splits.first().map_or(f64::NAN, level);
-            runs.push(Run { series: format!("explicit, tolerance {tol:e}"), step, tolerance: tol, wall, first, edges: edges(&l.splits), splits: l.splits.len() });
+            runs.push(Run { method: "explicit".into(), setting: format!("tolerance {tol:e}"), step, tolerance: tol, wall, first, edges: edges(&l.splits), splits: l.splits.len() });
         }
     }
     let reference = runs.iter().find(|r| r.step == 0.005 && r.tolerance == 1e-5).map(|r| r.edges.clone()).unwrap_or_default();
@@ -93,13 +100,32 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
     let p_init = pareto(&runs.iter().zip(&init_err).map(|(r, &e)| (r.wall, e)).collect::<Vec<_>>());
     let p_path = pareto(&runs.iter().zip(&path_err).map(|(r, &e)| (r.wall, e)).collect::<Vec<_>>());
     for (k, r) in runs.iter().enumerate() {
-        let _ = writeln!(csv, "{stem},{},{},{},{},{},{},{},{},{},{},{}", r.series, r.step, r.tolerance, r.wall, r.splits, r.first, exact, init_err[k], path_err[k], p_init[k], p_path[k]);
+        let _ = writeln!(csv, "{stem},{},{},{},{},{},{},{},{},{},{},{}", r.method, r.step, r.tolerance, r.wall, r.splits, r.first, exact, init_err[k], path_err[k], p_init[k], p_path[k]);
     }
-    for (name, err, par, label) in [("initiation", &init_err, &p_init, "relative error of the initiation load"), ("path", &path_err, &p_path, "share of split edges differing from the reference path")]
-    {
-        let pts: Vec<flem_plot::charts::ChartPoint> =
-            runs.iter().enumerate().map(|(k, r)| flem_plot::charts::ChartPoint { series: r.series.clone(), wall_seconds: r.wall, error: err[k], pareto: par[k] }).collect();
-        flem_plot::charts::speed_accuracy(&out.join(format!("{stem}_{name}")), &format!("cracking, {name}: {stem} (first {n} splits)"), label, &pts)?;
+    for (name, err, par, label) in [
+        ("initiation", &init_err, &p_init, "relative error of the initiation load (dimensionless)"),
+        ("path", &path_err, &p_path, "share of split edges differing from the reference path (dimensionless)"),
+    ] {
+        let stem_n = out.join(format!("{stem}_{name}"));
+        if err.iter().all(|e| *e == err[0]) {
+            // Every run has the same error: a chart would show one line of points and say no
+            // more than this table (issue 40).
+            let mut t = format!("# {name} of {stem}: every run has error {} (first {n} splits)\n\n", err[0]);
+            t += &format!("{label}: the same for every run, so a table rather than a chart.\n\n| method | load step | tolerance | wall (s) | error |\n|---|---|---|---|---|\n");
+            for (k, r) in runs.iter().enumerate() {
+                let (step, tol) = if r.method == "explicit" { (format!("{} %", r.step * 100.0), format!("{:e}", r.tolerance)) } else { ("-".into(), "-".into()) };
+                t += &format!("| {} | {step} | {tol} | {:.3} | {} |\n", r.method, r.wall, err[k]);
+            }
+            flem_core::output::atomic_write(&stem_n.with_extension("md"), t.as_bytes())?;
+            eprintln!("{stem}: every run has {name} error {}: {}.md (a table) instead of a chart", err[0], stem_n.display());
+            continue;
+        }
+        let pts: Vec<flem_plot::charts::ChartPoint> = runs
+            .iter()
+            .enumerate()
+            .map(|(k, r)| flem_plot::charts::ChartPoint { method: r.method.clone(), element: String::new(), mesh: r.setting.clone(), wall_seconds: r.wall, error: err[k], pareto: par[k] })
+            .collect();
+        flem_plot::charts::speed_accuracy(&stem_n, &format!("cracking, {name}: {stem} (first {n} splits)"), label, &pts)?;
     }
     Ok(())
 }
@@ -114,6 +140,6 @@ pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize) -> Result<()
         sweep(s, splits, &out, &mut csv)?;
     }
     flem_core::output::atomic_write(&out.join("chart_crack.csv"), csv.as_bytes())?;
-    eprintln!("chart_crack.csv and <scene>_initiation/_path .png/.svg in {}", out.display());
+    eprintln!("chart_crack.csv and <scene>_initiation/_path .png/.svg (or .md tables) in {}", out.display());
     Ok(())
 }

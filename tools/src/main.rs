@@ -108,7 +108,8 @@ enum Cmd {
     },
     /// Speed against accuracy for cracking (ours, issue 19): explicit runs in load steps of 5,
     /// 2, 1, 0.5 % at two tolerances and the events solver, per one-stage events scene: errors
-    /// of the initiation load and of the crack path (PNG, SVG, CSV; docs/events.md).
+    /// of the initiation load and of the crack path (PNG, SVG, CSV; a Markdown table instead of
+    /// a chart for an error that is the same in every run; docs/events.md).
     ChartCrack {
         /// One-stage events scenes (configs/events/).
         #[arg(required = true)]
