@@ -21,5 +21,6 @@ mod plasticity;
 mod skip;
 mod slope;
 mod softening;
+mod tools;
 mod verification;
 mod zero_free;

@@ -14,7 +14,7 @@
 //! Every explicit run stops after `n` splits (its wall time is that of the path compared).
 //! Output per scene: `chart_crack.csv`, `<scene>_initiation.png/svg`, `<scene>_path.png/svg`
 //! (log-log, Pareto front marked; `flem_plot::charts::speed_accuracy`).
-use anyhow::Result;
+use anyhow::{Context, Result};
 use flem_core::cracking::initiation::initiation;
 use flem_core::scene::Scene;
 use flem_core::solver::events::{explicit_twin, LoggedSplit, SplitLog};
@@ -43,17 +43,38 @@ fn pareto(pts: &[(f64, f64)]) -> Vec<bool> {
     pts.iter().enumerate().map(|(i, &(t, e))| !pts.iter().enumerate().any(|(j, &(tj, ej))| j != i && tj <= t && ej <= e && (tj < t || ej < e))).collect()
 }
 
+/// The sweep's settings: load steps and tolerances of the explicit runs (`--quick`: two steps,
+/// one tolerance; the reference path is then the finest of them).
+struct Plan {
+    steps: Vec<f64>,
+    tolerances: Vec<f64>,
+}
+
 /// One scene's sweep.
-fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> {
+fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String, plan: &Plan) -> Result<()> {
     // A file name without dots (the pictures' names get an extension).
     let stem = path.file_stem().map(|s| s.to_string_lossy().replace('.', "_")).unwrap_or_default();
+    let scene = Scene::from_file(path)?;
+    let f = &scene.file;
+    if f.solver.kind != flem_core::scene::SolverKind::Events || f.stages.len() != 1 || f.cracking.is_none() {
+        return Err(crate::unsuited(
+            path,
+            "chart-crack",
+            format!(
+                "it compares the events solver with explicit load steps on a one-stage events scene with [cracking] (configs/events/); this one has solver.type = \"{}\", {} stage(s){}",
+                if f.solver.kind == flem_core::scene::SolverKind::Events { "events" } else { "explicit" },
+                f.stages.len(),
+                if f.cracking.is_none() { ", no [cracking]" } else { "" }
+            ),
+        ));
+    }
     // The exact initiation load.
-    let mut sim = Simulation::new(Scene::from_file(path)?)?;
+    let mut sim = Simulation::new(scene)?;
     let target = sim.scene.file.stages[0].levels.values().copied().fold(0.0f64, |a, v| a.max(v.abs()));
     sim.set_stage_levels(0);
     let u1 = flem_plugins::check::static_solve(&sim)?;
-    let crit = &sim.scene.file.cracking.as_ref().expect("a cracking scene").criterion;
-    let cr = sim.cracking.as_mut().expect("cracking");
+    let crit = &sim.scene.file.cracking.as_ref().context("no [cracking]")?.criterion;
+    let cr = sim.cracking.as_mut().context("no [cracking]")?;
     let scale = cr.scale.clone();
     let exact = initiation(crit.as_ref(), &scale, &sim.model, &u1, cr.nonlocal.as_mut())?.factor * target;
     // The events run, stopped after the splits compared (solver.max_events, one split per event
@@ -70,8 +91,8 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
     let edges = |l: &[LoggedSplit]| l.iter().take(n).flat_map(|s| s.edges.iter().copied()).collect::<BTreeSet<u32>>();
     let mut runs = vec![Run { series: "events (ours)".into(), step: 0.0, tolerance: 0.0, wall, first: level(&log.splits[0]), edges: edges(&log.splits), splits: log.splits.len().min(n) }];
     let t_init = exact / target;
-    for tol in [1e-4, 1e-5] {
-        for step in [0.05, 0.02, 0.01, 0.005] {
+    for &tol in &plan.tolerances {
+        for &step in &plan.steps {
             let mut sc = Scene::from_file(path)?;
             explicit_twin(&mut sc, ((t_init / step).floor() as u64).max(1), step, 1.0, 2_000_000, tol)?;
             let t = Instant::now();
@@ -87,7 +108,9 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
             runs.push(Run { series: format!("explicit, tolerance {tol:e}"), step, tolerance: tol, wall, first, edges: edges(&l.splits), splits: l.splits.len() });
         }
     }
-    let reference = runs.iter().find(|r| r.step == 0.005 && r.tolerance == 1e-5).map(|r| r.edges.clone()).unwrap_or_default();
+    // The reference path: the finest step at the tighter tolerance.
+    let (fine, tight) = (plan.steps.iter().copied().fold(f64::INFINITY, f64::min), plan.tolerances.iter().copied().fold(f64::INFINITY, f64::min));
+    let reference = runs.iter().find(|r| r.step == fine && r.tolerance == tight).map(|r| r.edges.clone()).unwrap_or_default();
     let init_err: Vec<f64> = runs.iter().map(|r| ((r.first - exact) / exact).abs()).collect();
     let path_err: Vec<f64> = runs.iter().map(|r| r.edges.symmetric_difference(&reference).count() as f64 / reference.len().max(1) as f64).collect();
     let p_init = pareto(&runs.iter().zip(&init_err).map(|(r, &e)| (r.wall, e)).collect::<Vec<_>>());
@@ -104,14 +127,15 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
     Ok(())
 }
 
-/// `flem chart-crack`.
-pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize) -> Result<()> {
+/// `flem chart-crack`; `quick`: load steps of 5 and 2 % at the tolerance 1e-4 only.
+pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize, quick: bool) -> Result<()> {
+    let plan = if quick { Plan { steps: vec![0.05, 0.02], tolerances: vec![1e-4] } } else { Plan { steps: vec![0.05, 0.02, 0.01, 0.005], tolerances: vec![1e-4, 1e-5] } };
     let out = out.unwrap_or_else(|| PathBuf::from("out/chart_crack"));
     let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let mut csv = String::from("scene,method,load_step,tolerance,wall_seconds,splits,first_split_level,exact_initiation_level,initiation_error,path_error,pareto_initiation,pareto_path\n");
     for s in scenes {
-        sweep(s, splits, &out, &mut csv)?;
+        sweep(s, splits, &out, &mut csv, &plan)?;
     }
     flem_core::output::atomic_write(&out.join("chart_crack.csv"), csv.as_bytes())?;
     eprintln!("chart_crack.csv and <scene>_initiation/_path .png/.svg in {}", out.display());
