@@ -23,6 +23,11 @@
 //! each variant runs to equilibrium without output (`NoOutput`), the implicit solves are
 //! `flem_plugins::check::static_solve`; for the refined reference (positions shared with the
 //! coarse mesh) points with several clusters are skipped. Pictures by `flem_plot::charts`.
+//!
+//! A scene with a fixed `solver.dt` keeps its ratio dt/dt_crit on each refined mesh
+//! ([`keep_dt_ratio`], printed). A body without support under self-equilibrated loads gets a
+//! statically determinate support in the implicit solves (`flem_core::plugin::support`,
+//! printed); its errors are then measured after removing the best-fit rigid motion.
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -329,7 +334,8 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
         let mut sim = Simulation::new(s)?;
         // Static reference: the load levels of the last stage, no explicit steps.
         sim.set_stage_levels(sim.scene.file.stages.len() - 1);
-        let sol = flem_plugins::check::static_solve_supported(&sim).map_err(|e| crate::unsuited(&scene.path, "chart", format!("the implicit solve at the last stage's levels, the chart's reference, is not possible: {e}")))?;
+        let sol = flem_plugins::check::static_solve_supported(&sim)
+            .map_err(|e| crate::unsuited(&scene.path, "chart", format!("the implicit solve at the last stage's levels, the chart's reference, is not possible: {e}")))?;
         eprintln!("reference: implicit solve on {} elements (refinement x{finest})", sim.model.n_elems());
         for n in sol.notes() {
             eprintln!("  {n}; its rigid motion is removed from every error against it");
@@ -347,7 +353,8 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
         let t0 = Instant::now();
         let mut sim = Simulation::new(s)?;
         sim.set_stage_levels(sim.scene.file.stages.len() - 1);
-        let sol = flem_plugins::check::static_solve_supported(&sim).map_err(|e| crate::unsuited(&scene.path, "chart", format!("the implicit solve at the last stage's levels, the chart's reference, is not possible: {e}")))?;
+        let sol = flem_plugins::check::static_solve_supported(&sim)
+            .map_err(|e| crate::unsuited(&scene.path, "chart", format!("the implicit solve at the last stage's levels, the chart's reference, is not possible: {e}")))?;
         let wall = t0.elapsed().as_secs_f64();
         for n in sol.notes() {
             eprintln!("implicit x{r}: {n}; the explicit runs are compared after removing their best-fit rigid motion");

@@ -65,7 +65,8 @@ enum Cmd {
         resume: Option<PathBuf>,
         /// Draw the pictures at the end (as `flem plot`; also when the scene sets output.plots).
         #[arg(long)]
-        plot: bool,        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
+        plot: bool,
+        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
         /// reaches it is not in equilibrium and says so.
         #[arg(long, value_name = "N")]
         max_steps: Option<u64>,
@@ -107,7 +108,8 @@ enum Cmd {
         /// Element kinds to sweep too (e.g. q4,qm6), set on every [[material]]; default: the
         /// scene's own.
         #[arg(long, value_delimiter = ',')]
-        elements: Vec<String>,        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
+        elements: Vec<String>,
+        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
         /// reaches it is not in equilibrium and says so.
         #[arg(long, value_name = "N")]
         max_steps: Option<u64>,
@@ -146,7 +148,8 @@ enum Cmd {
         scene: PathBuf,
         /// Output folder (default: out/<scene name>_compare).
         #[arg(long)]
-        out: Option<PathBuf>,        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
+        out: Option<PathBuf>,
+        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
         /// reaches it is not in equilibrium and says so.
         #[arg(long, value_name = "N")]
         max_steps: Option<u64>,
@@ -631,7 +634,10 @@ fn compare(scene: Scene, out: Option<PathBuf>) -> Result<()> {
     let _lock = lock_out(&out)?;
     let on_row: Box<dyn FnMut(&flem_core::output::compare::StageComparison)> =
         Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit));
-    let sim_tolerance = scene.file.check.as_ref().map_or(1e-6, |c| c.tolerance);
+    let sim_tolerance = scene.file.check.as_ref().map_or_else(|| flem_core::output::run::default_compare_tolerance(&scene), |c| c.tolerance);
+    if scene.file.check.is_none() {
+        eprintln!("the scene has no [check]: the comparison tolerance is {sim_tolerance:e} (1000 x its loosest equilibrium tolerance, within [1e-6, 0.1]; ours)");
+    }
     let (r, rows, warnings) = flem_core::output::run::compare_in_folder(scene, &out, Some(on_row))?;
     for w in &warnings {
         eprintln!("warning: {w}");
