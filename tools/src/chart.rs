@@ -196,6 +196,18 @@ pub(crate) fn refine_rectangle(t: &mut toml::Table, factor: i64) -> Result<()> {
         let n = mesh.get(k).and_then(|v| v.as_integer()).with_context(|| format!("mesh.{k} is missing"))?;
         mesh.insert(k.into(), toml::Value::Integer(n * factor));
     }
+    // A graded rectangle: each zone's cells too (same lengths and end ratios; its grid lines
+    // are then not those of the coarse mesh, so no reference error is measured on it).
+    for k in ["grading_x", "grading_y"] {
+        if let Some(toml::Value::Array(zones)) = mesh.get_mut(k) {
+            for z in zones.iter_mut() {
+                if let Some(c) = z.as_array_mut().and_then(|z| z.get_mut(1)) {
+                    let n = c.as_integer().map(|i| i as f64).or_else(|| c.as_float()).with_context(|| format!("mesh.{k}: a zone's cells is not a number"))?;
+                    *c = toml::Value::Integer(n as i64 * factor);
+                }
+            }
+        }
+    }
     Ok(())
 }
 
@@ -319,7 +331,7 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
     // sweep set dt_safety themselves; this is for the implicit points and the reference, whose
     // scene must still pass the stable-step check).
     let mut dts = std::collections::BTreeMap::new();
-    for r in refines.iter().copied().chain([refines.iter().max().copied().unwrap_or(1) * 2]).filter(|&r| r > 1) {
+    for r in refines.iter().copied().chain([refines.iter().max().copied().unwrap_or(1) * 2]).filter(|&r| rect && r > 1) {
         let mut t = base.clone();
         refine_rectangle(&mut t, r as i64)?;
         if let Some(msg) = keep_dt_ratio(&base, &mut t, scene)? {

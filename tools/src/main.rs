@@ -638,7 +638,13 @@ fn compare(scene: Scene, out: Option<PathBuf>) -> Result<()> {
     if scene.file.check.is_none() {
         eprintln!("the scene has no [check]: the comparison tolerance is {sim_tolerance:e} (1000 x its loosest equilibrium tolerance, within [1e-6, 0.1]; ours)");
     }
-    let (r, rows, warnings) = flem_core::output::run::compare_in_folder(scene, &out, Some(on_row))?;
+    let path = scene.path.clone();
+    let (r, rows, warnings) = match flem_core::output::run::compare_in_folder(scene, &out, Some(on_row)) {
+        Ok(x) => x,
+        // The implicit check is linear elastic, small strain: a scene with another law.
+        Err(e @ FlemError::Config { .. }) if matches!(&e, FlemError::Config { key, .. } if key == "check") => return Err(unsuited(&path, "compare", e)),
+        Err(e) => return Err(e.into()),
+    };
     for w in &warnings {
         eprintln!("warning: {w}");
     }

@@ -23,8 +23,8 @@
 //! A stage is *comparable* when it has an equilibrium the implicit check can compute: FLEM at
 //! rest at its end (the stage reached its tolerance; not a dynamic stage), every fragment held
 //! (`plugin::support::plan`: enough prescribed dofs, or none and self-equilibrated loads, which
-//! get a statically determinate support), no contact force acting, a linear elastic small-strain
-//! material, and the stage not marked `check = false`. Otherwise the row says
+//! get a statically determinate support), no contact force acting, and the stage not marked
+//! `check = false` (a scene with a nonlinear material is refused as a whole, `Simulation::new`). Otherwise the row says
 //! `comparable: false` with every `reason` (figures still given when the solve succeeded). On a
 //! fragment given a statically determinate support the implicit displacement is shifted by the
 //! rigid motion that fits FLEM's best (`plugin::support::align_rigid`) before the figures.
@@ -137,6 +137,16 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
     let mut reasons = Vec::new();
     if cfg.is_some_and(|s| s.dynamic) {
         reasons.push("FLEM is not at rest: a dynamic stage (stage.dynamic = true) runs a fixed number of steps, not to equilibrium".to_string());
+    } else if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
+        // The events solver (ours): its state is a linear solve at the stage's levels only when
+        // the stage ran to its end.
+        let max = sim.scene.file.solver.max_events;
+        if !st.converged {
+            reasons
+                .push(format!("the events solver stopped after {} events, before the end of the stage (the run's warning says why): its state is not an equilibrium at the stage's levels", st.steps));
+        } else if st.steps >= max {
+            reasons.push(format!("the events solver stopped at solver.max_events = {max}, before the end of the stage: its state is that of its last event, not an equilibrium at the stage's levels"));
+        }
     } else if !st.converged {
         let tol = cfg.and_then(|s| s.tolerance).unwrap_or(sim.scene.file.solver.tolerance);
         reasons.push(format!(
@@ -147,11 +157,6 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
     // What the implicit check (linear, small strain, no contact) does not model.
     if sim.state.f_con.iter().any(|f| f[0] != 0.0 || f[1] != 0.0) {
         reasons.push("contact forces act at the end of the stage, and the implicit check models no contact".to_string());
-    }
-    if sim.model.corotational {
-        reasons.push("a co-rotational (large-strain) material, and the implicit check is small-strain linear".to_string());
-    } else if sim.model.stateful {
-        reasons.push("a material law with history (plasticity, softening), and the implicit check is linear elastic".to_string());
     }
     let t0 = Instant::now();
     // Outer error: the solve failed; inner error: the supports refuse a fragment (plan).
