@@ -207,3 +207,29 @@ fn unsupported_self_equilibrated_body_gets_a_determinate_support() {
     let e = flem_plugins::check::static_solve_supported(&sim).unwrap_err().to_string();
     assert!(e.contains("fragment 0") && e.contains("loads are not in equilibrium"), "{e}");
 }
+
+/// Issue 41, item 2, in the events solver (ours): the paper's opening model (configs/paper/
+/// opening.toml, no support, pulled at both ends) run by `[solver] type = "events"` to 150: its
+/// linear solves get the statically determinate support (a warning says so) and its first event
+/// is at the elastic initiation load. Reference: docs/paper.md's p_crit / (rho g) = 113.41 of
+/// this mesh, from tests/paper.rs's linear solve with another statically determinate support
+/// (bottom-left y, bottom-right x and y); tolerance 0.005 (its two decimals).
+#[test]
+fn events_solver_supports_the_free_opening_model() {
+    let text = std::fs::read_to_string(root().join("configs/paper/opening.toml")).unwrap();
+    let mut t: toml::Table = toml::from_str(&text).unwrap();
+    let solver = t["solver"].as_table_mut().unwrap();
+    solver.remove("dt");
+    solver.remove("damping");
+    solver.insert("type".into(), toml::Value::String("events".into()));
+    t["cracking"].as_table_mut().unwrap().remove("at_equilibrium");
+    t["output"].as_table_mut().unwrap().insert("plots".into(), toml::Value::Boolean(false));
+    let stage: toml::Table = toml::from_str("name = \"p150\"\nlevels = { p = 150.0, p_bottom = 150.0 }").unwrap();
+    t.insert("stage".into(), toml::Value::Array(vec![toml::Value::Table(stage)]));
+    let mut sim = Simulation::new(scene(&toml::to_string(&t).unwrap())).unwrap_or_else(|e| panic!("{e}"));
+    let mut log = flem_core::solver::events::SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+    sim.run(&mut log).unwrap_or_else(|e| panic!("{e}"));
+    assert!(sim.warnings.iter().any(|w| w.contains("events solver") && w.contains("a statically determinate support was added")), "{:?}", sim.warnings);
+    let first = log.splits.first().unwrap_or_else(|| panic!("no event: {:?}", sim.warnings)).levels[0];
+    assert!((first - 113.41).abs() < 0.005, "first event at {first}, docs/paper.md 113.41");
+}

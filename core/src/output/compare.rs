@@ -188,7 +188,13 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
             return (done(c, reasons), None);
         }
         Err(e) => {
-            c.implicit_error = Some(e.to_string());
+            // A fragment named singular by the solve (a mechanism, e.g. two parts joined at one
+            // cluster) has no equilibrium to compare either; any other error is a failure.
+            let m = e.to_string();
+            if m.ends_with(support::SINGULAR) {
+                reasons.push(format!("a fragment without support or a mechanism: {m}"));
+            }
+            c.implicit_error = Some(m);
             return (done(c, reasons), None);
         }
     };

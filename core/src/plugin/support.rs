@@ -131,9 +131,13 @@ impl Fragments {
     }
 }
 
+/// How every refusal of a fragment ends ([`singular`]): a property of the model (a fragment
+/// without enough support, a mechanism), not a failure of the solver.
+pub const SINGULAR: &str = ": its stiffness is singular";
+
 /// The refusal of a fragment, as the check solver words it.
 pub fn singular(model: &Model, fr: &Fragments, f: u32, why: &str) -> FlemError {
-    FlemError::Solve(format!("{PREFIX}: {} {why}: its stiffness is singular", fr.describe(model, f)))
+    FlemError::Solve(format!("{PREFIX}: {} {why}{SINGULAR}", fr.describe(model, f)))
 }
 
 /// What [`plan`] found: the fixities to solve with (the scene's, plus the added pins) and the
