@@ -22,5 +22,6 @@ mod plasticity;
 mod skip;
 mod slope;
 mod softening;
+mod tools;
 mod verification;
 mod zero_free;

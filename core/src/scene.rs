@@ -266,6 +266,14 @@ pub struct StageCfg {
     /// Write a snapshot at the end of the stage.
     #[serde(default = "yes")]
     pub snapshot: bool,
+    /// Compare this stage with the implicit check (`[check]`, `flem compare`); false: reported
+    /// as not comparable (e.g. a stage meant to run through a collapse).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub check: bool,
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 fn yes() -> bool {

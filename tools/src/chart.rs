@@ -23,6 +23,11 @@
 //! each variant runs to equilibrium without output (`NoOutput`), the implicit solves are
 //! `flem_plugins::check::static_solve`; for the refined reference (positions shared with the
 //! coarse mesh) points with several clusters are skipped. Pictures by `flem_plot::charts`.
+//!
+//! A scene with a fixed `solver.dt` keeps its ratio dt/dt_crit on each refined mesh
+//! ([`keep_dt_ratio`], printed). A body without support under self-equilibrated loads gets a
+//! statically determinate support in the implicit solves (`flem_core::plugin::support`,
+//! printed); its errors are then measured after removing the best-fit rigid motion.
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -118,7 +123,9 @@ fn damping_table(name: &str) -> toml::Table {
 
 /// The scene text with the sweep's settings: damping, dt safety, tolerance (global and every
 /// stage's), and rectangle refinement.
-fn variant(base: &toml::Table, element: Option<&str>, damping: Option<&str>, safety: Option<f64>, tol: Option<f64>, refine: usize) -> Result<String> {
+/// `dt`: the fixed step of a refined mesh by [`keep_dt_ratio`] (when the scene fixes dt and
+/// `safety` is not swept).
+fn variant(base: &toml::Table, element: Option<&str>, damping: Option<&str>, safety: Option<f64>, tol: Option<f64>, refine: usize, dt: Option<f64>) -> Result<String> {
     let mut t = base.clone();
     if let Some(e) = element {
         if let Some(toml::Value::Array(mats)) = t.get_mut("material") {
@@ -150,7 +157,35 @@ fn variant(base: &toml::Table, element: Option<&str>, damping: Option<&str>, saf
     if refine > 1 {
         refine_rectangle(&mut t, refine as i64)?;
     }
+    if let (Some(dt), None) = (dt, safety) {
+        if let Some(s) = t.get_mut("solver").and_then(|s| s.as_table_mut()) {
+            s.insert("dt".into(), toml::Value::Float(dt));
+        }
+    }
     Ok(toml::to_string(&t)?)
+}
+
+/// The critical step of the scene `t` (its `solver.dt` left out, so that any mesh builds).
+fn dt_crit(t: &toml::Table, scene: &Scene) -> Result<f64> {
+    let mut t = t.clone();
+    if let Some(s) = t.get_mut("solver").and_then(|s| s.as_table_mut()) {
+        s.remove("dt");
+    }
+    Ok(Simulation::new(load(&toml::to_string(&t)?, scene)?)?.stable.dt_crit)
+}
+
+/// The dt rule of the tools that change the mesh (`flem chart`, `flem converge`): a scene with a
+/// fixed `solver.dt` keeps its ratio dt/dt_crit on a changed mesh, `dt' = dt dt_crit' / dt_crit`
+/// (the scene's dt is kept as is on its own mesh). Sets `solver.dt` of `changed` and returns
+/// the line that says so; `None` when the scene has no fixed dt (its `dt_safety` rules).
+pub(crate) fn keep_dt_ratio(base: &toml::Table, changed: &mut toml::Table, scene: &Scene) -> Result<Option<String>> {
+    let Some(dt) = base.get("solver").and_then(|s| s.get("dt")).and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64))) else { return Ok(None) };
+    let (c0, c1) = (dt_crit(base, scene)?, dt_crit(changed, scene)?);
+    let new = dt * c1 / c0;
+    if let Some(s) = changed.get_mut("solver").and_then(|s| s.as_table_mut()) {
+        s.insert("dt".into(), toml::Value::Float(new));
+    }
+    Ok(Some(format!("solver.dt = {dt:e} of the scene (dt/dt_crit = {:.4}) becomes {new:.4e} on this mesh (dt_crit {c1:.4e}): the same ratio dt/dt_crit", dt / c0)))
 }
 
 /// Multiplies a `rectangle` mesh's `nx` and `ny` by `factor` (the notch, if any, keeps its
@@ -160,6 +195,18 @@ pub(crate) fn refine_rectangle(t: &mut toml::Table, factor: i64) -> Result<()> {
     for k in ["nx", "ny"] {
         let n = mesh.get(k).and_then(|v| v.as_integer()).with_context(|| format!("mesh.{k} is missing"))?;
         mesh.insert(k.into(), toml::Value::Integer(n * factor));
+    }
+    // A graded rectangle: each zone's cells too (same lengths and end ratios; its grid lines
+    // are then not those of the coarse mesh, so no reference error is measured on it).
+    for k in ["grading_x", "grading_y"] {
+        if let Some(toml::Value::Array(zones)) = mesh.get_mut(k) {
+            for z in zones.iter_mut() {
+                if let Some(c) = z.as_array_mut().and_then(|z| z.get_mut(1)) {
+                    let n = c.as_integer().map(|i| i as f64).or_else(|| c.as_float()).with_context(|| format!("mesh.{k}: a zone's cells is not a number"))?;
+                    *c = toml::Value::Integer(n as i64 * factor);
+                }
+            }
+        }
     }
     Ok(())
 }
@@ -172,13 +219,42 @@ fn is_rectangle(t: &toml::Table) -> bool {
 struct Reference {
     at: std::collections::BTreeMap<(i64, i64), [f64; 2]>,
     scale: f64,
+    /// The reference body had no support (a statically determinate one was added): its
+    /// displacement is defined up to a rigid motion, removed before comparing (`rigid_fit`).
+    free: bool,
+}
+
+/// `mine` minus the rigid motion (translation and small rotation about the centroid) that fits
+/// `mine - refs` best in the least-squares sense at the positions `x`
+/// (`flem_core::plugin::support::align_rigid` on the points both meshes share).
+fn rigid_fit(x: &[[f64; 2]], mine: &mut [[f64; 2]], refs: &[[f64; 2]]) {
+    let n = x.len().max(1) as f64;
+    let (mut xc, mut yc, mut dx, mut dy) = (0.0, 0.0, 0.0, 0.0);
+    for i in 0..x.len() {
+        xc += x[i][0] / n;
+        yc += x[i][1] / n;
+        dx += (mine[i][0] - refs[i][0]) / n;
+        dy += (mine[i][1] - refs[i][1]) / n;
+    }
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 0..x.len() {
+        let (rx, ry) = (x[i][0] - xc, x[i][1] - yc);
+        num += rx * (mine[i][1] - refs[i][1] - dy) - ry * (mine[i][0] - refs[i][0] - dx);
+        den += rx * rx + ry * ry;
+    }
+    let th = if den > 0.0 { num / den } else { 0.0 };
+    for i in 0..x.len() {
+        let (rx, ry) = (x[i][0] - xc, x[i][1] - yc);
+        mine[i][0] -= dx - th * ry;
+        mine[i][1] -= dy + th * rx;
+    }
 }
 
 impl Reference {
     fn key(x: [f64; 2], scale: f64) -> (i64, i64) {
         ((x[0] / scale * 1e9).round() as i64, (x[1] / scale * 1e9).round() as i64)
     }
-    fn new(sim: &Simulation, u: &[[f64; 2]]) -> Reference {
+    fn new(sim: &Simulation, u: &[[f64; 2]], free: bool) -> Reference {
         let scale = sim.x0.iter().fold(0.0f64, |m, x| m.max(x[0].abs()).max(x[1].abs())).max(f64::MIN_POSITIVE);
         let mut at = std::collections::BTreeMap::new();
         let mut twice = std::collections::BTreeSet::new();
@@ -193,13 +269,13 @@ impl Reference {
         for k in twice {
             at.remove(&k);
         }
-        Reference { at, scale }
+        Reference { at, scale, free }
     }
     /// Relative L2 error of `u` at the points of `sim` found (once) in the reference; every
     /// point of `sim` with one cluster must be found (a refinement of the reference's mesh).
     fn error(&self, sim: &Simulation) -> Option<f64> {
         let topo = &sim.model.topo;
-        let (mut mine, mut refs) = (Vec::new(), Vec::new());
+        let (mut mine, mut refs, mut xs) = (Vec::new(), Vec::new(), Vec::new());
         for (c, (x, u)) in sim.x0.iter().zip(&sim.state.u).enumerate() {
             if topo.point_clusters[topo.cluster_point[c].idx()].len() > 1 {
                 continue;
@@ -208,9 +284,13 @@ impl Reference {
                 Some(r) => {
                     mine.push(*u);
                     refs.push(*r);
+                    xs.push(*x);
                 }
                 None => return None,
             }
+        }
+        if self.free {
+            rigid_fit(&xs, &mut mine, &refs);
         }
         if mine.is_empty() {
             None
@@ -231,7 +311,8 @@ fn load(text: &str, scene: &Scene) -> Result<Scene> {
 }
 
 /// Runs the sweep; progress lines on stderr.
-pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analytic>, stages: Option<usize>, no_cracking: bool, elements: &[String]) -> Result<Vec<Point>> {
+#[allow(clippy::too_many_arguments)]
+pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analytic>, stages: Option<usize>, no_cracking: bool, elements: &[String], max_steps: Option<u64>) -> Result<Vec<Point>> {
     let mut base: toml::Table = toml::from_str(text).context("the scene is not TOML")?;
     if no_cracking {
         // The elastic problem of a cracking scene (pre-separated edges stay separated).
@@ -246,15 +327,32 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
     }
     let rect = is_rectangle(&base);
     let refines: Vec<usize> = if rect { sweep.refines.clone() } else { vec![1] };
+    // A scene with a fixed dt keeps its ratio dt/dt_crit on each refined mesh (the runs of the
+    // sweep set dt_safety themselves; this is for the implicit points and the reference, whose
+    // scene must still pass the stable-step check).
+    let mut dts = std::collections::BTreeMap::new();
+    for r in refines.iter().copied().chain([refines.iter().max().copied().unwrap_or(1) * 2]).filter(|&r| rect && r > 1) {
+        let mut t = base.clone();
+        refine_rectangle(&mut t, r as i64)?;
+        if let Some(msg) = keep_dt_ratio(&base, &mut t, scene)? {
+            eprintln!("refinement x{r}: {msg}");
+            dts.insert(r, t["solver"]["dt"].as_float());
+        }
+    }
+    let dt = |r: usize| dts.get(&r).copied().flatten();
     let reference = if rect {
         let finest = refines.iter().max().copied().unwrap_or(1) * 2;
-        let s = load(&variant(&base, None, None, None, None, finest)?, scene)?;
+        let s = load(&variant(&base, None, None, None, None, finest, dt(finest))?, scene)?;
         let mut sim = Simulation::new(s)?;
         // Static reference: the load levels of the last stage, no explicit steps.
         sim.set_stage_levels(sim.scene.file.stages.len() - 1);
-        let u = flem_plugins::check::static_solve(&sim)?;
+        let sol = flem_plugins::check::static_solve_supported(&sim)
+            .map_err(|e| crate::unsuited(&scene.path, "chart", format!("the implicit solve at the last stage's levels, the chart's reference, is not possible: {e}")))?;
         eprintln!("reference: implicit solve on {} elements (refinement x{finest})", sim.model.n_elems());
-        Some(Reference::new(&sim, &u))
+        for n in sol.notes() {
+            eprintln!("  {n}; its rigid motion is removed from every error against it");
+        }
+        Some(Reference::new(&sim, &sol.u, !sol.added.is_empty()))
     } else {
         None
     };
@@ -263,14 +361,18 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
     for (&el, &r) in elems.iter().flat_map(|e| refines.iter().map(move |r| (e, r))) {
         let ename = el.unwrap_or_default().to_string();
         // The implicit solve as its own point.
-        let s = load(&variant(&base, el, None, None, None, r)?, scene)?;
+        let s = load(&variant(&base, el, None, None, None, r, dt(r))?, scene)?;
         let t0 = Instant::now();
         let mut sim = Simulation::new(s)?;
         sim.set_stage_levels(sim.scene.file.stages.len() - 1);
-        let u = flem_plugins::check::static_solve(&sim)?;
+        let sol = flem_plugins::check::static_solve_supported(&sim)
+            .map_err(|e| crate::unsuited(&scene.path, "chart", format!("the implicit solve at the last stage's levels, the chart's reference, is not possible: {e}")))?;
         let wall = t0.elapsed().as_secs_f64();
-        sim.state.u = u.clone();
-        let implicit_u = u;
+        for n in sol.notes() {
+            eprintln!("implicit x{r}: {n}; the explicit runs are compared after removing their best-fit rigid motion");
+        }
+        sim.state.u = sol.u.clone();
+        let (implicit_u, implicit_added) = (sol.u, sol.added);
         let err_ref = reference.as_ref().and_then(|rf| rf.error(&sim));
         let err_an = match analytic {
             Some(a) => Some((sim.state.u[probe_index(&sim, &a.probe)?][a.comp] - a.value).abs() / a.value.abs()),
@@ -295,7 +397,8 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
         for &d in &sweep.dampings {
             for &sf in &sweep.safeties {
                 for &tol in &sweep.tolerances {
-                    let s = load(&variant(&base, el, Some(d), Some(sf), Some(tol), r)?, scene)?;
+                    let mut s = load(&variant(&base, el, Some(d), Some(sf), Some(tol), r, None)?, scene)?;
+                    crate::cap_steps(&mut s, max_steps);
                     let t0 = Instant::now();
                     let mut sim = Simulation::new(s)?;
                     sim.run(&mut NoOutput)?;
@@ -303,7 +406,18 @@ pub fn sweep(scene: &Scene, text: &str, sweep: &Sweep, analytic: Option<&Analyti
                     let steps: u64 = sim.stages_done.iter().map(|s| s.steps).sum();
                     let converged = sim.stages_done.iter().all(|s| s.converged);
                     let split = sim.cracking.as_ref().is_some_and(|c| c.n_splits > 0);
-                    let err_imp = if split { flem_plugins::check::static_solve(&sim).ok().and_then(|ui| rel_l2(&sim.state.u, &ui)) } else { rel_l2(&sim.state.u, &implicit_u) };
+                    // Against the implicit solve of the same model; a body given a statically
+                    // determinate support: that solve shifted by its best-fit rigid motion.
+                    let err_imp = if split {
+                        flem_plugins::check::static_solve_supported(&sim).ok().and_then(|mut so| {
+                            flem_core::plugin::support::align_rigid(&sim.model, &so.added, &sim.state.u, &mut so.u);
+                            rel_l2(&sim.state.u, &so.u)
+                        })
+                    } else {
+                        let mut ui = implicit_u.clone();
+                        flem_core::plugin::support::align_rigid(&sim.model, &implicit_added, &sim.state.u, &mut ui);
+                        rel_l2(&sim.state.u, &ui)
+                    };
                     let err_ref = if split { None } else { reference.as_ref().and_then(|rf| rf.error(&sim)) };
                     let err_an = match analytic {
                         Some(a) => Some((sim.state.u[probe_index(&sim, &a.probe)?][a.comp] - a.value).abs() / a.value.abs()),
@@ -370,7 +484,8 @@ pub fn csv(pts: &[Point]) -> String {
 }
 
 /// `flem chart`: sweep, then chart.csv, chart.json and the pictures into `out`.
-pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Option<Analytic>, stages: Option<usize>, no_cracking: bool, elements: &[String]) -> Result<()> {
+#[allow(clippy::too_many_arguments)]
+pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Option<Analytic>, stages: Option<usize>, no_cracking: bool, elements: &[String], max_steps: Option<u64>) -> Result<()> {
     let text = std::fs::read_to_string(scene_path).with_context(|| format!("{}: cannot be read", scene_path.display()))?;
     let scene = Scene::from_file(scene_path)?;
     if let Some(a) = &analytic {
@@ -383,7 +498,7 @@ pub fn chart(scene_path: &Path, out: Option<PathBuf>, quick: bool, analytic: Opt
     let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let sw = if quick { Sweep::quick() } else { Sweep::full() };
-    let pts = sweep(&scene, &text, &sw, analytic.as_ref(), stages, no_cracking, elements)?;
+    let pts = sweep(&scene, &text, &sw, analytic.as_ref(), stages, no_cracking, elements, max_steps)?;
     flem_core::output::atomic_write(&out.join("chart.csv"), csv(&pts).as_bytes())?;
     flem_core::output::atomic_write(&out.join("chart.json"), serde_json::to_string_pretty(&pts)?.as_bytes())?;
     let kind = pts.iter().find(|p| p.method == "explicit").map_or("implicit", |p| p.error_kind());

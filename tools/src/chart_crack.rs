@@ -17,7 +17,7 @@
 //! shape = tolerance). An error that is the same for every run gets `<scene>_<error>.md`, a
 //! table, instead of a chart (issue 40: on the scenes of docs/events.md every run follows the
 //! same path).
-use anyhow::Result;
+use anyhow::{Context, Result};
 use flem_core::cracking::initiation::initiation;
 use flem_core::scene::Scene;
 use flem_core::solver::events::{explicit_twin, LoggedSplit, SplitLog};
@@ -49,17 +49,38 @@ fn pareto(pts: &[(f64, f64)]) -> Vec<bool> {
     pts.iter().enumerate().map(|(i, &(t, e))| !pts.iter().enumerate().any(|(j, &(tj, ej))| j != i && tj <= t && ej <= e && (tj < t || ej < e))).collect()
 }
 
+/// The sweep's settings: load steps and tolerances of the explicit runs (`--quick`: two steps,
+/// one tolerance; the reference path is then the finest of them).
+struct Plan {
+    steps: Vec<f64>,
+    tolerances: Vec<f64>,
+}
+
 /// One scene's sweep.
-fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> {
+fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String, plan: &Plan) -> Result<()> {
     // A file name without dots (the pictures' names get an extension).
     let stem = path.file_stem().map(|s| s.to_string_lossy().replace('.', "_")).unwrap_or_default();
+    let scene = Scene::from_file(path)?;
+    let f = &scene.file;
+    if f.solver.kind != flem_core::scene::SolverKind::Events || f.stages.len() != 1 || f.cracking.is_none() {
+        return Err(crate::unsuited(
+            path,
+            "chart-crack",
+            format!(
+                "it compares the events solver with explicit load steps on a one-stage events scene with [cracking] (configs/events/); this one has solver.type = \"{}\", {} stage(s){}",
+                if f.solver.kind == flem_core::scene::SolverKind::Events { "events" } else { "explicit" },
+                f.stages.len(),
+                if f.cracking.is_none() { ", no [cracking]" } else { "" }
+            ),
+        ));
+    }
     // The exact initiation load.
-    let mut sim = Simulation::new(Scene::from_file(path)?)?;
+    let mut sim = Simulation::new(scene)?;
     let target = sim.scene.file.stages[0].levels.values().copied().fold(0.0f64, |a, v| a.max(v.abs()));
     sim.set_stage_levels(0);
     let u1 = flem_plugins::check::static_solve(&sim)?;
-    let crit = &sim.scene.file.cracking.as_ref().expect("a cracking scene").criterion;
-    let cr = sim.cracking.as_mut().expect("cracking");
+    let crit = &sim.scene.file.cracking.as_ref().context("no [cracking]")?.criterion;
+    let cr = sim.cracking.as_mut().context("no [cracking]")?;
     let scale = cr.scale.clone();
     let exact = initiation(crit.as_ref(), &scale, &sim.model, &u1, cr.nonlocal.as_mut())?.factor * target;
     // The events run, stopped after the splits compared (solver.max_events, one split per event
@@ -77,8 +98,8 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
     let mut runs =
         vec![Run { method: "events (ours)".into(), setting: String::new(), step: 0.0, tolerance: 0.0, wall, first: level(&log.splits[0]), edges: edges(&log.splits), splits: log.splits.len().min(n) }];
     let t_init = exact / target;
-    for tol in [1e-4, 1e-5] {
-        for step in [0.05, 0.02, 0.01, 0.005] {
+    for &tol in &plan.tolerances {
+        for &step in &plan.steps {
             let mut sc = Scene::from_file(path)?;
             explicit_twin(&mut sc, ((t_init / step).floor() as u64).max(1), step, 1.0, 2_000_000, tol)?;
             let t = Instant::now();
@@ -94,7 +115,9 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
             runs.push(Run { method: "explicit".into(), setting: format!("tolerance {tol:e}"), step, tolerance: tol, wall, first, edges: edges(&l.splits), splits: l.splits.len() });
         }
     }
-    let reference = runs.iter().find(|r| r.step == 0.005 && r.tolerance == 1e-5).map(|r| r.edges.clone()).unwrap_or_default();
+    // The reference path: the finest step at the tighter tolerance.
+    let (fine, tight) = (plan.steps.iter().copied().fold(f64::INFINITY, f64::min), plan.tolerances.iter().copied().fold(f64::INFINITY, f64::min));
+    let reference = runs.iter().find(|r| r.step == fine && r.tolerance == tight).map(|r| r.edges.clone()).unwrap_or_default();
     let init_err: Vec<f64> = runs.iter().map(|r| ((r.first - exact) / exact).abs()).collect();
     let path_err: Vec<f64> = runs.iter().map(|r| r.edges.symmetric_difference(&reference).count() as f64 / reference.len().max(1) as f64).collect();
     let p_init = pareto(&runs.iter().zip(&init_err).map(|(r, &e)| (r.wall, e)).collect::<Vec<_>>());
@@ -130,14 +153,15 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String) -> Result<()> 
     Ok(())
 }
 
-/// `flem chart-crack`.
-pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize) -> Result<()> {
+/// `flem chart-crack`; `quick`: load steps of 5 and 2 % at the tolerance 1e-4 only.
+pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize, quick: bool) -> Result<()> {
+    let plan = if quick { Plan { steps: vec![0.05, 0.02], tolerances: vec![1e-4] } } else { Plan { steps: vec![0.05, 0.02, 0.01, 0.005], tolerances: vec![1e-4, 1e-5] } };
     let out = out.unwrap_or_else(|| PathBuf::from("out/chart_crack"));
     let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let mut csv = String::from("scene,method,load_step,tolerance,wall_seconds,splits,first_split_level,exact_initiation_level,initiation_error,path_error,pareto_initiation,pareto_path\n");
     for s in scenes {
-        sweep(s, splits, &out, &mut csv)?;
+        sweep(s, splits, &out, &mut csv, &plan)?;
     }
     flem_core::output::atomic_write(&out.join("chart_crack.csv"), csv.as_bytes())?;
     eprintln!("chart_crack.csv and <scene>_initiation/_path .png/.svg (or .md tables) in {}", out.display());

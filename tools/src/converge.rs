@@ -16,7 +16,11 @@
 //!
 //! The load must be proportional to the levels (traction, pressure, point loads; no gravity, no
 //! prescribed velocity or displacement) and the body linear (no co-rotational material, no
-//! contact before the first split): otherwise it is refused. Writes `converge.json` and the
+//! contact before the first split): otherwise it is refused ("does not suit `flem converge`").
+//! A scene with a fixed `solver.dt` keeps its ratio dt/dt_crit on each finer mesh
+//! (`chart::keep_dt_ratio`); a body without support under self-equilibrated loads (the paper's
+//! opening model) gets a statically determinate support in the elastic solve
+//! (`flem_core::plugin::support`), said in the output and in converge.json (`supports`). Writes `converge.json` and the
 //! picture `converge.png` / `.svg` (p_crit against h for both checks; crack paths overlaid).
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -117,6 +121,13 @@ pub struct Level {
     /// With `--ramp-to`: the crack path and the peak load under a rising load.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ramp: Option<Ramp>,
+    /// The statically determinate support the elastic solve added to a body without support
+    /// under self-equilibrated loads (`flem_core::plugin::support`), one note per fragment.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub supports: Vec<String>,
+    /// The dt rule on this level's mesh (a scene with a fixed dt keeps its dt/dt_crit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dt_rule: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -205,30 +216,38 @@ fn mean_edge(sim: &Simulation) -> f64 {
 }
 
 /// Elastic solve at the first stage's levels and the initiation of one check.
-fn exact(scene: &Scene, t: &toml::Table) -> Result<(Initiation, Simulation, f64)> {
+/// Also returns the notes of the statically determinate support the solve added, if any.
+fn exact(scene: &Scene, t: &toml::Table) -> Result<(Initiation, Simulation, f64, Vec<String>)> {
     let t0 = Instant::now();
     let mut sim = build(scene, t)?;
     if sim.loads.gravity != [0.0; 2] {
-        bail!("{}: model.gravity is not scaled by the load levels: the initiation load needs a load proportional to them", scene.path.display());
+        return Err(crate::unsuited(&scene.path, "converge", "model.gravity is not scaled by the load levels: the initiation load needs a load proportional to them"));
     }
     if sim.model.corotational {
-        bail!("{}: a co-rotational material is not linear: the initiation load needs a linear body", scene.path.display());
+        return Err(crate::unsuited(&scene.path, "converge", "a co-rotational material is not linear: the initiation load needs a linear body"));
     }
     for (i, l) in sim.scene.file.loads.iter().enumerate() {
         if matches!(l, flem_core::scene::LoadCfg::Velocity { .. } | flem_core::scene::LoadCfg::Displacement { .. }) {
-            bail!("{}: load[{i}] prescribes a velocity or displacement; the initiation load needs traction, pressure or point loads", scene.path.display());
+            return Err(crate::unsuited(&scene.path, "converge", format!("load[{i}] prescribes a velocity or displacement; the initiation load needs traction, pressure or point loads")));
         }
     }
     sim.set_stage_levels(0);
-    let u1 = flem_plugins::check::static_solve(&sim)?;
+    // A body without support under self-equilibrated loads (the paper's opening model) gets a
+    // statically determinate support whose reactions are checked to vanish: said once per level.
+    let sol = flem_plugins::check::static_solve_supported(&sim).map_err(|e| crate::unsuited(&scene.path, "converge", format!("the elastic solve at the first stage's levels is not possible: {e}")))?;
+    let notes = sol.notes();
+    for n in &notes {
+        eprintln!("note: {n}");
+    }
+    let u1 = sol.u;
     let crit = &sim.scene.file.cracking.as_ref().context("no [cracking]")?.criterion;
     let cr = sim.cracking.as_mut().context("no [cracking]")?;
     let scale = cr.scale.clone();
     let init = initiation(crit.as_ref(), &scale, &sim.model, &u1, cr.nonlocal.as_mut())?;
     if !init.factor.is_finite() || init.factor <= 0.0 {
-        bail!("{}: no node fails at any load factor up to 1e30 (or one fails at zero load): there is no initiation load", scene.path.display());
+        return Err(crate::unsuited(&scene.path, "converge", "no node fails at any load factor up to 1e30 (or one fails at zero load): there is no initiation load"));
     }
-    Ok((init, sim, t0.elapsed().as_secs_f64()))
+    Ok((init, sim, t0.elapsed().as_secs_f64(), notes))
 }
 
 /// The ramp: the first stage's levels times `p f` for f = 1, 1 + step, ..., `to`, one stage
@@ -308,6 +327,17 @@ pub fn run(a: Args) -> Result<()> {
     let scene = Scene::from_file(&a.scene)?;
     let text = std::fs::read_to_string(&a.scene)?;
     let base: toml::Table = toml::from_str(&text).context("the scene is not TOML")?;
+    if scene.file.cracking.is_none() {
+        return Err(crate::unsuited(&a.scene, "converge", "it finds the crack-initiation load, and the scene has no [cracking]"));
+    }
+    let kind = base.get("mesh").and_then(|m| m.get("type")).and_then(|v| v.as_str()).unwrap_or("");
+    if a.meshes.is_empty() && kind != "rectangle" && a.levels > 1 {
+        return Err(crate::unsuited(
+            &a.scene,
+            "converge",
+            format!("its mesh (type \"{kind}\") is not a generated rectangle that can be refined: give one mesh file per level with --meshes a.msh,b.msh,..."),
+        ));
+    }
     let radius = a.radius.or(scene.file.cracking.as_ref().and_then(|c| c.nonlocal.map(|n| n.radius)));
     let stem = a.scene.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "scene".into());
     let out = a.out.clone().unwrap_or_else(|| Path::new("out").join(format!("{stem}_converge")));
@@ -315,8 +345,14 @@ pub fn run(a: Args) -> Result<()> {
     let mut levels: Vec<Level> = Vec::new();
     let mut bounds = [[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]];
     for lv in 0..a.levels {
-        let tl = level_table(&base, lv, &a.meshes, None, &o)?;
-        let (li, sim, lw) = exact(&scene, &tl)?;
+        let mut tl = level_table(&base, lv, &a.meshes, None, &o)?;
+        // A fixed dt keeps the scene's ratio dt/dt_crit on each finer mesh (the scene's own
+        // dt on level 0).
+        let dt = if lv > 0 || !a.meshes.is_empty() { crate::chart::keep_dt_ratio(&base, &mut tl, &scene)? } else { None };
+        if let Some(m) = &dt {
+            eprintln!("level {lv}: {m}");
+        }
+        let (li, sim, lw, supports) = exact(&scene, &tl)?;
         for p in &sim.model.mesh.points {
             for d in 0..2 {
                 bounds[0][d] = bounds[0][d].min(p[d]);
@@ -328,8 +364,11 @@ pub fn run(a: Args) -> Result<()> {
         drop(sim);
         let (nonlocal, tn) = match radius {
             Some(r) => {
-                let tn = level_table(&base, lv, &a.meshes, Some(r), &o)?;
-                let (ni, _, nw) = exact(&scene, &tn)?;
+                let mut tn = level_table(&base, lv, &a.meshes, Some(r), &o)?;
+                if dt.is_some() {
+                    crate::chart::keep_dt_ratio(&base, &mut tn, &scene)?;
+                }
+                let (ni, _, nw, _) = exact(&scene, &tn)?;
                 (Some(Check { p_crit: ni.factor, node: ni.x, direction_deg: ni.sigma1_deg, wall_seconds: nw }), tn)
             }
             None => (None, tl),
@@ -371,6 +410,8 @@ pub fn run(a: Args) -> Result<()> {
             nonlocal,
             explicit: ex,
             ramp: rp,
+            supports,
+            dt_rule: dt,
         });
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");

@@ -34,6 +34,13 @@ pub fn run(a: Args) -> Result<()> {
     let base = a.scene.parent().map(|p| p.to_path_buf()).unwrap_or_default();
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_fos", a.scene.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default())));
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot be created", out.display()))?;
+    // A scene whose laws have no strength to reduce has no factor of safety: said before any trial.
+    if let Err(e) = flem_core::solver::fos::reduced_scene(&text, &a.scene, &base, 1.0) {
+        if matches!(&e, flem_core::FlemError::Config { key, .. } if key == "material") {
+            return Err(crate::unsuited(&a.scene, "fos", format!("it reduces the strength of the material laws, and {e}")));
+        }
+        return Err(e.into());
+    }
     let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth };
     let mut show = |t: &Trial| {
         eprintln!(

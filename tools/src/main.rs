@@ -66,6 +66,10 @@ enum Cmd {
         /// Draw the pictures at the end (as `flem plot`; also when the scene sets output.plots).
         #[arg(long)]
         plot: bool,
+        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
+        /// reaches it is not in equilibrium and says so.
+        #[arg(long, value_name = "N")]
+        max_steps: Option<u64>,
     },
     /// Draw a finished run's pictures (PNG and SVG) into RUN_DIR/plots: deformed mesh frames,
     /// crack sequence, load-displacement curve.
@@ -105,6 +109,10 @@ enum Cmd {
         /// scene's own.
         #[arg(long, value_delimiter = ',')]
         elements: Vec<String>,
+        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
+        /// reaches it is not in equilibrium and says so.
+        #[arg(long, value_name = "N")]
+        max_steps: Option<u64>,
     },
     /// Speed against accuracy for cracking (ours, issue 19): explicit runs in load steps of 5,
     /// 2, 1, 0.5 % at two tolerances and the events solver, per one-stage events scene: errors
@@ -120,6 +128,10 @@ enum Cmd {
         /// Compare the first N splits of every run.
         #[arg(long, default_value_t = 12)]
         splits: usize,
+        /// A small sweep: load steps of 5 and 2 % at the tolerance 1e-4 (the reference path is
+        /// then the 2 % run's).
+        #[arg(long)]
+        quick: bool,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -138,6 +150,10 @@ enum Cmd {
         /// Output folder (default: out/<scene name>_compare).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Quick look: cap every stage's step limit (and solver.max_events) at N; a stage that
+        /// reaches it is not in equilibrium and says so.
+        #[arg(long, value_name = "N")]
+        max_steps: Option<u64>,
     },
     /// Crack-initiation load under mesh refinement (exact, by the check solver; local and
     /// nonlocal check), checked by explicit runs: converge.json and converge.png/.svg in --out.
@@ -279,13 +295,19 @@ fn main() -> ExitCode {
     flem_core::plugin::dynload::set_scene_plugin_consent(cli.allow_plugins);
     let r = match cli.cmd {
         None => run_default(),
-        Some(Cmd::Run { scene, out, quiet, resume, plot }) => load(&scene).and_then(|s| run(s, out, quiet, resume, plot)),
+        Some(Cmd::Run { scene, out, quiet, resume, plot, max_steps }) => load(&scene).and_then(|mut s| {
+            cap_steps(&mut s, max_steps);
+            run(s, out, quiet, resume, plot)
+        }),
         Some(Cmd::Plot { run_dir }) => plot(&run_dir),
         Some(Cmd::Check { scenes }) => check(&scenes),
-        Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking, elements }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking, &elements),
+        Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking, elements, max_steps }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking, &elements, max_steps),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
-        Some(Cmd::ChartCrack { scenes, out, splits }) => chart_crack::run(&scenes, out, splits),
-        Some(Cmd::Compare { scene, out }) => load(&scene).and_then(|s| compare(s, out)),
+        Some(Cmd::ChartCrack { scenes, out, splits, quick }) => chart_crack::run(&scenes, out, splits, quick),
+        Some(Cmd::Compare { scene, out, max_steps }) => load(&scene).and_then(|mut s| {
+            cap_steps(&mut s, max_steps);
+            compare(s, out)
+        }),
         Some(Cmd::Bench { what }) => bench(what),
         Some(Cmd::Sweep { sweep, workers }) => sweep::run(&sweep, workers, cli.allow_plugins),
         Some(Cmd::SweepTask { scene, task, out, threads, params }) => sweep::task(&scene, task, &out, threads, &params),
@@ -358,6 +380,25 @@ pub(crate) fn lock_out(out: &Path) -> Result<flem_core::output::lock::DirLock> {
         eprintln!("warning: {n}");
     }
     Ok(l)
+}
+
+/// The refusal of a tool whose method does not apply to a scene (exit 1): "SCENE does not suit
+/// `flem TOOL`: WHY" (tests/tools.rs looks for these words).
+pub(crate) fn unsuited(scene: &Path, tool: &str, why: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::anyhow!("{} does not suit `flem {tool}`: {why}", scene.display())
+}
+
+/// Caps every stage's step limit (and the events solver's event limit) at `n`: the quick look
+/// of `--max-steps` (a stage that reaches it is not in equilibrium, and says so).
+pub(crate) fn cap_steps(scene: &mut Scene, n: Option<u64>) {
+    let Some(n) = n else { return };
+    let f = &mut scene.file;
+    let global = f.solver.max_steps;
+    f.solver.max_steps = global.min(n);
+    f.solver.max_events = f.solver.max_events.min(n);
+    for s in &mut f.stages {
+        s.max_steps = Some(s.max_steps.unwrap_or(global).min(n));
+    }
 }
 
 /// A run stopped by SIGINT/SIGTERM after writing a checkpoint (exit code 130).
@@ -585,22 +626,41 @@ fn plot(dir: &Path) -> Result<()> {
 }
 
 /// `flem compare`: the scene's stages with the comparison after each (the scene's `[check]`, or
-/// its defaults when the scene has none). Exit 1 when an implicit solve failed.
+/// its defaults when the scene has none). Exit 1 when, on a comparable stage, the implicit solve
+/// failed or the two disagree beyond `check.tolerance`; a stage that is not comparable (FLEM not
+/// at rest, a fragment without support, `check = false`) is reported with its reason.
 fn compare(scene: Scene, out: Option<PathBuf>) -> Result<()> {
     let stem = scene.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_compare")));
     let _lock = lock_out(&out)?;
     let on_row: Box<dyn FnMut(&flem_core::output::compare::StageComparison)> =
         Box::new(|r| eprintln!("stage {} ({}): FLEM {} steps, ratio {:.2e}; implicit {:.3} s", r.stage, r.name, r.flem_steps, r.unbalanced_ratio.unwrap_or(f64::NAN), r.wall_seconds_implicit));
-    let (r, rows, warnings) = flem_core::output::run::compare_in_folder(scene, &out, Some(on_row))?;
+    let sim_tolerance = scene.file.check.as_ref().map_or_else(|| flem_core::output::run::default_compare_tolerance(&scene), |c| c.tolerance);
+    if scene.file.check.is_none() {
+        eprintln!("the scene has no [check]: the comparison tolerance is {sim_tolerance:e} (1000 x its loosest equilibrium tolerance, within [1e-6, 0.1]; ours)");
+    }
+    let path = scene.path.clone();
+    let (r, rows, warnings) = match flem_core::output::run::compare_in_folder(scene, &out, Some(on_row)) {
+        Ok(x) => x,
+        // The implicit check is linear elastic, small strain: a scene with another law.
+        Err(e @ FlemError::Config { .. }) if matches!(&e, FlemError::Config { key, .. } if key == "check") => return Err(unsuited(&path, "compare", e)),
+        Err(e) => return Err(e.into()),
+    };
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     print!("{}", flem_core::output::compare::table(&rows));
     r?;
     println!("results in {}", out.join("compare.json").display());
-    let failed: Vec<&str> = rows.iter().filter(|r| r.implicit_error.is_some()).map(|r| r.name.as_str()).collect();
-    anyhow::ensure!(failed.is_empty(), "the implicit solve failed at stage(s) {failed:?} (see above and compare.json)");
+    // Only comparable stages judge: a stage without an equilibrium to compare is reported.
+    let failed: Vec<&str> = rows.iter().filter(|r| r.comparable && r.implicit_error.is_some()).map(|r| r.name.as_str()).collect();
+    anyhow::ensure!(failed.is_empty(), "the implicit solve failed at comparable stage(s) {failed:?} (see above and compare.json)");
+    let off: Vec<&str> = rows.iter().filter(|r| r.comparable && !r.within_tolerance).map(|r| r.name.as_str()).collect();
+    anyhow::ensure!(off.is_empty(), "FLEM and the implicit solve disagree beyond check.tolerance = {sim_tolerance:e} at comparable stage(s) {off:?} (see above and compare.json)");
+    let nc = rows.iter().filter(|r| !r.comparable).count();
+    if nc > 0 {
+        println!("{nc} of {} stage(s) not comparable (the reasons above; compare.json: comparable = false, reason)", rows.len());
+    }
     Ok(())
 }
 

@@ -20,6 +20,15 @@
 //! FLEM minus implicit) and `compare.json` (rewritten atomically after every stage). A ratio
 //! whose denominator is zero, or any non-finite number, is written as `null`, never as NaN.
 //!
+//! A stage is *comparable* when it has an equilibrium the implicit check can compute: FLEM at
+//! rest at its end (the stage reached its tolerance; not a dynamic stage), every fragment held
+//! (`plugin::support::plan`: enough prescribed dofs, or none and self-equilibrated loads, which
+//! get a statically determinate support), no contact force acting, and the stage not marked
+//! `check = false` (a scene with a nonlinear material is refused as a whole, `Simulation::new`). Otherwise the row says
+//! `comparable: false` with every `reason` (figures still given when the solve succeeded). On a
+//! fragment given a statically determinate support the implicit displacement is shifted by the
+//! rigid motion that fits FLEM's best (`plugin::support::align_rigid`) before the figures.
+//!
 //! [`Comparer`] is an `Observer` wrapper: it forwards everything to the run's observer (the
 //! output writer) and at `Observer::stage_end` solves the current model (clusters after splits,
 //! current fixities and load levels). `compare.json` also holds the wall times, the ratio
@@ -30,6 +39,7 @@ use crate::error::{FlemError, Result};
 use crate::mesh::topology::SplitRecord;
 use crate::output::{atomic_write, prepare_dir, snapshot_vtk, vtu_bytes};
 use crate::plugin::check::CheckSolver;
+use crate::plugin::support::{self, AddedSupport};
 use crate::solver::{Observer, Progress, Simulation};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -63,6 +73,21 @@ pub struct StageComparison {
     pub implicit_error: Option<String>,
     /// The comparison VTU, relative to the output folder.
     pub vtu: Option<String>,
+    /// Whether the stage has an equilibrium to compare (module doc): false when FLEM is not at
+    /// rest at its end (step limit; a dynamic stage), when a fragment has no support (the
+    /// implicit problem is singular), or when the scene marks the stage `check = false`.
+    /// Figures, when the implicit solve succeeded, are still given; `within_tolerance` is then
+    /// not a verdict.
+    #[serde(default)]
+    pub comparable: bool,
+    /// Why the stage is not comparable (every reason, "; "-separated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// Statically determinate supports the implicit solve added to fragments without any and
+    /// with self-equilibrated loads (`plugin::support`); the implicit displacement of such a
+    /// fragment is shifted by the rigid motion that fits FLEM's best before the comparison.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub added_supports: Vec<AddedSupport>,
 }
 
 fn finite(v: f64) -> Option<f64> {
@@ -85,7 +110,9 @@ pub fn rel_l2<const N: usize>(a: &[[f64; N]], b: &[[f64; N]]) -> Option<f64> {
 }
 
 /// Runs the implicit solve on the simulation's current state and compares. Returns the entry
-/// and, when the solve succeeded, the implicit displacement and nodal stress.
+/// and, when the solve succeeded, the implicit displacement (rigidly aligned with FLEM's on
+/// fragments given a statically determinate support) and nodal stress. `stage` indexes the
+/// scene's stages.
 pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, tolerance: f64) -> (StageComparison, Option<(Vec<[f64; 2]>, Vec<[f64; 3]>)>) {
     let st = sim.stages_done.last().cloned().unwrap_or_default();
     let nc = sim.model.topo.n_clusters();
@@ -102,20 +129,78 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
         wall_seconds_flem: st.wall_seconds,
         ..Default::default()
     };
+    let cfg = sim.scene.file.stages.get(stage);
+    if cfg.is_some_and(|s| !s.check) {
+        c.reason = Some(format!("the scene marks this stage as not checked (stage[{stage}].check = false)"));
+        return (c, None);
+    }
+    let mut reasons = Vec::new();
+    if cfg.is_some_and(|s| s.dynamic) {
+        reasons.push("FLEM is not at rest: a dynamic stage (stage.dynamic = true) runs a fixed number of steps, not to equilibrium".to_string());
+    } else if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
+        // The events solver (ours): its state is a linear solve at the stage's levels only when
+        // the stage ran to its end.
+        let max = sim.scene.file.solver.max_events;
+        if !st.converged {
+            reasons
+                .push(format!("the events solver stopped after {} events, before the end of the stage (the run's warning says why): its state is not an equilibrium at the stage's levels", st.steps));
+        } else if st.steps >= max {
+            reasons.push(format!("the events solver stopped at solver.max_events = {max}, before the end of the stage: its state is that of its last event, not an equilibrium at the stage's levels"));
+        }
+    } else if !st.converged {
+        let tol = cfg.and_then(|s| s.tolerance).unwrap_or(sim.scene.file.solver.tolerance);
+        reasons.push(format!(
+            "FLEM is not at rest: the stage stopped after {} steps with the unbalanced-force ratio {:.3e}, above its tolerance {tol:.0e} (no equilibrium reached)",
+            st.steps, st.final_ratio
+        ));
+    }
+    // What the implicit check (linear, small strain, no contact) does not model.
+    if sim.state.f_con.iter().any(|f| f[0] != 0.0 || f[1] != 0.0) {
+        reasons.push("contact forces act at the end of the stage, and the implicit check models no contact".to_string());
+    }
     let t0 = Instant::now();
-    let r = sim.external_force().and_then(|f| solver.solve(&sim.model, &sim.state.fix, &f, &sim.state.u));
+    // Outer error: the solve failed; inner error: the supports refuse a fragment (plan).
+    let solved = sim.external_force().and_then(|f| {
+        let support::Plan { fix, mut added } = match support::plan(&sim.model, &sim.state.fix, &[f.as_slice()]) {
+            Ok(p) => p,
+            Err(e) => return Ok(Err(e)),
+        };
+        let u = solver.solve(&sim.model, &fix, &f, &sim.state.u)?;
+        support::check_reactions(&sim.model, &mut added, &f, &u)?;
+        Ok(Ok((u, added)))
+    });
     c.wall_seconds_implicit = t0.elapsed().as_secs_f64();
-    let u_imp = match r {
-        Ok(u) if u.iter().all(|v| v[0].is_finite() && v[1].is_finite()) => u,
-        Ok(_) => {
+    let done = |mut c: StageComparison, reasons: Vec<String>| {
+        c.comparable = reasons.is_empty();
+        c.reason = (!reasons.is_empty()).then(|| reasons.join("; "));
+        c
+    };
+    let (mut u_imp, added) = match solved {
+        Ok(Ok((u, added))) if u.iter().all(|v| v[0].is_finite() && v[1].is_finite()) => (u, added),
+        Ok(Ok(_)) => {
             c.implicit_error = Some("the implicit solution is not finite".into());
-            return (c, None);
+            return (done(c, reasons), None);
+        }
+        Ok(Err(e)) => {
+            // A fragment the implicit problem cannot hold: no equilibrium to compare.
+            c.implicit_error = Some(e.to_string());
+            reasons.push(format!("a fragment without support: {e}"));
+            return (done(c, reasons), None);
         }
         Err(e) => {
-            c.implicit_error = Some(e.to_string());
-            return (c, None);
+            // A fragment named singular by the solve (a mechanism, e.g. two parts joined at one
+            // cluster) has no equilibrium to compare either; any other error is a failure.
+            let m = e.to_string();
+            if m.ends_with(support::SINGULAR) {
+                reasons.push(format!("a fragment without support or a mechanism: {m}"));
+            }
+            c.implicit_error = Some(m);
+            return (done(c, reasons), None);
         }
     };
+    support::align_rigid(&sim.model, &added, &sim.state.u, &mut u_imp);
+    c.added_supports = added;
+    let mut c = done(c, reasons);
     let (mut corner, mut s_flem, mut s_imp) = (Vec::new(), Vec::new(), Vec::new());
     sim.model.nodal_stress(&sim.state.u, &mut corner, &mut s_flem);
     sim.model.nodal_stress(&u_imp, &mut corner, &mut s_imp);
@@ -167,10 +252,28 @@ pub fn table(rows: &[StageComparison]) -> String {
             f(r.rel_l2_nodal_stress),
             r.wall_seconds_flem,
             r.wall_seconds_implicit,
-            if r.within_tolerance { "yes" } else { "NO" }
+            if !r.comparable {
+                "n/c"
+            } else if r.within_tolerance {
+                "yes"
+            } else {
+                "NO"
+            }
         );
-        if let Some(e) = &r.implicit_error {
-            let _ = writeln!(s, "    implicit solve failed: {e}");
+        for a in &r.added_supports {
+            let _ = writeln!(s, "    support added: {}", a.note());
+        }
+        match (&r.reason, &r.implicit_error) {
+            (Some(why), _) => {
+                let _ = writeln!(s, "    not comparable: {why}");
+                if let Some(e) = r.implicit_error.as_ref().filter(|e| !why.contains(e.as_str())) {
+                    let _ = writeln!(s, "    implicit solve failed: {e}");
+                }
+            }
+            (None, Some(e)) => {
+                let _ = writeln!(s, "    implicit solve failed: {e}");
+            }
+            _ => {}
         }
     }
     s

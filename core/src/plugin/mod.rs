@@ -6,4 +6,5 @@
 pub mod check;
 pub mod damping;
 pub mod dynload;
+pub mod support;
 pub mod traits;

@@ -160,6 +160,11 @@ impl Simulation {
         let t = Instant::now();
         let (fix, f0, p0) = self.events_rhs(l0)?;
         let (_, f1, p1) = self.events_rhs(l1)?;
+        // A fragment without support under self-equilibrated loads gets a statically
+        // determinate one (plugin::support; issue 41), said once in the warnings; any other
+        // fragment without support is refused here, named.
+        let crate::plugin::support::Plan { fix, mut added } = crate::plugin::support::plan(&self.model, &fix, &[f0.as_slice(), f1.as_slice()])?;
+        let check = (!added.is_empty()).then(|| (f0.clone(), f1.clone()));
         let before = kept.as_ref().map_or((0, 0), |k| k.counts());
         let (a, b) = match kept.as_mut() {
             Some(k) => {
@@ -169,6 +174,16 @@ impl Simulation {
             }
             None => (solver.solve(&self.model, &fix, &f0, &p0)?, solver.solve(&self.model, &fix, &f1, &p1)?),
         };
+        if let Some((f0, f1)) = check {
+            crate::plugin::support::check_reactions(&self.model, &mut added, &f0, &a)?;
+            crate::plugin::support::check_reactions(&self.model, &mut added, &f1, &b)?;
+            for s in &added {
+                let w = format!("the events solver's linear solves: {}", s.note().split(", reactions").next().unwrap_or_default());
+                if !self.warnings.contains(&w) {
+                    self.warnings.push(w);
+                }
+            }
+        }
         if let Some(ev) = self.events.as_mut() {
             ev.solves += 2;
             ev.solve_seconds += t.elapsed().as_secs_f64();

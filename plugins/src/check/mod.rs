@@ -138,48 +138,7 @@ pub struct Timings {
     pub total: f64,
 }
 
-const PREFIX: &str = "the implicit check solver cannot solve";
-
-/// Fragment membership and a description of each fragment for messages.
-struct Fragments {
-    elem_frag: Vec<u32>,
-    n: usize,
-    cluster_frag: Vec<u32>,
-}
-
-impl Fragments {
-    fn new(model: &Model) -> Self {
-        let topo = &model.topo;
-        let (elem_frag, n) = topo.fragments();
-        let mut cluster_frag = vec![u32::MAX; topo.n_clusters()];
-        for (k, c) in topo.copy_cluster.iter().enumerate() {
-            cluster_frag[c.idx()] = elem_frag[topo.copy_elem[k].idx()];
-        }
-        Fragments { elem_frag, n, cluster_frag }
-    }
-
-    /// "fragment 2 (element tags 14, 15, 16, ...; 40 elements, around point (x, y))" (the ids of
-    /// the mesh file; "elements 14, ... (0-based, in file order)" for a generated mesh).
-    fn describe(&self, model: &Model, f: u32) -> String {
-        let elems: Vec<usize> = (0..self.elem_frag.len()).filter(|&e| self.elem_frag[e] == f).collect();
-        let more = if elems.len() > 3 { ", ..." } else { "" };
-        let list = model.mesh.cells_name(&elems[..elems.len().min(3)], more);
-        let (mut sx, mut sy, mut m) = (0.0, 0.0, 0.0);
-        for &e in &elems {
-            for &p in model.mesh.cells[e].corners() {
-                let x = model.mesh.points[p as usize];
-                sx += x[0];
-                sy += x[1];
-                m += 1.0;
-            }
-        }
-        format!("fragment {f} ({list}; {} elements, around point ({:.6}, {:.6}))", elems.len(), sx / m, sy / m)
-    }
-}
-
-fn singular(model: &Model, fr: &Fragments, f: u32, why: &str) -> FlemError {
-    FlemError::Solve(format!("{PREFIX}: {} {why}: its stiffness is singular", fr.describe(model, f)))
-}
+use flem_core::plugin::support::{singular, Fragments, PREFIX};
 
 /// Dof numbering: `eq[2 c + d]` is the free-dof index or `usize::MAX` when prescribed.
 fn number_dofs(fix: &[u8]) -> (Vec<usize>, usize) {
@@ -197,57 +156,15 @@ fn number_dofs(fix: &[u8]) -> (Vec<usize>, usize) {
 }
 
 /// Rigid-motion test: the prescribed dofs of each fragment must stop both translations and the
-/// rotation (rank 3 of the rigid modes restricted to them).
+/// rotation (rank 3 of the rigid modes restricted to them; `flem_core::plugin::support::plan`,
+/// which the callers of the check solver run first to add a statically determinate support to a
+/// self-equilibrated fragment without any: called directly, this solver refuses that fragment).
 fn check_supports(model: &Model, fix: &[u8], fr: &Fragments) -> Result<(), FlemError> {
-    let x0 = model.cluster_x0();
-    let nf = fr.n;
-    // Per fragment: bounding box and centroid of its clusters.
-    let mut lo = vec![[f64::INFINITY; 2]; nf];
-    let mut hi = vec![[f64::NEG_INFINITY; 2]; nf];
-    for (c, &f) in fr.cluster_frag.iter().enumerate() {
-        if f == u32::MAX {
-            continue;
-        }
-        for d in 0..2 {
-            lo[f as usize][d] = lo[f as usize][d].min(x0[c][d]);
-            hi[f as usize][d] = hi[f as usize][d].max(x0[c][d]);
-        }
+    let p = flem_core::plugin::support::plan(model, fix, &[])?;
+    match p.added.first() {
+        Some(a) => Err(singular(model, fr, a.fragment, "has no prescribed dof at all, so nothing stops its rigid motion")),
+        None => Ok(()),
     }
-    let mut g = vec![[[0.0f64; 3]; 3]; nf];
-    let mut count = vec![0usize; nf];
-    for (c, &f) in fr.cluster_frag.iter().enumerate() {
-        if f == u32::MAX || fix[c] == 0 {
-            continue;
-        }
-        let f = f as usize;
-        let ctr = [0.5 * (lo[f][0] + hi[f][0]), 0.5 * (lo[f][1] + hi[f][1])];
-        let l = ((hi[f][0] - lo[f][0]).powi(2) + (hi[f][1] - lo[f][1]).powi(2)).sqrt().max(f64::MIN_POSITIVE);
-        let (dx, dy) = ((x0[c][0] - ctr[0]) / l, (x0[c][1] - ctr[1]) / l);
-        for d in 0..2 {
-            if fix[c] & (1 << d) == 0 {
-                continue;
-            }
-            count[f] += 1;
-            let r = if d == 0 { [1.0, 0.0, -dy] } else { [0.0, 1.0, dx] };
-            for i in 0..3 {
-                for j in 0..3 {
-                    g[f][i][j] += r[i] * r[j];
-                }
-            }
-        }
-    }
-    for f in 0..nf {
-        if count[f] == 0 {
-            return Err(singular(model, fr, f as u32, "has no prescribed dof at all, so nothing stops its rigid motion"));
-        }
-        let m = nalgebra::Matrix3::from_fn(|i, j| g[f][i][j]);
-        let ev = m.symmetric_eigenvalues();
-        let (mn, mx) = (ev.min(), ev.max());
-        if mn <= 1e-10 * mx {
-            return Err(singular(model, fr, f as u32, &format!("has no support that stops its rigid motion (its {} prescribed dof(s) leave a translation or rotation free)", count[f])));
-        }
-    }
-    Ok(())
 }
 
 impl ImplicitSolver {
@@ -532,9 +449,16 @@ fn locate_singular(model: &Model, fix: &[u8], eq: &[usize], fr: &Fragments, a: &
 
 /// Static solve of a simulation's current state: its fixities, its external force at the current
 /// load levels (`Simulation::external_force`) and, for prescribed dofs, the current displacement
-/// (at equilibrium FLEM's prescribed dofs hold their prescribed value).
+/// (at equilibrium FLEM's prescribed dofs hold their prescribed value). A fragment without
+/// support under self-equilibrated loads gets a statically determinate one
+/// (`flem_core::plugin::support`): [`static_solve_supported`] says which.
 pub fn static_solve(sim: &Simulation) -> Result<Vec<[f64; 2]>, FlemError> {
-    ImplicitSolver::new().solve(&sim.model, &sim.state.fix, &sim.external_force()?, &sim.state.u)
+    static_solve_supported(sim).map(|s| s.u)
+}
+
+/// [`static_solve`] with the statically determinate supports it added (their notes).
+pub fn static_solve_supported(sim: &Simulation) -> Result<flem_core::plugin::support::Supported, FlemError> {
+    flem_core::plugin::support::solve_supported(&ImplicitSolver::new(), &sim.model, &sim.state.fix, &sim.external_force()?, &sim.state.u)
 }
 
 #[cfg(test)]
