@@ -1109,7 +1109,20 @@ fn converge_and_sweep_inputs_get_named_refusals() {
         failures.push(format!("flem sweep (bad tasks): exit {:?}, stderr: {err}", o.status.code()));
     } else {
         let csv = std::fs::read_to_string(dir.join("sweep_tasks/sweep.csv")).unwrap();
-        let rows: Vec<&str> = csv.lines().skip(1).collect();
+        // Records, not lines: a quoted error may hold line breaks (a TOML error's excerpt).
+        let mut records = Vec::new();
+        let (mut quoted, mut start) = (false, 0);
+        for (i, ch) in csv.char_indices() {
+            match ch {
+                '"' => quoted = !quoted,
+                '\n' if !quoted => {
+                    records.push(&csv[start..i]);
+                    start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        let rows: Vec<&str> = records.into_iter().skip(1).collect();
         assert_eq!(rows.len(), tasks.len() + 1, "{csv}");
         for (i, (key, v, want)) in tasks.iter().enumerate() {
             let row = rows.iter().find(|r| r.starts_with(&format!("{i},"))).unwrap();
