@@ -222,6 +222,8 @@ fn cap_steps(scene: &mut Scene) {
     }
     let s = &mut scene.file.solver;
     s.max_steps = s.max_steps.min(STEP_CAP);
+    // The events solver: a loose fragment's explicit march too.
+    s.hand_over_max_steps = s.hand_over_max_steps.min(STEP_CAP);
     for st in &mut scene.file.stages {
         st.max_steps = Some(st.max_steps.unwrap_or(STEP_CAP).min(STEP_CAP));
     }
