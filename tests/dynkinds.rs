@@ -230,3 +230,25 @@ fn new_kind_snippets_load_and_validate() {
     }
     assert!(n >= 7, "only {n} snippets checked");
 }
+
+/// Issue 35 (loose end): a loaded contact law or damping scheme that returns NaN stops the run
+/// with an error naming the plugin, its kind and its library (the wrappers' fault, reported by
+/// the divergence guard: `Simulation::diverged`), not a bare divergence, and at the step where
+/// it happened. The example library's copies with `nan_after` (tests only): the contact law's
+/// 200th pair evaluation on the direct shear box, the damping's step 30 on the tension crack.
+#[test]
+fn contact_law_and_damping_returning_nan_stop_the_run_with_their_names() {
+    let lib = libs().example.canonicalize().unwrap().display().to_string();
+    let base = root().join("configs/paper");
+    let text = std::fs::read_to_string(base.join("direct_shear.toml")).unwrap();
+    let text = replace_once(&text, "law = { type = \"spring_dashpot\",", "law = { type = \"example_spring_dashpot\", nan_after = 200,") + "\n" + &load_line(&libs().example);
+    let mut sim = Simulation::new(scene_in(&text, &base).unwrap_or_else(|e| panic!("{e}"))).unwrap();
+    let e = sim.run(&mut Log::default()).unwrap_err().to_string();
+    assert!(e.contains("contact law \"example_spring_dashpot\"") && e.contains(&lib) && e.contains("non-finite force") && e.contains("stopped at step"), "{e}");
+    let base = root().join("configs/verification");
+    let text = std::fs::read_to_string(base.join("tension_crack.toml")).unwrap();
+    let text = replace_once(&text, "[solver]\n", "[solver]\ndamping = { type = \"example_adaptive\", nan_after = 30 }\n") + "\n" + &load_line(&libs().example);
+    let mut sim = Simulation::new(scene_in(&text, &base).unwrap_or_else(|e| panic!("{e}"))).unwrap();
+    let e = sim.run(&mut Log::default()).unwrap_err().to_string();
+    assert!(e.contains("damping \"example_adaptive\"") && e.contains(&lib) && e.contains("non-finite damping coefficients") && e.contains("at step 30") && e.contains("stopped at step"), "{e}");
+}

@@ -349,3 +349,23 @@ fn scene_plugins_load_only_with_consent() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 35 (loose end): a dynamic separation rule sees `FanView::never_split` (plugin ABI 3;
+/// ABI 2 passed no such field and the plugin saw `false`). Reference: the built-in
+/// `sigma1_nearest` with the paper's default (`cap_unsplit_boundary = false`: no pi/4 cap at a
+/// point that never split) on the Drucker-Prager tension scene, whose first failures are open
+/// fans of the bottom side at 90 deg from the crack plane (tests/cracking.rs: cut only without
+/// the cap). The example's `example_sigma1_nearest`, loaded from its cdylib, gives the same run
+/// bit for bit; with the field always `false` it capped those points and the runs differed.
+#[test]
+fn dynamic_separation_sees_never_split() {
+    let lib = &libs().example;
+    let dir = lib.parent().unwrap();
+    let rel = format!("[plugins]\nload = [{:?}]\n", lib.file_name().unwrap().to_str().unwrap());
+    let crit = "type = \"drucker_prager\"\nalpha = 0.1\nk = 0.6773502691896258";
+    let builtin = fingerprint(&tension_scene("", crit, "type = \"sigma1_nearest\"\ncap_unsplit_boundary = false"), dir);
+    let capped = fingerprint(&tension_scene("", crit, "type = \"sigma1_nearest\"\ncap_unsplit_boundary = true"), dir);
+    assert!(!builtin.0.is_empty() && builtin != capped, "the scene does not exercise never_split: update the test");
+    let dynamic = fingerprint(&tension_scene(&rel, crit, "type = \"example_sigma1_nearest\""), dir);
+    assert_eq!(builtin, dynamic, "the dynamic rule differs from the built-in on never-split points");
+}

@@ -16,9 +16,12 @@ fn scene(name: &str) -> Scene {
     Scene::from_file(&root().join("configs/events").join(name)).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// The events run's split log (every split up to the end of the run).
+/// The events run's split log (every split up to the end of the run), the run ending at the
+/// fragment without support (`on_loose_fragment = "stop"`: these tests compare the events path).
 fn events_log(name: &str) -> (Vec<LoggedSplit>, Simulation) {
-    let mut sim = Simulation::new(scene(name)).unwrap_or_else(|e| panic!("{e}"));
+    let mut sc = scene(name);
+    sc.file.solver.on_loose_fragment = flem_core::scene::LooseFragment::Stop;
+    let mut sim = Simulation::new(sc).unwrap_or_else(|e| panic!("{e}"));
     let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
     sim.run(&mut log).unwrap_or_else(|e| panic!("{e}"));
     (log.splits, sim)
@@ -144,6 +147,8 @@ fn kept_vs_fresh(element: Option<&str>) {
     let run = |every: usize| {
         let mut sc = scene("notch_plate_h0.25.toml");
         sc.file.solver.refactor_every = every;
+        // The events path alone (the march after it would compare round-off).
+        sc.file.solver.on_loose_fragment = flem_core::scene::LooseFragment::Stop;
         sc.file.materials[0].element = element.map(String::from);
         let mut sim = Simulation::new(sc).unwrap();
         let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
@@ -250,7 +255,8 @@ fn events_checkpoint_after_event_k_resumes_bit_for_bit() {
 #[test]
 fn events_interrupt_between_checkpoints_stops_and_resumes_the_same_path() {
     use flem_core::output::{checkpoint, OutputWriter};
-    let text = notch_ckpt_text();
+    // The events path alone: resumed, it is the same to round-off, which a march would amplify.
+    let text = notch_ckpt_text().replace("type = \"events\"\n", "type = \"events\"\non_loose_fragment = \"stop\"\n");
     let mut reference = crate::common::sim(&text);
     let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
     reference.run(&mut log).unwrap();
@@ -346,4 +352,201 @@ fn the_configured_check_solver_is_used_by_events() {
         assert_eq!((a.point, &a.edges), (b.point, &b.edges));
         assert!(rel(b.levels[0], a.levels[0]) < 1e-9, "{:?} {:?}", a.levels, b.levels);
     }
+}
+
+/// The notched plate h = 0.25 with `[solver]` keys added (text for `Scene::from_str`).
+fn notch_with(solver_keys: &str, extra: &str) -> Simulation {
+    flem_plugins::link();
+    let path = root().join("configs/events/notch_plate_h0.25.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("type = \"events\"\n"), "the scene changed: update the test");
+    let text = text.replace("type = \"events\"\n", &format!("type = \"events\"\n{solver_keys}\n")) + extra;
+    let sc = Scene::from_str(&text, &path, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+    Simulation::new(sc).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Today's end, kept as `on_loose_fragment = "stop"`: the solve after the last event is
+/// singular (the upper part hangs free), the run stops there with a warning naming the
+/// fragment, the stage is not converged, the velocities are zero and nothing is handed over.
+#[test]
+fn loose_fragment_stop_ends_the_run_naming_the_fragment() {
+    let mut sim = notch_with("on_loose_fragment = \"stop\"", "");
+    let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+    sim.run(&mut log).unwrap();
+    assert!(log.splits.len() >= 30, "{}", log.splits.len());
+    let w = sim.warnings.iter().find(|w| w.contains("fragment")).unwrap_or_else(|| panic!("{:?}", sim.warnings));
+    assert!(w.contains("on_loose_fragment = \"stop\"") && w.contains("ends the run"), "{w}");
+    assert!(sim.hand_over.is_none());
+    assert!(!sim.stages_done[0].converged);
+    assert!(sim.state.v.iter().all(|v| *v == [0.0; 2]));
+}
+
+/// What the hand-over test records at every history row: time, splits so far, the momentum
+/// of the free fragments (no prescribed dof) and whether they hold the whole top edge.
+#[derive(Default)]
+struct Rows {
+    log: Vec<LoggedSplit>,
+    rows: Vec<(f64, usize, [f64; 2], bool)>,
+}
+
+impl flem_core::solver::Observer for Rows {
+    fn splits(&mut self, sim: &Simulation, rec: &flem_core::mesh::topology::SplitRecord, events: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+        let mut l = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+        l.splits(sim, rec, events)?;
+        self.log.append(&mut l.splits);
+        Ok(())
+    }
+    fn history(&mut self, sim: &Simulation, _stage: usize) -> flem_core::Result<()> {
+        let topo = &sim.model.topo;
+        let (frag, n) = topo.fragments();
+        let mut elem_of = vec![usize::MAX; topo.n_clusters()];
+        for (k, c) in topo.copy_cluster.iter().enumerate() {
+            elem_of[c.idx()] = topo.copy_elem[k].0 as usize;
+        }
+        let mut free = vec![true; n];
+        for c in 0..topo.n_clusters() {
+            if sim.state.fix[c] != 0 {
+                free[frag[elem_of[c]] as usize] = false;
+            }
+        }
+        let pts = &sim.model.mesh.points;
+        let top_free = (0..pts.len()).filter(|&p| (pts[p][1] - 12.0).abs() < 1e-9).all(|p| topo.point_clusters[p].iter().all(|c| free[frag[elem_of[c.idx()]] as usize]));
+        let mut p = [0.0f64; 2];
+        for c in 0..topo.n_clusters() {
+            if free[frag[elem_of[c]] as usize] {
+                for d in 0..2 {
+                    p[d] += sim.state.mass[c] * sim.state.v[c][d];
+                }
+            }
+        }
+        self.rows.push((sim.state.time, self.log.len(), p, top_free));
+        Ok(())
+    }
+}
+
+/// Reference: Newton's second law for the loose fragment and the energy balance of the
+/// central-difference scheme. The notched plate h = 0.25 cracks through (the events solver, as
+/// in the test above: the last split leaves the upper part held by one node, a hinge, and the
+/// solve is singular) and the default `on_loose_fragment = "hand_over"` continues the stage in
+/// the explicit march, undamped (`damping = "none"`), with the traction held at the last
+/// event's level `q`, failure checked every 10 steps (the hinge tears off; the undamped release
+/// keeps cracking: measured 57 splits in 570 steps). Once the free fragments (no prescribed
+/// dof) hold the whole top edge (length 12) they carry the net external force `(0, 12 q)` and
+/// their internal forces cancel (no contact): between two history rows with no split between
+/// them their momentum grows by `(0, 12 q dT)` (tolerance 1e-9 relative to the change: round-off of the
+/// sums; a wrong load, mass or step breaks it). The energy residual of the explicit part is at
+/// most 1e-3 of the work done in it (the issue's tolerance; the scheme is exact to round-off for
+/// linear elasticity). The split log up to the hand-over is the `stop` run's, bit for bit, and
+/// the fragment leaves (moves more than 0.1 of the diagonal).
+#[test]
+fn loose_fragment_hands_over_and_the_fragment_is_pulled_away() {
+    let mut stop = notch_with("on_loose_fragment = \"stop\"", "");
+    let mut slog = SplitLog { splits: Vec::new(), stop_after: usize::MAX };
+    stop.run(&mut slog).unwrap();
+    let mut sim = notch_with("damping = { type = \"none\" }", "");
+    sim.scene.file.output.history_every = 5;
+    let mut obs = Rows::default();
+    sim.run(&mut obs).unwrap();
+    assert!(obs.log.len() > slog.splits.len(), "no split in the march: {} and {}", obs.log.len(), slog.splits.len());
+    assert_eq!(obs.log[..slog.splits.len()], slog.splits[..], "the split log up to the hand-over changed");
+    let h = sim.hand_over.clone().unwrap_or_else(|| panic!("no hand-over: {:?}", sim.warnings));
+    println!(
+        "hand-over: {:?} after {} steps and {} splits, dt {:e}, time {:e}, work {:e}, residual {:e}, moved {:e}",
+        h.end,
+        h.steps,
+        h.splits,
+        h.dt,
+        h.time,
+        h.work(),
+        h.relative_residual(),
+        h.moved
+    );
+    assert_eq!(h.end, flem_core::solver::events::HandOverEnd::Left);
+    assert!(sim.stages_done[0].converged && sim.stages_done[0].energy_residual == h.relative_residual());
+    assert!(h.work() > 0.0 && h.relative_residual() <= 1e-3, "{h:?}");
+    assert!(h.moved > 0.1 * (2.0f64 * 144.0).sqrt());
+    let q = sim.levels[0];
+    assert!(q == slog.splits.last().unwrap().levels[0], "the load is not held at the last event's level");
+    // Consecutive rows with no split between them (history every 5 steps, checks every 10)
+    // and the top edge on free fragments.
+    let mut pairs = 0;
+    for w in obs.rows.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        if a.1 != b.1 || !a.3 || !b.3 || b.0 <= a.0 {
+            continue;
+        }
+        let expect = 12.0 * q * (b.0 - a.0);
+        let dp = [b.2[0] - a.2[0], b.2[1] - a.2[1]];
+        assert!(rel(dp[1], expect) < 1e-9 && dp[0].abs() < 1e-9 * expect, "momentum change {dp:?} from time {} to {}, expected (0, {expect:e})", a.0, b.0);
+        pairs += 1;
+    }
+    println!("{pairs} intervals checked against 12 q dT");
+    assert!(pairs >= 10, "{pairs} intervals without a split");
+    assert!(sim.warnings.iter().any(|w| w.contains("hand_over") && w.contains("fragment left")), "{:?}", sim.warnings);
+}
+
+/// The same with the scene's default damping (adaptive dynamic relaxation): the energy
+/// residual of the explicit part stays at most 1e-3 of its work (reference: the balance
+/// `W = KE + U + D`, exact to round-off for the scheme; measured 1.1e-13), the fragment leaves,
+/// and a later stage is skipped with a warning. With `[contact]` (allowed in an events scene
+/// only for the hand-over; the `cohesive` law, whose energy accounting is the most complete)
+/// the run goes through and the fragment leaves, but the ledger does not close to 1e-3: its
+/// residual is asserted below 5e-2 (measured 3.0e-2; `spring_dashpot` 0.31), a limit written in
+/// docs/events.md: the march splits at every check (212 splits in 2120 steps) and the contact
+/// ledger's per-pair terms of births, releases and splits (tests/contact.rs) do not add up
+/// there; not investigated further. `stop` with `[contact]` is refused naming the key.
+#[test]
+fn loose_fragment_hand_over_with_damping_and_contact_balances_energy() {
+    let contact = "\n[contact]\nlaw = { type = \"cohesive\", normal_stiffness = 4000.0, shear_stiffness = 1600.0, tensile_strength = 1.0, fracture_energy = 0.001, friction = 0.5 }\n";
+    let second = "\n[[stage]]\nname = \"more\"\nlevels = { pull = 0.3 }\n";
+    for extra in [second.to_string(), format!("{contact}{second}")] {
+        let mut sim = notch_with("", &extra);
+        sim.run(&mut NoOutput).unwrap();
+        let h = sim.hand_over.clone().unwrap_or_else(|| panic!("no hand-over: {:?}", sim.warnings));
+        println!(
+            "contact {}: {:?} after {} steps and {} splits, work {:e}, residual {:e} (signed {:e})",
+            sim.contact.is_some(),
+            h.end,
+            h.steps,
+            h.splits,
+            h.work(),
+            h.relative_residual(),
+            h.end_ledger.residual()
+        );
+        if sim.contact.is_some() {
+            assert!(h.work() > 0.0 && h.relative_residual() <= 5e-2, "{h:?}");
+        } else {
+            assert!(h.work() > 0.0 && h.relative_residual() <= 1e-3, "{h:?}");
+        }
+        assert_eq!(h.end, flem_core::solver::events::HandOverEnd::Left);
+        assert_eq!(sim.stages_done.len(), 1, "{:?}", sim.stages_done);
+        assert!(sim.warnings.iter().any(|w| w.contains("\"more\" skipped")), "{:?}", sim.warnings);
+    }
+    let path = root().join("configs/events/notch_plate_h0.25.toml");
+    let text = std::fs::read_to_string(&path).unwrap().replace("type = \"events\"\n", "type = \"events\"\non_loose_fragment = \"stop\"\n") + contact;
+    let e = Scene::from_str(&text, &path, path.parent().unwrap()).err().expect("refused").to_string();
+    assert!(e.contains("solver.type") && e.contains("[contact]") && e.contains("notch_plate_h0.25.toml"), "{e}");
+}
+
+/// Issue 35 (loose end): the run's warnings go into checkpoints. Stage 0 of the notched plate
+/// stops at `solver.max_events = 3` with a warning; a checkpoint taken at the stage's end and
+/// restored into a new simulation of the same scene carries that warning (before: only the
+/// warnings of building the model, so a resumed run's summary lost the earlier stages').
+#[test]
+fn warnings_of_earlier_stages_survive_a_checkpoint() {
+    use flem_core::output::checkpoint::Checkpoint;
+    use flem_core::solver::StagePos;
+    let mk = || {
+        let mut sc = scene("notch_plate_h0.25.toml");
+        sc.file.solver.max_events = 3;
+        Simulation::new(sc).unwrap()
+    };
+    let mut sim = mk();
+    sim.run_stage(0, &mut NoOutput).unwrap();
+    assert!(sim.warnings.iter().any(|w| w.contains("max_events = 3")), "{:?}", sim.warnings);
+    let ck = Checkpoint::capture(&sim, &StagePos::start(1)).unwrap();
+    let mut resumed = mk();
+    assert!(!resumed.warnings.iter().any(|w| w.contains("max_events = 3")));
+    ck.restore(&mut resumed).unwrap();
+    assert_eq!(resumed.warnings, sim.warnings);
 }

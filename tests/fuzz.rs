@@ -222,6 +222,8 @@ fn cap_steps(scene: &mut Scene) {
     }
     let s = &mut scene.file.solver;
     s.max_steps = s.max_steps.min(STEP_CAP);
+    // The events solver: a loose fragment's explicit march too.
+    s.hand_over_max_steps = s.hand_over_max_steps.min(STEP_CAP);
     for st in &mut scene.file.stages {
         st.max_steps = Some(st.max_steps.unwrap_or(STEP_CAP).min(STEP_CAP));
     }
@@ -978,4 +980,163 @@ fn truncated_plugin_library_is_refused_by_name() {
         assert!(err.contains(&format!("libcut{cut}.so")), "cut at {cut}: the message does not name the library: {err}");
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `flem converge` and `flem sweep` inputs (issue 35): bad levels, radius, weights, ramps,
+/// mesh lists, scenes, sweep files and key paths. Reference: the bad-input contract (a clear
+/// error naming the flag, the file or the key; no panic; no half-written output). Each bad
+/// input is run through the real binary: its exit code is 1 (our refusal) or 2 (clap's), its
+/// message names what is wrong, nothing panicked, and a refused `flem converge` created no
+/// output folder. A sweep's bad key paths and values are refused per task, each row naming
+/// its key, while a good task of the same sweep runs.
+#[test]
+fn converge_and_sweep_inputs_get_named_refusals() {
+    use std::process::Command;
+    let exe = env!("CARGO_BIN_EXE_flem");
+    let dir = std::env::temp_dir().join(format!("flem-fuzz-tools-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = root().join("configs/converge/opening_nonlocal.toml");
+    let text = std::fs::read_to_string(&good).unwrap();
+    assert!(text.contains("[cracking]\nnonlocal = { radius = 1.1, exclusion = 1.1 }"), "the scene changed: update the test");
+    let write = |name: &str, body: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, body).unwrap();
+        p
+    };
+    // The rectangle mesh is generated: the copies need no mesh file.
+    let no_nonlocal = write("local.toml", &text.replace("nonlocal = { radius = 1.1, exclusion = 1.1 }   # OURS (docs/nonlocal.md)\n", ""));
+    let no_crack = write("no_crack.toml", &format!("{}{}", text.split("[cracking]").next().unwrap(), &text[text.find("[[stage]]").unwrap()..]));
+    let gravity = write("gravity.toml", &text.replace("plane = \"strain\"\n", "plane = \"strain\"\ngravity = [0.0, -9.81]\n"));
+    let not_toml = write("not_toml.toml", "this is [not toml");
+    let gmsh = write(
+        "gmsh.toml",
+        &text.replace("type = \"rectangle\"", "type = \"gmsh\"\nfile = \"x.msh\"").replace("width = 6.0\nheight = 6.0\nnx = 6\nny = 6\nnotch = { side = \"left\", y = 3.0, depth = 2.0 }\n", ""),
+    );
+    let g = good.to_str().unwrap().to_string();
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let missing = dir.join("missing.toml");
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec![g.clone(), "--levels".into(), "0".into()], "--levels"),
+        (vec![g.clone(), "--levels".into(), "9".into()], "--levels"),
+        (vec![g.clone(), "--levels=-1".into()], "--levels"),
+        (vec![g.clone(), "--levels".into(), "99999999999999999999999".into()], "--levels"),
+        (vec![g.clone(), "--levels".into(), "two".into()], "--levels"),
+        (vec![g.clone(), "--radius=-1".into()], "--radius"),
+        (vec![g.clone(), "--radius".into(), "0".into()], "--radius"),
+        (vec![g.clone(), "--radius".into(), "nan".into()], "--radius"),
+        (vec![g.clone(), "--radius".into(), "inf".into()], "--radius"),
+        (vec![g.clone(), "--radius".into(), "1e400".into()], "--radius"),
+        (vec![g.clone(), "--radius".into(), "x".into()], "--radius"),
+        (vec![g.clone(), "--weight".into(), "bogus".into()], "--weight"),
+        (vec![g.clone(), "--exclusion=-1".into()], "--exclusion"),
+        (vec![g.clone(), "--exclusion".into(), "nan".into()], "--exclusion"),
+        (vec![s(&no_nonlocal), "--weight".into(), "bell".into()], "--weight"),
+        (vec![s(&no_nonlocal), "--exclusion".into(), "1".into()], "--exclusion"),
+        (vec![g.clone(), "--ramp-to".into(), "0.5".into()], "--ramp-to"),
+        (vec![g.clone(), "--ramp-to".into(), "nan".into()], "--ramp-to"),
+        (vec![g.clone(), "--ramp-to".into(), "1e9".into()], "--ramp-to"),
+        (vec![g.clone(), "--ramp-to".into(), "2".into(), "--ramp-step".into(), "0".into()], "--ramp-step"),
+        (vec![g.clone(), "--ramp-to".into(), "2".into(), "--ramp-step=-0.1".into()], "--ramp-step"),
+        (vec![g.clone(), "--ramp-to".into(), "2".into(), "--ramp-step".into(), "nan".into()], "--ramp-step"),
+        (vec![g.clone(), "--ramp-to".into(), "2".into(), "--ramp-step".into(), "1e-9".into()], "--ramp-step"),
+        (vec![g.clone(), "--ramp-max-steps".into(), "0".into()], "--ramp-max-steps"),
+        (vec![g.clone(), "--levels".into(), "3".into(), "--meshes".into(), "a.msh,b.msh".into()], "--meshes"),
+        (vec![g.clone(), "--levels".into(), "1".into(), "--meshes".into(), s(&dir.join("nowhere.msh"))], "nowhere.msh"),
+        (vec![s(&missing)], "missing.toml"),
+        (vec![s(&not_toml)], "not_toml.toml"),
+        (vec![s(&no_crack)], "[cracking]"),
+        (vec![s(&gravity), "--levels".into(), "1".into(), "--no-explicit".into()], "model.gravity"),
+        (vec![s(&gmsh), "--levels".into(), "1".into()], "--meshes"),
+    ];
+    let mut failures = Vec::new();
+    for (k, (args, want)) in cases.iter().enumerate() {
+        let out = dir.join(format!("converge_{k}"));
+        let o = Command::new(exe).arg("converge").args(args).arg("--out").arg(&out).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        let code = o.status.code();
+        if !matches!(code, Some(1) | Some(2)) || !err.contains(want) || err.contains("panicked") || out.exists() {
+            failures.push(format!("flem converge {args:?}: exit {code:?}, output folder left: {}, stderr: {err}", out.exists()));
+        }
+    }
+    // Sweep files refused as a whole (before any task).
+    let gs = g.replace('\\', "/");
+    let sweep_cases: Vec<(String, &str)> = vec![
+        ("this is [not toml".into(), "sweep.toml"),
+        (format!("sceen = \"{gs}\"\n[grid]\n\"solver.tolerance\" = [1e-5]\n"), "sceen"),
+        ("[grid]\n\"solver.tolerance\" = [1e-5]\n".into(), "scene"),
+        (format!("scene = \"{}\"\n[grid]\n\"solver.tolerance\" = [1e-5]\n", s(&missing)), "missing.toml"),
+        (format!("scene = \"{}\"\n[grid]\n\"solver.tolerance\" = [1e-5]\n", s(&not_toml)), "not_toml.toml"),
+        (format!("scene = \"{gs}\"\n[grid]\n\"solver.tolerance\" = 1e-5\n"), "grid.\"solver.tolerance\""),
+        (format!("scene = \"{gs}\"\n[grid]\n\"solver.tolerance\" = []\n"), "grid.\"solver.tolerance\""),
+        (format!("scene = \"{gs}\"\n"), "no task"),
+        (format!("scene = \"{gs}\"\nthreads = -1\n[grid]\n\"solver.tolerance\" = [1e-5]\n"), "threads"),
+        (format!("scene = \"{gs}\"\nthreads = 5000\n[grid]\n\"solver.tolerance\" = [1e-5]\n"), "threads"),
+    ];
+    for (k, (body, want)) in sweep_cases.iter().enumerate() {
+        let f = write("sweep.toml", &format!("out = \"sweep_out_{k}\"\n{body}"));
+        let o = Command::new(exe).arg("sweep").arg(&f).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        let code = o.status.code();
+        if code != Some(1) || !err.contains(want) || err.contains("panicked") || dir.join(format!("sweep_out_{k}")).exists() {
+            failures.push(format!("flem sweep {body:?}: exit {code:?}, stderr: {err}"));
+        }
+    }
+    // Bad key paths and values: each task's row names its key; the good task runs.
+    // (key path, value, what the row's error must name).
+    let tasks: Vec<(&str, &str, &str)> = vec![
+        ("cracking..xyz", "1", "cracking..xyz"),
+        ("stage[9].levels.p", "1.0", "stage[9]"),
+        ("stage[x].levels.p", "1.0", "stage[x]"),
+        ("stage[0].levels.p.q", "1.0", "stage[0].levels.p.q"),
+        ("material[0].young_modulus", "\"abc\"", "young_modulus"),
+        ("material[0].young_modulus", "nan", "young_modulus"),
+        ("material[0].young_modulus", "-1.0", "young_modulus"),
+        ("material[0].young_modulus", "inf", "young_modulus"),
+        ("solver.bogus_key", "1", "bogus_key"),
+        ("cracking.criterion.tensile_strength", "-1.0", "tensile_strength"),
+        ("solver.threads", "5000", "solver.threads"),
+        ("stage[0].levels.nosuchload", "1.0", "nosuchload"),
+        ("mesh.nx", "0", "nx"),
+    ];
+    let mut body = format!("scene = \"{gs}\"\nout = \"sweep_tasks\"\n");
+    for (k, v, _) in &tasks {
+        body.push_str(&format!("[[task]]\n\"{k}\" = {v}\n"));
+    }
+    body.push_str("[[task]]\n\"solver.tolerance\" = 1e-4\n");
+    let f = write("tasks.toml", &body);
+    let o = Command::new(exe).arg("sweep").arg(&f).arg("--workers").arg("1").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    if o.status.code() != Some(0) || err.contains("panicked") {
+        failures.push(format!("flem sweep (bad tasks): exit {:?}, stderr: {err}", o.status.code()));
+    } else {
+        let csv = std::fs::read_to_string(dir.join("sweep_tasks/sweep.csv")).unwrap();
+        // Records, not lines: a quoted error may hold line breaks (a TOML error's excerpt).
+        let mut records = Vec::new();
+        let (mut quoted, mut start) = (false, 0);
+        for (i, ch) in csv.char_indices() {
+            match ch {
+                '"' => quoted = !quoted,
+                '\n' if !quoted => {
+                    records.push(&csv[start..i]);
+                    start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        let rows: Vec<&str> = records.into_iter().skip(1).collect();
+        assert_eq!(rows.len(), tasks.len() + 1, "{csv}");
+        for (i, (key, v, want)) in tasks.iter().enumerate() {
+            let row = rows.iter().find(|r| r.starts_with(&format!("{i},"))).unwrap();
+            // The parameter columns hold values and `out` the task folder: the key is named
+            // by the error, the last column (empty: the row ends in ',').
+            if !row.contains(want) || row.ends_with(',') || row.contains("panicked") {
+                failures.push(format!("sweep task \"{key}\" = {v}: row {row}"));
+            }
+        }
+        let good_row = rows.iter().find(|r| r.starts_with(&format!("{},", tasks.len()))).unwrap();
+        assert!(good_row.ends_with(','), "the good task failed: {good_row}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(failures.is_empty(), "{} bad inputs without a named refusal:\n{}", failures.len(), failures.join("\n"));
 }

@@ -333,3 +333,21 @@ fn strip_footing_phi30_converges_to_prandtl_reissner() {
     assert!(rel(q16, nc) < 0.08, "b/16 {q16} vs N_c {nc}");
     assert!(rel(rich, nc) < 0.03, "Richardson 2 q16 - q8 = {rich} vs N_c {nc} (b/8 {q8}, b/16 {q16})");
 }
+
+/// Issue 35: T3 under a plastic law warns (constant-strain triangles lock under plastic flow),
+/// naming the material's key and the cure (quadrilaterals: Q4 with B-bar); the same body meshed
+/// with Q4, or T3 without a plastic law, gives no such warning.
+#[test]
+fn t3_under_a_plastic_law_warns_and_names_q4_with_bbar() {
+    let text = |element: &str, law: bool| {
+        format!(
+            "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 1.0\nnx = 2\nny = 2\nelement = \"{element}\"\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n{}\n[[support]]\nnodes = \"bottom\"\nfix = \"xy\"\n[[stage]]\nmax_steps = 10\n",
+            if law { "law = { type = \"mohr_coulomb\", cohesion = 10.0, friction_angle_deg = 20.0, dilation_angle_deg = 0.0 }" } else { "" }
+        )
+    };
+    let warned = |element: &str, law: bool| sim(&text(element, law)).warnings.into_iter().find(|w| w.contains("lock under plastic flow"));
+    let w = warned("t3", true).expect("no warning for T3 under mohr_coulomb");
+    assert!(w.contains("material[0].law") && w.contains("8 T3") && w.contains("Q4 with B-bar") && w.contains("qm6"), "{w}");
+    assert!(warned("q4", true).is_none());
+    assert!(warned("t3", false).is_none());
+}

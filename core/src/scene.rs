@@ -116,7 +116,8 @@ pub struct SolverCfg {
     pub large_strain: bool,
     /// The stage solver: `"explicit"` (the paper's damped relaxation, the default) or
     /// `"events"` (ours, issue 19: one linear solve per crack event, `solver::events`,
-    /// docs/events.md; scenes with cracking, linear elements and no contact).
+    /// docs/events.md; scenes with cracking and linear elements; contact only for the
+    /// hand-over of a loose fragment to the explicit march).
     #[serde(default, rename = "type")]
     pub kind: SolverKind,
     /// With `type = "events"`: at most this many events per stage (a guard; default 100000).
@@ -126,6 +127,45 @@ pub struct SolverCfg {
     /// before a fresh one (0: a fresh factorisation at every event; docs/events.md).
     #[serde(default = "default_refactor_every")]
     pub refactor_every: usize,
+    /// With `type = "events"` (ours, issue 35): what a stage does when a split leaves a fragment
+    /// without support (the linear solve is singular): `"hand_over"` (the default) continues
+    /// the stage in the explicit march from the last solved state until the fragment comes to
+    /// rest or leaves (`solver::events::hand_over`, docs/events.md); `"stop"` ends the run there.
+    #[serde(default)]
+    pub on_loose_fragment: LooseFragment,
+    /// Hand-over: a cluster that moved this far from where the hand-over found it (a fraction
+    /// of the mesh's bounding-box diagonal) has left: the stage ends (default 0.1).
+    #[serde(default = "default_hand_over_distance")]
+    pub hand_over_distance: f64,
+    /// Hand-over: explicit steps at most (default 100000; reached: the stage ends with a warning).
+    #[serde(default = "default_hand_over_max_steps")]
+    pub hand_over_max_steps: u64,
+    /// Hand-over: at rest when the kinetic energy is below this fraction of the largest energy
+    /// moved in the explicit part and the unbalanced ratio below the stage's tolerance
+    /// (default 1e-6).
+    #[serde(default = "default_hand_over_rest")]
+    pub hand_over_rest: f64,
+}
+
+/// `[solver] on_loose_fragment` (events solver, ours).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LooseFragment {
+    /// Continue the stage in the explicit march (ours, issue 35).
+    #[default]
+    HandOver,
+    /// End the run at the singular solve, naming the fragment (the events solver before issue 35).
+    Stop,
+}
+
+fn default_hand_over_distance() -> f64 {
+    0.1
+}
+fn default_hand_over_max_steps() -> u64 {
+    100_000
+}
+fn default_hand_over_rest() -> f64 {
+    1e-6
 }
 
 fn default_refactor_every() -> usize {
@@ -185,6 +225,10 @@ impl Default for SolverCfg {
             kind: SolverKind::Explicit,
             max_events: default_max_events(),
             refactor_every: default_refactor_every(),
+            on_loose_fragment: LooseFragment::HandOver,
+            hand_over_distance: default_hand_over_distance(),
+            hand_over_max_steps: default_hand_over_max_steps(),
+            hand_over_rest: default_hand_over_rest(),
         }
     }
 }
@@ -555,12 +599,17 @@ impl Scene {
                     "= \"events\" needs a [cracking] section (the events solver advances from one crack event to the next); remove solver.type for the explicit solver",
                 ));
             }
-            if f.contact.is_some() {
+            if f.contact.is_some() && s.on_loose_fragment == LooseFragment::Stop {
                 return Err(FlemError::config(
                     &n,
                     "solver.type",
-                    "= \"events\" does not handle [contact] (its solve is linear, with no contact forces); remove solver.type to run the explicit solver",
+                    "= \"events\" with solver.on_loose_fragment = \"stop\" does not use [contact] (its solve is linear, with no contact forces; contact acts only in the hand-over to the explicit march); remove [contact], or solver.type to run the explicit solver",
                 ));
+            }
+            range(&n, "solver.hand_over_distance", s.hand_over_distance, 0.0, false, MAX_MAGNITUDE, true)?;
+            range(&n, "solver.hand_over_rest", s.hand_over_rest, 0.0, false, 1.0, false)?;
+            if s.hand_over_max_steps == 0 {
+                return Err(FlemError::config(&n, "solver.hand_over_max_steps", "= 0 is incorrect; it must be >= 1"));
             }
             if let Some((i, _)) = f.stages.iter().enumerate().find(|(_, st)| st.dynamic) {
                 return Err(FlemError::config(&n, format!("stage[{i}].dynamic"), "= true is not possible with solver.type = \"events\" (quasi-static: every state is an equilibrium)"));

@@ -58,6 +58,7 @@ density = 1.0
 type = "events"
 max_events = {events}
 refactor_every = {refactor_every}
+on_loose_fragment = "stop"
 [[support]]
 nodes = "bottom"
 fix = "y"
@@ -148,6 +149,8 @@ pub fn path(scene_path: &Path, step: f64, max_steps: u64, tolerance: f64, splits
     // max_splits_per_check = 1), so that both solvers are timed on the same path.
     let scene0 = || -> Result<Scene> {
         let mut sc0 = Scene::from_file(scene_path)?;
+        // The events part alone is timed (a loose fragment's explicit march is not the path).
+        sc0.file.solver.on_loose_fragment = flem_core::scene::LooseFragment::Stop;
         if let Some(n) = splits {
             sc0.file.solver.max_events = n as u64;
         }

@@ -87,6 +87,8 @@ fn sweep(path: &Path, n_max: usize, out: &Path, csv: &mut String, plan: &Plan) -
     // with max_splits_per_check = 1) so that both solvers are timed on the same path.
     let mut sc = Scene::from_file(path)?;
     sc.file.solver.max_events = n_max as u64;
+    // The events part alone is timed (a loose fragment's explicit march is not the crack path).
+    sc.file.solver.on_loose_fragment = flem_core::scene::LooseFragment::Stop;
     let t = Instant::now();
     let mut ev_sim = Simulation::new(sc)?;
     let mut log = SplitLog { splits: Vec::new(), stop_after: usize::MAX };

@@ -215,22 +215,28 @@ fn mean_edge(sim: &Simulation) -> f64 {
     sum / n.max(1) as f64
 }
 
+/// Refuses a scene whose load is not proportional to the levels or whose body is not linear.
+fn proportional(scene: &Scene) -> Result<()> {
+    if scene.file.model.gravity != [0.0; 2] {
+        return Err(crate::unsuited(&scene.path, "converge", "model.gravity is not scaled by the load levels: the initiation load needs a load proportional to them"));
+    }
+    if let Some(i) = scene.file.materials.iter().position(|m| m.corotational) {
+        return Err(crate::unsuited(&scene.path, "converge", format!("material[{i}] is co-rotational, not linear: the initiation load needs a linear body")));
+    }
+    for (i, l) in scene.file.loads.iter().enumerate() {
+        if matches!(l, flem_core::scene::LoadCfg::Velocity { .. } | flem_core::scene::LoadCfg::Displacement { .. }) {
+            return Err(crate::unsuited(&scene.path, "converge", format!("load[{i}] prescribes a velocity or displacement; the initiation load needs traction, pressure or point loads")));
+        }
+    }
+    Ok(())
+}
+
 /// Elastic solve at the first stage's levels and the initiation of one check.
 /// Also returns the notes of the statically determinate support the solve added, if any.
 fn exact(scene: &Scene, t: &toml::Table) -> Result<(Initiation, Simulation, f64, Vec<String>)> {
     let t0 = Instant::now();
     let mut sim = build(scene, t)?;
-    if sim.loads.gravity != [0.0; 2] {
-        return Err(crate::unsuited(&scene.path, "converge", "model.gravity is not scaled by the load levels: the initiation load needs a load proportional to them"));
-    }
-    if sim.model.corotational {
-        return Err(crate::unsuited(&scene.path, "converge", "a co-rotational material is not linear: the initiation load needs a linear body"));
-    }
-    for (i, l) in sim.scene.file.loads.iter().enumerate() {
-        if matches!(l, flem_core::scene::LoadCfg::Velocity { .. } | flem_core::scene::LoadCfg::Displacement { .. }) {
-            return Err(crate::unsuited(&scene.path, "converge", format!("load[{i}] prescribes a velocity or displacement; the initiation load needs traction, pressure or point loads")));
-        }
-    }
+    proportional(&sim.scene)?;
     sim.set_stage_levels(0);
     // A body without support under self-equilibrated loads (the paper's opening model) gets a
     // statically determinate support whose reactions are checked to vanish: said once per level.
@@ -323,13 +329,23 @@ pub fn run(a: Args) -> Result<()> {
             a.ramp_step
         );
     }
+    anyhow::ensure!(a.ramp_max_steps >= 1, "--ramp-max-steps = 0 is incorrect; it must be >= 1");
+    if let Some(x) = a.exclusion {
+        anyhow::ensure!(x.is_finite() && x >= 0.0, "--exclusion = {x} is incorrect; it must be finite and >= 0");
+    }
     let o = NlOpts { weight: a.weight.clone(), exclusion: a.exclusion };
     let scene = Scene::from_file(&a.scene)?;
-    let text = std::fs::read_to_string(&a.scene)?;
-    let base: toml::Table = toml::from_str(&text).context("the scene is not TOML")?;
+    proportional(&scene)?;
     if scene.file.cracking.is_none() {
         return Err(crate::unsuited(&a.scene, "converge", "it finds the crack-initiation load, and the scene has no [cracking]"));
     }
+    if a.radius.is_none() && scene.file.cracking.as_ref().is_some_and(|c| c.nonlocal.is_none()) {
+        for (flag, given) in [("--weight", a.weight.is_some()), ("--exclusion", a.exclusion.is_some())] {
+            anyhow::ensure!(!given, "{flag} sets the nonlocal check, which needs a radius: give --radius (the scene {} has no cracking.nonlocal)", a.scene.display());
+        }
+    }
+    let text = std::fs::read_to_string(&a.scene)?;
+    let base: toml::Table = toml::from_str(&text).context("the scene is not TOML")?;
     let kind = base.get("mesh").and_then(|m| m.get("type")).and_then(|v| v.as_str()).unwrap_or("");
     if a.meshes.is_empty() && kind != "rectangle" && a.levels > 1 {
         return Err(crate::unsuited(
@@ -339,6 +355,15 @@ pub fn run(a: Args) -> Result<()> {
         ));
     }
     let radius = a.radius.or(scene.file.cracking.as_ref().and_then(|c| c.nonlocal.map(|n| n.radius)));
+    // The flags' values, checked before the first solve: every mesh file is readable, and the
+    // nonlocal overrides give a valid scene (named by flag, not only by the scene's key).
+    for f in &a.meshes {
+        std::fs::metadata(f).with_context(|| format!("--meshes: {} cannot be read", f.display()))?;
+    }
+    if radius.is_some() {
+        let tn = level_table(&base, 0, &a.meshes, radius, &o)?;
+        Scene::from_str(&toml::to_string(&tn)?, &scene.path, &scene.base_dir).context("--radius, --weight or --exclusion give a scene that is refused")?;
+    }
     let stem = a.scene.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "scene".into());
     let out = a.out.clone().unwrap_or_else(|| Path::new("out").join(format!("{stem}_converge")));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;

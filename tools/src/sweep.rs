@@ -59,6 +59,7 @@ pub fn run(file: &Path, workers: Option<usize>, allow_plugins: bool) -> Result<(
     let name = file.display().to_string();
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {name}"))?;
     let sf: SweepFile = toml::from_str(&text).with_context(|| format!("{name} is not a valid sweep file"))?;
+    anyhow::ensure!(sf.threads <= 1024, "{name}: threads = {} is incorrect; it must be in [0, 1024] (0: one per core)", sf.threads);
     let base = file.parent().unwrap_or(Path::new(""));
     let scene = base.join(&sf.scene);
     // The scene itself must be valid before any task starts.

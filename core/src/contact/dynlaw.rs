@@ -15,7 +15,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use crate::plugin::dynload::abi::{CPairForce, CPairKin, PluginEntry, KIND_CONTACT, STATUS_OK};
-use crate::plugin::dynload::{self, err_slot, read_err, status_text, Instance, PluginInfo, CHUNK};
+use crate::plugin::dynload::{self, call_fault, err_slot, read_err, Instance, PluginInfo, CHUNK};
 use crate::plugin::traits::ParamError;
 
 /// A contact law from a loaded library.
@@ -90,8 +90,7 @@ impl ContactLaw for DynContact {
             let st = unsafe { f(inst, m, ck.as_ptr().cast(), cs.as_mut_ptr(), co.as_mut_ptr().cast(), err.as_mut_ptr()) };
             if st != STATUS_OK {
                 let (key, msg) = read_err(&err);
-                let key = if key.is_empty() { String::new() } else { format!(" ({key})") };
-                return fail(out, format!("{} {} in contact_evaluate{key}: {msg}", self.0.who(), status_text(st)));
+                return fail(out, call_fault(&self.0.who(), st, "contact_evaluate", &key, &msg));
             }
             for i in 0..m {
                 // SAFETY: written by the plugin (STATUS_OK).

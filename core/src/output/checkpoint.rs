@@ -66,7 +66,10 @@
 //! rebuild count) in `"contact_verlet"`: the resumed run rebuilds the same list and rebuilds it
 //! again at the same steps (`Contact::restore_verlet`; tests/ckpt.rs interrupts a cracking run
 //! while pairs exist). The events solver (`solver/events.rs`) stores its stage loop in section
-//! `"events"` (version 1: `EventsInfo`); it checkpoints between events (tests/events.rs).
+//! `"events"` (version 1: `EventsInfo`); it checkpoints between events (tests/events.rs). The
+//! run's warnings so far are section `"warnings"` (version 1, issue 35): a resumed run's
+//! summary.json lists the earlier stages' warnings too (an older file without it: only the
+//! warnings of building the model).
 use std::path::{Path, PathBuf};
 
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
@@ -219,6 +222,10 @@ impl Checkpoint {
         if let Some(ev) = &sim.events {
             ck.put_section("events", 1, ev)?;
         }
+        // The run's warnings so far (issue 35: a resumed run kept only those of building the
+        // model and lost the earlier stages'). Absent in older checkpoints: the new
+        // simulation's own are kept then.
+        ck.put_section("warnings", 1, &sim.warnings)?;
         if let Some(c) = &sim.contact {
             ck.put_section("contact", 2, &c.history)?;
             ck.put_section("contact_verlet", 1, &c.verlet_state())?;
@@ -340,6 +347,9 @@ impl Checkpoint {
             (None, Some(_)) => return Err(bad("the checkpoint has contact pairs and the scene has no [contact]".into())),
         }
         sim.events = self.section::<crate::solver::events::EventsInfo>("events", 1)?;
+        if let Some(w) = self.section::<Vec<String>>("warnings", 1)? {
+            sim.warnings = w;
+        }
         sim.refresh_constant_force();
         Ok(())
     }

@@ -356,6 +356,8 @@ impl OutputWriter {
             "beyond_criterion": sim.cracking.as_ref().map(|c| c.beyond_criterion()).unwrap_or(0),
             "crack_faces": {"separated_one_end": one, "separated_both_ends": two},
             "warnings": sim.warnings,
+            // The events solver's hand-over of a loose fragment to the explicit march (issue 35).
+            "hand_over": sim.hand_over,
         });
         atomic_write(&self.dir.join("summary.json"), serde_json::to_string_pretty(&v).unwrap_or_default().as_bytes())
     }

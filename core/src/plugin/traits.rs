@@ -246,7 +246,7 @@ pub struct FanView<'a> {
     /// The point has never split: it has one cluster (no failure cut and no pre-separated
     /// edge split it into two). An open fan of such a point is a boundary point or the end
     /// of a pre-cut edge (METHOD 5: the paper's pi/4 cap for open fans is stated only for
-    /// points that have already split). Dynamic plugins (the C ABI) always see `false`.
+    /// points that have already split). Dynamic plugins see it too (`CFan::never_split`, ABI 3).
     pub never_split: bool,
     /// Joined edges at the point, in increasing edge id.
     pub links: &'a [LinkGeom],

@@ -31,9 +31,12 @@
 //! `<probe>_uy_critical`). It lies below the current `t` where the crack runs at a load the
 //! cracked body could not carry (a snap-back that load control jumps over).
 //!
-//! Outside this solver: a fragment left without support (the solve is singular) stops the run
-//! with the check solver's message naming the fragment (as `flem compare` does); contact,
-//! dynamic stages and co-rotational materials are refused when the scene is read (scene.rs);
+//! A fragment left without support (the solve is singular): by default (ours, issue 35,
+//! `[solver] on_loose_fragment = "hand_over"`) the stage goes on in the explicit march from the
+//! last solved state until the fragment comes to rest or leaves ([`Simulation::hand_over`]);
+//! with `"stop"` the run ends there with the check solver's message naming the fragment (as
+//! `flem compare` does). Contact (allowed only with the hand-over, where it acts), dynamic
+//! stages and co-rotational materials are refused when the scene is read (scene.rs);
 //! prescribed velocities other than zero, loads of `t` and following pressures are refused when
 //! the simulation is built ([`Simulation::check_events_scene`]). Clusters the rule cannot cut
 //! (`Cracking::beyond_criterion`) are left out of the search while they fail.
@@ -57,7 +60,9 @@ use std::time::Instant;
 use crate::cracking::events::{smallest_failure, FactorStats, Path};
 use crate::error::{FlemError, Result};
 use crate::plugin::check::{CheckCfg, CheckSolver, EventsFactor};
-use crate::solver::{Ledger, Observer, Simulation, StagePos, StageResult};
+use crate::plugin::damping::{DampingCoeffs, StepStats};
+use crate::scene::{LooseFragment, SolverCfg};
+use crate::solver::{Ledger, Observer, Progress, Simulation, StagePos, StageResult};
 
 /// What the events solver shows of the current event (read by the output writer), and what a
 /// checkpoint keeps of the stage loop (section `"events"`, `output/checkpoint.rs`).
@@ -91,6 +96,83 @@ pub struct EventsInfo {
     pub stuck: Vec<bool>,
     /// The kept factor's [`EventsFactor::save_state`] at the last checkpoint.
     pub kept_state: Vec<u64>,
+}
+
+/// How a hand-over to the explicit march ended (`[solver] on_loose_fragment = "hand_over"`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum HandOverEnd {
+    /// At rest: kinetic energy below `solver.hand_over_rest` of the largest energy moved in the
+    /// explicit part and the unbalanced ratio below the stage's tolerance.
+    Rest,
+    /// A cluster moved more than `solver.hand_over_distance` (of the mesh's diagonal) from
+    /// where the hand-over found it: a fragment has left.
+    Left,
+    /// `solver.hand_over_max_steps` explicit steps without either.
+    StepLimit,
+}
+
+impl HandOverEnd {
+    fn describe(self, s: &SolverCfg) -> String {
+        match self {
+            HandOverEnd::Rest => format!("at rest (kinetic energy below {:e} of the energy moved, unbalanced ratio below the tolerance)", s.hand_over_rest),
+            HandOverEnd::Left => format!("a fragment left (moved more than solver.hand_over_distance = {} of the mesh's diagonal)", s.hand_over_distance),
+            HandOverEnd::StepLimit => format!("neither at rest nor gone at solver.hand_over_max_steps = {}", s.hand_over_max_steps),
+        }
+    }
+}
+
+/// What the hand-over of an events stage to the explicit march did (`Simulation::hand_over`,
+/// not kept in checkpoints: a run resumed after the stage has only its warning and stage result).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct HandOver {
+    pub stage: usize,
+    /// The stage's load factor of the last solved event (the loads are held there).
+    pub factor: f64,
+    pub end: HandOverEnd,
+    /// Explicit steps.
+    pub steps: u64,
+    /// Splits in the march (failure checked every `cracking.check_every` steps).
+    pub splits: usize,
+    /// Time marched (sum of the steps' dt).
+    pub time: f64,
+    pub dt: f64,
+    /// The ledger at the hand-over (external work = strain energy, as in the events part).
+    pub start: Ledger,
+    /// The ledger at the end.
+    pub end_ledger: Ledger,
+    /// The largest displacement of a cluster from the hand-over's state, and that cluster.
+    pub moved: f64,
+    pub moved_cluster: usize,
+}
+
+impl HandOver {
+    /// Work done on the body in the explicit part (external work since the hand-over).
+    pub fn work(&self) -> f64 {
+        self.end_ledger.external() - self.start.external()
+    }
+    /// The largest energy moved in the explicit part: the work, the change of strain energy,
+    /// the kinetic energy, the dissipation, the contact terms.
+    pub fn energy_scale(&self) -> f64 {
+        energy_scale(&self.start, &self.end_ledger)
+    }
+    /// The ledger's residual at the end (it is zero at the hand-over) over the work done in
+    /// the explicit part (over [`Self::energy_scale`] when no work is done, e.g. prescribed
+    /// displacements only).
+    pub fn relative_residual(&self) -> f64 {
+        let w = self.work().abs();
+        let s = if w > 0.0 { w } else { self.energy_scale() };
+        if s > 0.0 {
+            self.end_ledger.residual().abs() / s
+        } else {
+            0.0
+        }
+    }
+}
+
+fn energy_scale(a: &Ledger, b: &Ledger) -> f64 {
+    let w = (b.external() - a.external()).abs();
+    let du = (b.strain - a.strain).abs();
+    w.max(du).max(b.kinetic).max(b.dissipated()).max(b.contact_energy).max(b.contact_dissipated)
 }
 
 /// The largest stage factor the critical-factor search looks at (beyond it: infinite).
@@ -242,6 +324,129 @@ impl Simulation {
                 Path { s0: s0[c], ds, szz0: z0, dszz: z1 - z0, scale: cr.scale[p.idx()] }
             })
             .collect()
+    }
+
+    /// The hand-over (ours, issue 35; docs/events.md): the solve after the last event was
+    /// singular (a fragment without support). The stage goes on in the explicit march from the
+    /// last solved state: the same clusters, `u` as the last solve put it (the split's new
+    /// clusters where their parents were), `v = 0`, the loads held at the stage's factor `t`,
+    /// contact on where the scene has `[contact]`, the scene's damping (reset), `dt` from a
+    /// fresh stable-step estimate (`dt_safety` of it, or `solver.dt`; estimated again after
+    /// splits as the explicit loop does). Failure is checked every `cracking.check_every`
+    /// steps (the paper's checks during the march: a fragment held by one node, a hinge,
+    /// tears off there). It ends when the fragment comes to rest or leaves, or at the step limit
+    /// ([`HandOverEnd`]). The ledger starts with the external work equal to the strain energy
+    /// (the events part's convention), so that its residual at the end is that of the
+    /// explicit part alone. History rows every `output.history_every` steps; the interrupt is
+    /// polled every step (it stops without a checkpoint: a resumed run starts again from the
+    /// last checkpoint, which is before the hand-over).
+    fn hand_over(&mut self, i: usize, t: f64, obs: &mut dyn Observer) -> Result<HandOver> {
+        let file = self.scene.path.display().to_string();
+        let sc = &self.scene.file.solver;
+        let st = &self.scene.file.stages[i];
+        let (max_steps, tol, every) = (sc.hand_over_max_steps, st.tolerance.unwrap_or(sc.tolerance), sc.ratio_every);
+        let rest = sc.hand_over_rest;
+        let hist_every = self.scene.file.output.history_every;
+        let check_every = self.scene.file.cracking.as_ref().map_or(0, |c| c.check_every);
+        let uses_omega = sc.damping.as_deref().is_none_or(|d| d.uses_rayleigh_stats());
+        let distance = sc.hand_over_distance * {
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for p in &self.model.mesh.points {
+                for d in 0..2 {
+                    lo[d] = lo[d].min(p[d]);
+                    hi[d] = hi[d].max(p[d]);
+                }
+            }
+            ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt()
+        };
+        let n_stages = self.scene.file.stages.len();
+        // The state: u of the last solve (events_set_state before the split; the new clusters
+        // took their parents' u), at rest, the constraints and loads of the held levels.
+        self.state.v.iter_mut().for_each(|v| *v = [0.0; 2]);
+        let (fix, vp, _) = self.loads.constraints(&self.model, &self.levels);
+        self.state.fix = fix;
+        self.state.v_pres = vp;
+        self.refresh_constant_force();
+        let mut fi = std::mem::take(&mut self.state.f_int);
+        self.model.internal_forces(&self.state.u, &mut fi);
+        self.state.f_int = fi;
+        // Contact starts here: pairs found anew from the current faces (the events part kept
+        // pairs of its splits without ever computing them: their history would see the whole
+        // opening since each split as one step's increment and create energy).
+        if let Some(cfg) = self.scene.file.contact.as_ref() {
+            self.contact = Some(crate::contact::Contact::new(cfg, &self.model, &file)?);
+        }
+        // The stable step of the cracked body (the events part estimated none).
+        (self.stable, self.stable_vec) = self.power_iteration(None);
+        self.dt = self.choose_dt(&file)?;
+        self.scene.file.solver.damping().reset();
+        self.stats = StepStats { step: self.state.step, dt: self.dt, omega_max: self.stable.omega_max, ..StepStats::default() };
+        self.coeffs = DampingCoeffs::default();
+        let strain = self.strain_energy();
+        self.ledger = Ledger { external_work: strain, strain, ..Ledger::default() };
+        let start = self.ledger;
+        let u_h = self.state.u.clone();
+        let t0 = self.state.time;
+        let moved = |u: &[[f64; 2]]| {
+            u.iter().zip(&u_h).enumerate().fold((0.0f64, 0usize), |(m, c), (k, (a, b))| {
+                let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+                if d > m {
+                    (d, k)
+                } else {
+                    (m, c)
+                }
+            })
+        };
+        let mut end = HandOverEnd::StepLimit;
+        let mut k = 0u64;
+        let mut splits = 0usize;
+        while k < max_steps {
+            if k > 0 && obs.should_stop(self) {
+                obs.snapshot(self, i, "interrupted")?;
+                let stage_step = self.events.as_ref().map_or(0, |e| e.events);
+                return Err(FlemError::Interrupted { step: self.state.step, stage: i, stage_step });
+            }
+            let kn = k + 1;
+            let full = kn % every == 0 || kn == max_steps || (hist_every > 0 && kn % hist_every == 0);
+            self.step_checked(full, check_every == 1)?;
+            k = kn;
+            let n = if check_every > 0 && k % check_every == 0 { self.check_failure(obs)? } else { 0 };
+            if n > 0 {
+                // The explicit loop's rule after splits (`update_stable_step`, which the events
+                // solver skips): a new estimate when dt is not provably stable for any
+                // splitting, or when the damping reads omega_max; dt follows it down.
+                if uses_omega || self.dt > self.safe_step_bound() {
+                    self.estimate_again();
+                }
+                splits += n;
+            }
+            if k % every == 0 {
+                let ratio = self.step_unbalanced_ratio();
+                self.last_ratio = ratio;
+                if moved(&self.state.u).0 > distance {
+                    end = HandOverEnd::Left;
+                    break;
+                }
+                let scale = energy_scale(&start, &self.ledger);
+                if ratio < tol && self.ledger.kinetic <= rest * scale {
+                    end = HandOverEnd::Rest;
+                    break;
+                }
+            }
+            if k % 256 == 0 {
+                obs.progress(&Progress { stage: i, n_stages, step: self.state.step, stage_step: k, max_steps, dt: self.dt, ratio: self.last_ratio, tolerance: tol });
+            }
+            if hist_every > 0 && k % hist_every == 0 {
+                obs.history(self, i)?;
+            }
+        }
+        if k % every != 0 {
+            // The last step was full (kn == max_steps).
+            self.last_ratio = self.step_unbalanced_ratio();
+        }
+        self.guard_now()?;
+        let (m, c) = moved(&self.state.u);
+        Ok(HandOver { stage: i, factor: t, end, steps: k, splits, time: self.state.time - t0, dt: self.dt, start, end_ledger: self.ledger, moved: m, moved_cluster: c })
     }
 
     /// Runs stage `pos.stage` by events (see the module docs).
@@ -440,12 +645,32 @@ impl Simulation {
             t = next.max(floor).min(1.0);
             advanced = true;
         }
+        let mut converged = stop.is_none();
+        let mut energy_residual = 0.0;
         if let Some(m) = &stop {
-            let msg = format!(
-                "{file}: stage \"{name}\" stopped after event {} at load factor {t:.9e} of the stage: {m}; the events solver ends the run here (it does not hand over to the explicit solver)",
-                self.state.step
-            );
-            self.warnings.push(msg.clone());
+            let event = self.state.step;
+            let msg = match self.scene.file.solver.on_loose_fragment {
+                LooseFragment::Stop => {
+                    format!("{file}: stage \"{name}\" stopped after event {event} at load factor {t:.9e} of the stage: {m}; the events solver ends the run here (solver.on_loose_fragment = \"stop\")")
+                }
+                LooseFragment::HandOver => {
+                    let h = self.hand_over(i, t, obs)?;
+                    converged = h.end != HandOverEnd::StepLimit;
+                    splits += h.splits;
+                    energy_residual = h.relative_residual();
+                    let msg = format!(
+                        "{file}: stage \"{name}\": after event {event} at load factor {t:.9e} of the stage a fragment came loose ({m}); the stage went on in the explicit march (ours, solver.on_loose_fragment = \"hand_over\"): {} after {} steps and {} splits (time {:.6e} since the hand-over), energy residual {:.2e} of the work done in the explicit part; the events solver ends the run here",
+                        h.end.describe(&self.scene.file.solver),
+                        h.steps,
+                        h.splits,
+                        h.time,
+                        energy_residual
+                    );
+                    self.hand_over = Some(h);
+                    msg
+                }
+            };
+            self.warnings.push(msg);
             if let Some(ev) = self.events.as_mut() {
                 ev.stopped = Some(m.clone());
             }
@@ -453,12 +678,12 @@ impl Simulation {
         let result = StageResult {
             name,
             steps: stage_events,
-            converged: stop.is_none(),
+            converged,
             final_ratio: self.last_ratio,
             wall_seconds: pos.wall_seconds + t_start.elapsed().as_secs_f64(),
             time: self.state.time,
             splits,
-            energy_residual: 0.0,
+            energy_residual,
             checks,
         };
         self.stages_done.push(result);

@@ -283,6 +283,9 @@ pub struct Simulation {
     /// The events solver's current event (`[solver] type = "events"`, `events.rs`); `None`
     /// for the explicit solver.
     pub events: Option<events::EventsInfo>,
+    /// The events solver's hand-over to the explicit march, when a stage had one
+    /// (`events::HandOver`; not kept in checkpoints).
+    pub hand_over: Option<events::HandOver>,
 }
 
 /// An error of a generated mesh (`[mesh] type = "rectangle"`...), which has no file of its own,
@@ -530,6 +533,35 @@ impl NodeCtx<'_> {
     }
 }
 
+/// Issue 35: T3 cells under a material law other than linear elastic (plasticity). A constant
+/// strain triangle has one point: B-bar changes nothing, and under (nearly) incompressible
+/// plastic flow a triangle mesh locks (too stiff, limit loads too high; docs/plasticity.md).
+/// One warning per material, naming the key and the cure: quadrilaterals (Q4 with B-bar, the
+/// default `bbar = true`; `qm6` where the registry has a stateful kernel for it).
+fn t3_plastic_warnings(model: &Model, materials: &[crate::element::model::MaterialCfg], file: &str, warnings: &mut Vec<String>) {
+    let mesh = &model.mesh;
+    let cfg_of = |region: &str| materials.iter().position(|m| m.region == region).or_else(|| materials.iter().position(|m| m.region == "all"));
+    let mut count = vec![0usize; materials.len()];
+    for (c, r) in mesh.cells.iter().zip(&mesh.cell_region) {
+        if c.kind == crate::mesh::CellKind::T3 {
+            if let Some(i) = cfg_of(r) {
+                count[i] += 1;
+            }
+        }
+    }
+    let quads: Vec<&str> = crate::element::registry::kinds().iter().filter(|k| k.cell == crate::mesh::CellKind::Q4 && k.stateful_elastic.is_some()).map(|k| k.name).collect();
+    let qm6 = if quads.contains(&"qm6") { "element = \"qm6\", or " } else { "" };
+    for (i, m) in materials.iter().enumerate() {
+        if count[i] > 0 && m.law.as_ref().is_some_and(|l| !l.is_linear_elastic()) {
+            warnings.push(format!(
+                "{file}: material[{i}].law: {} T3 (constant-strain triangle) elements under a plastic law lock under plastic flow (one integration point: B-bar changes nothing; collapse loads come out too high): mesh the region with quadrilaterals and use {qm6}Q4 with B-bar (material[{i}].bbar = true, the default){}",
+                count[i],
+                if qm6.is_empty() { "; qm6 has no kernel for plastic laws" } else { "" }
+            ));
+        }
+    }
+}
+
 /// A stage as warnings name it: `"name"`, or `stage[i]` when it has none.
 fn stage_label(i: usize, s: &crate::scene::StageCfg) -> String {
     if s.name.is_empty() {
@@ -573,6 +605,7 @@ impl Simulation {
                 warnings.push(format!("{file}: cracking.at_equilibrium = true: failure is never checked in the dynamic stage(s) {} (they do not come to rest); set cracking.at_equilibrium = false and cracking.check_every to crack during them", dynamic.join(", ")));
             }
         }
+        t3_plastic_warnings(&model, &scene.file.materials, &file, &mut warnings);
         if loads.has_time {
             // A load of t in a stage marched to equilibrium follows the relaxation's pseudo-time.
             let quasi: Vec<String> = scene.file.stages.iter().enumerate().filter(|(_, s)| !s.dynamic).map(|(i, s)| stage_label(i, s)).collect();
@@ -637,6 +670,7 @@ impl Simulation {
             step_ratio: None,
             scratch: Vec::new(),
             events: None,
+            hand_over: None,
             scene,
             model,
         };

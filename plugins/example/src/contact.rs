@@ -34,6 +34,13 @@ pub struct ExampleSpringDashpot {
     pub shear_damping: f64,
     #[serde(default)]
     pub friction: f64,
+    /// Tests only (tests/dynkinds.rs): the `nan_after`-th evaluation (counted over all pairs)
+    /// returns a NaN normal force, to show that a contact law returning NaN stops the run with
+    /// its name. Absent: never.
+    #[serde(default)]
+    pub nan_after: Option<u64>,
+    #[serde(skip)]
+    evaluations: std::sync::atomic::AtomicU64,
 }
 
 /// Coulomb cap of a tangential spring force (paper eq. 13): (capped force, slipped).
@@ -66,6 +73,11 @@ impl Contact for ExampleSpringDashpot {
     }
 
     fn evaluate(&self, k: &PairKinematics, _fresh: bool, h: &mut [f64]) -> PairForce {
+        if let Some(n) = self.nan_after {
+            if self.evaluations.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1 >= n {
+                return PairForce { normal: f64::NAN, active: true, ..PairForce::default() };
+            }
+        }
         let (kn, ks) = (self.normal_stiffness * k.area, self.shear_stiffness * k.area);
         let es_old = if k.new { 0.0 } else { h[1] };
         if k.new {

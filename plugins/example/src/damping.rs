@@ -14,7 +14,12 @@ use serde::Deserialize;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ExampleAdaptive {}
+pub struct ExampleAdaptive {
+    /// Tests only (tests/dynkinds.rs): from step `nan_after` on the coefficients are NaN, to
+    /// show that a damping scheme returning NaN stops the run with its name. Absent: never.
+    #[serde(default)]
+    pub nan_after: Option<u64>,
+}
 
 impl DampingScheme for ExampleAdaptive {
     /// `[alpha]`.
@@ -28,6 +33,9 @@ impl DampingScheme for ExampleAdaptive {
         let w2 = if s.u_m_u > 0.0 { s.u_f_int / s.u_m_u } else { 0.0 };
         let w0 = if w2 > 0.0 && w2.is_finite() { w2.sqrt().min(s.omega_max) } else { 0.01 * s.omega_max };
         state[0] = 2.0 * w0;
+        if self.nan_after.is_some_and(|n| s.step >= n) {
+            return DampingCoeffs { viscous: f64::NAN, ..Default::default() };
+        }
         DampingCoeffs { viscous: state[0], ..Default::default() }
     }
 }

@@ -89,8 +89,10 @@ fn wrap_pi(a: f64) -> f64 {
 
 /// The paper's separation rule: cut along the sigma1 direction `d = theta1`. Closed fan: the
 /// link whose ray is nearest `d`, then among the others the one nearest `d + pi`. Open fan: the
-/// link nearest `d` as a line, only if within pi/4. Ties (1e-9 rad): counter-clockwise from the
-/// target first, then the smaller edge id. No parameters.
+/// link nearest `d` as a line, only if within pi/4 at a point that has split already (a point
+/// never split, `FanView::never_split`, is cut whatever the angle: the paper's rule, METHOD 5).
+/// Ties (1e-9 rad): counter-clockwise from the target first, then the smaller edge id. No
+/// parameters.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExampleSigma1Nearest {}
@@ -129,7 +131,9 @@ impl Separation for ExampleSigma1Nearest {
                 (line_angle(links[i].angle, d), off > 0.0 && off <= FRAC_PI_2, links[i].edge, i)
             });
             let (dist, i) = pick(c)?;
-            (dist < std::f64::consts::FRAC_PI_4).then(|| Proposal { edges: vec![links[i].edge] })
+            // The paper's pi/4 cap is for points that have split already (METHOD 5): a point
+            // never split (a boundary point) is cut whatever the angle, as the built-in does.
+            (fan.never_split || dist < std::f64::consts::FRAC_PI_4).then(|| Proposal { edges: vec![links[i].edge] })
         }
     }
 }

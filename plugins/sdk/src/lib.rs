@@ -428,8 +428,15 @@ pub mod shim {
             let (t, cf, chk) = unsafe { (&*(instance as *const T), &*fan, *failure) };
             let raw = if cf.n_links == 0 { &[][..] } else { unsafe { std::slice::from_raw_parts(cf.links, cf.n_links) } };
             let links: Vec<LinkGeom> = raw.iter().map(|l| LinkGeom { edge: EdgeId(l.edge), angle: l.angle, normal: l.normal }).collect();
-            let view =
-                FanView { point: PointId(cf.point), cluster: ClusterId(cf.cluster), closed: cf.closed != 0, never_split: false, links: &links, stress: cf.stress, principal: cf.principal.into() };
+            let view = FanView {
+                point: PointId(cf.point),
+                cluster: ClusterId(cf.cluster),
+                closed: cf.closed != 0,
+                never_split: cf.never_split != 0,
+                links: &links,
+                stress: cf.stress,
+                principal: cf.principal.into(),
+            };
             let chk = chk.to_check().map_err(|e| (String::new(), format!("host sent a bad failure check: {e}")))?;
             let Some(prop) = t.propose(&view, &chk) else { return Ok(STATUS_NONE) };
             if prop.edges.len() > cap {

@@ -1,4 +1,4 @@
-//! The C ABI between FLEM and a dynamic plugin library (plugin ABI version 2).
+//! The C ABI between FLEM and a dynamic plugin library (plugin ABI version 3).
 //!
 //! Only `#[repr(C)]` types of this module cross the boundary (no Rust `Vec`, `String`, trait
 //! object or allocation): the host and the plugin may be built by different compilers, and
@@ -14,7 +14,7 @@
 //! the plugin side (the SDK's shims) and returned as [`STATUS_PANIC`], never unwound across
 //! `extern "C"` (that would abort the process).
 //!
-//! # The kinds (ABI 2: criterion, separation, contact law, damping, material law)
+//! # The kinds (ABI 2 and 3: criterion, separation, contact law, damping, material law)
 //! Every kind has `create(params_json)`/`destroy` (the scene's table, parsed and validated by
 //! the plugin) and its own functions in the [`PluginEntry`]; the others are null. State that a
 //! plugin keeps between calls is never the plugin's: it is `n_state` f64 (declared in the
@@ -55,7 +55,7 @@ use crate::plugin::traits::{FailureCheck, FailureMode, Principal};
 
 /// Version of this ABI (the layout of everything after the descriptor header). Bump it, and
 /// the symbol name, whenever any type of this module changes.
-pub const ABI_VERSION: u32 = 2;
+pub const ABI_VERSION: u32 = 3;
 /// The exported entry point: `extern "C" fn() -> *const Descriptor`. Its name stays the same
 /// across ABI versions: the frozen header it returns says the version, so that a library of
 /// another version is refused naming both versions (not only "no entry point").
@@ -393,6 +393,9 @@ pub struct CFan {
     pub cluster: u32,
     /// 1 for a closed fan (a cycle of links), 0 for a path.
     pub closed: u32,
+    /// 1 when the point has never been split (`FanView::never_split`; ABI 3, issue 35: ABI 2
+    /// had no field and the plugin saw `false`).
+    pub never_split: u32,
     pub n_links: usize,
     pub links: *const CLink,
     pub stress: [f64; 3],

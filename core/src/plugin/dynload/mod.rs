@@ -49,7 +49,7 @@ use crate::error::{FlemError, Result};
 use crate::plugin::damping::Damping;
 use crate::plugin::traits::{FailureCriterion, SeparationRule};
 use abi::{Descriptor, PluginEntry, ABI_VERSION, CONTACT_STATE_MAX, CORE_VERSION, ENTRY_SYMBOL, KIND_CONTACT, KIND_CRITERION, KIND_DAMPING, KIND_MATERIAL, KIND_SEPARATION, RUSTC_VERSION};
-pub(crate) use wrap::{err_slot, instance_methods, read_err, status_text, Instance, CHUNK};
+pub(crate) use wrap::{call_fault, err_slot, instance_methods, read_err, Instance, CHUNK};
 pub use wrap::{DynCriterion, DynDamping, DynLaw, DynLawBlocks, DynLawCfg, DynSeparation};
 
 /// A plugin provided by a loaded library.

@@ -75,14 +75,7 @@ impl Instance {
     }
 
     fn call_error(&self, what: &str, st: i32, err: &ErrorOut) -> String {
-        let how = match st {
-            STATUS_PANIC => "panicked",
-            STATUS_ERROR => "failed",
-            _ => "returned an unknown status",
-        };
-        let key = err.key();
-        let key = if key.is_empty() { String::new() } else { format!(" ({key})") };
-        format!("{} \"{}\" from {} {how} in {what}{key}: {}", self.info.kind, self.info.name, self.info.file.display(), err.msg())
+        call_fault(&self.who(), st, what, &err.key(), &err.msg())
     }
 
     /// Records the first fault (later ones are consequences).
@@ -233,7 +226,16 @@ impl SeparationRule for DynSeparation {
         let inst = self.0.live()?;
         let f = self.0.entry.propose.ok_or("no propose function")?;
         let links: Vec<CLink> = fan.links.iter().map(|l| CLink { edge: l.edge.0, angle: l.angle, normal: l.normal }).collect();
-        let cf = CFan { point: fan.point.0, cluster: fan.cluster.0, closed: fan.closed as u32, n_links: links.len(), links: links.as_ptr(), stress: fan.stress, principal: fan.principal.into() };
+        let cf = CFan {
+            point: fan.point.0,
+            cluster: fan.cluster.0,
+            closed: fan.closed as u32,
+            never_split: fan.never_split as u32,
+            n_links: links.len(),
+            links: links.as_ptr(),
+            stress: fan.stress,
+            principal: fan.principal.into(),
+        };
         let chk = CFailureCheck::from(*failure);
         let mut edges = vec![0u32; links.len()];
         let mut len = 0usize;
@@ -280,6 +282,14 @@ pub(crate) fn read_err(e: &MaybeUninit<ErrorOut>) -> (String, String) {
         let m = std::slice::from_raw_parts(std::ptr::addr_of!((*p).msg).cast::<u8>(), ml);
         (String::from_utf8_lossy(k).into_owned(), String::from_utf8_lossy(m).into_owned())
     }
+}
+
+/// The one form of a failed plugin call (issue 35: it was formatted in four places, and the
+/// damping's dropped the key): `{who} {how} in {function} ({key}): {msg}`, `how` from the
+/// call's status ([`status_text`]), the key only when the plugin named one.
+pub(crate) fn call_fault(who: &str, st: i32, function: &str, key: &str, msg: &str) -> String {
+    let key = if key.is_empty() { String::new() } else { format!(" ({key})") };
+    format!("{who} {} in {function}{key}: {msg}", status_text(st))
 }
 
 pub(crate) fn status_text(st: i32) -> &'static str {
@@ -339,7 +349,7 @@ impl Damping for DynDamping {
         // SAFETY: ABI call; the state has n_state slots.
         let st = unsafe { f(p, self.state.as_mut_ptr(), &mut err) };
         if st != STATUS_OK {
-            let msg = format!("{} {} in damping_reset: {}", self.inst.who(), status_text(st), err.msg());
+            let msg = call_fault(&self.inst.who(), st, "damping_reset", &err.key(), &err.msg());
             self.inst.record(msg);
             self.state.iter_mut().for_each(|x| *x = f64::NAN);
         }
@@ -356,7 +366,7 @@ impl Damping for DynDamping {
         // SAFETY: ABI call; the state has n_state slots.
         let st = unsafe { f(p, &cs, self.state.as_mut_ptr(), &mut out, &mut err) };
         if st != STATUS_OK {
-            return self.fail(format!("{} {} in damping_coeffs: {}", self.inst.who(), status_text(st), err.msg()));
+            return self.fail(call_fault(&self.inst.who(), st, "damping_coeffs", &err.key(), &err.msg()));
         }
         if !(out.viscous + out.local + out.eta + self.state.iter().sum::<f64>()).is_finite() {
             return self.fail(format!(
@@ -515,8 +525,7 @@ impl DynLaw {
             format!("{} returned a non-finite stress {s:?} or history {state:?} (stress before {old:?}, strain increment {de:?})", b.who)
         } else {
             let (key, msg) = read_err(err);
-            let key = if key.is_empty() { String::new() } else { format!(" ({key})") };
-            format!("{} {} in law_update{key}: {msg} (stress before {old:?}, strain increment {de:?})", b.who, status_text(st))
+            format!("{} (stress before {old:?}, strain increment {de:?})", call_fault(&b.who, st, "law_update", &key, &msg))
         };
         let _ = b.fault.set(msg);
         *s = [f64::NAN; 4];
