@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long, value_name = "K")]
     pub stage: Option<usize>,
     /// Only the crack tip at this point (within half an element size): x,y.
-    #[arg(long, value_name = "X,Y", value_delimiter = ',', num_args = 2)]
+    #[arg(long, value_name = "X,Y", value_delimiter = ',')]
     pub tip: Option<Vec<f64>>,
     /// Outer domain radii as multiples of the element size at the tip (r_in = r_out / 2).
     #[arg(long, value_delimiter = ',', default_values_t = vec![4.0, 6.0, 8.0], conflicts_with = "radius")]
@@ -37,8 +37,8 @@ pub fn run(a: Args) -> Result<()> {
         Radii::ElementSizes(v) | Radii::Absolute(v) => v,
     };
     anyhow::ensure!(!rs.is_empty() && rs.iter().all(|&r| r.is_finite() && r > 0.0), "--radii/--radius: every value must be finite and > 0");
+    anyhow::ensure!(a.tip.as_ref().is_none_or(|t| t.len() == 2 && t.iter().all(|v| v.is_finite())), "--tip: give two finite coordinates, x,y");
     let tip = a.tip.as_ref().map(|t| [t[0], t[1]]);
-    anyhow::ensure!(tip.is_none_or(|t| t[0].is_finite() && t[1].is_finite()), "--tip: both coordinates must be finite");
     let scene = Scene::from_file(&a.scene)?;
     let n = scene.file.stages.len();
     let stages: Vec<usize> = match a.stage {

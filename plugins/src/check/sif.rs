@@ -92,6 +92,8 @@ pub enum SifError {
     DomainLeavesBody { point: usize, r_out: f64, a: usize, b: usize },
     #[error("crack tip at point {point}: the crack is not straight inside the domain of radius {r_out:e} (crack face of points {a} and {b} is off the line behind the tip by {off:.3e}, or ahead of it); use a smaller radius")]
     CrackNotStraight { point: usize, r_out: f64, a: usize, b: usize, off: f64 },
+    #[error("crack tip at point {point}: another crack tip (point {other}) lies inside the domain of radius {r_out:e}; use a smaller radius")]
+    OtherTip { point: usize, r_out: f64, other: usize },
     #[error("crack tip at point {point}: a support acts inside the domain of radius {r_out:e} (point {at}); use a smaller radius")]
     SupportInDomain { point: usize, r_out: f64, at: usize },
     #[error("crack tip at point {point}: an applied force (a point load, gravity or a crack-face traction) acts inside the domain of radius {r_out:e} (point {at}); the integral has no such term; use a smaller radius or no body force")]
@@ -123,6 +125,8 @@ pub struct DomainSif {
     pub j: f64,
     /// `(K_I^2 + K_II^2) / E*`.
     pub g: f64,
+    /// `E*` of the material in the domain.
+    pub e_star: f64,
 }
 
 /// Everything needed at one tip besides the field: `E*` and the material.
@@ -232,7 +236,15 @@ fn check_geometry(model: &Model, tip: &CrackTip, r_out: f64) -> Result<(), SifEr
             return Err(SifError::DomainLeavesBody { point: tip.point, r_out, a: a.idx(), b: b.idx() });
         }
         let e = EdgeId::new(e);
-        if topo.is_separated_at(e, a) || topo.is_separated_at(e, b) {
+        let (sa, sb) = (topo.is_separated_at(e, a), topo.is_separated_at(e, b));
+        if sa != sb {
+            let q = if sa { b } else { a };
+            let pq = pts[q.idx()];
+            if q.idx() != tip.point && (pq[0] - tip.x[0]).hypot(pq[1] - tip.x[1]) < r_out {
+                return Err(SifError::OtherTip { point: tip.point, r_out, other: q.idx() });
+            }
+        }
+        if sa || sb {
             let (la, lb) = (local(pa), local(pb));
             let off = la[1].abs().max(lb[1].abs());
             if off > tol || la[0] > tol || lb[0] > tol {
@@ -429,7 +441,7 @@ pub fn domain_sif(model: &Model, u: &[[f64; 2]], fix: &[u8], f_ext: &[[f64; 2]],
     if ![k1, k2, s.j].iter().all(|v| v.is_finite()) {
         return Err(SifError::NotFinite { point });
     }
-    Ok(DomainSif { r_in, r_out, elements: s.elements, k1, k2, j: s.j, g })
+    Ok(DomainSif { r_in, r_out, elements: s.elements, k1, k2, j: s.j, g, e_star: es })
 }
 
 fn arr<T: Copy + Default, const N: usize>(v: &[T]) -> [T; N] {
@@ -468,7 +480,7 @@ pub fn tip_sif(model: &Model, u: &[[f64; 2]], fix: &[u8], f_ext: &[[f64; 2]], ti
     let spread = if norm > 0.0 { span(|d| d.k1).max(span(|d| d.k2)) / norm } else { 0.0 };
     let mts = mts_angle(k1, k2);
     let dir = tip.dir[1].atan2(tip.dir[0]);
-    let e_star = if g > 0.0 { (k1 * k1 + k2 * k2) / g } else { f64::NAN };
+    let e_star = domains[0].e_star;
     Ok(TipSif { tip: tip.clone(), e_star, domains, k1, k2, j, g, spread, mts_deg: mts.map(f64::to_degrees), kink_direction_deg: mts.map(|t| (dir + t).to_degrees()) })
 }
 
