@@ -92,6 +92,9 @@ fn table(s: &StageSif) -> String {
         }
         let mts = r.mts_deg.map_or_else(|| "none (K_I < 0: closed)".to_string(), |t| format!("{t:.2} deg"));
         let _ = writeln!(o, "    mean K_I {:.5e}, K_II {:.5e} (spread over the domains {:.2e}); J {:.5e}, G {:.5e}; MTS kink {mts}", r.k1, r.k2, r.spread, r.j, r.g);
+        if let Some([k1, k2, n]) = r.displacement_correlation {
+            let _ = writeln!(o, "    cross-check by displacement correlation ({n} face points): K_I {k1:.5e}, K_II {k2:.5e}");
+        }
     }
     o
 }

@@ -448,6 +448,86 @@ fn arr<T: Copy + Default, const N: usize>(v: &[T]) -> [T; N] {
     std::array::from_fn(|a| v[a])
 }
 
+/// Displacement correlation (the cross-check): at every crack-face point behind the tip with
+/// `r_max / 2 <= r <= r_max`, the faces' relative displacement in the tip's frame (upper face,
+/// `x2 > 0`, minus lower) gives `K(r) = mu / (kappa + 1) sqrt(2 pi / r) [du1, du2]` (the
+/// Williams field on `theta = +-pi`); `K = K(0)` by a least-squares line in `r`. The points
+/// nearer the tip are left out: linear elements underestimate the opening there (on the edge
+/// crack, `K(r)` rose from -10 % at `r = 2 h` to -4 % at `r = 14 h`). Less accurate than the
+/// integral (docs/paths.md: 3-10 % low on the test meshes). `None` with fewer than two points.
+/// Call after [`domain_sif`] on `r_max` has accepted the geometry (straight faces behind the
+/// tip, one material).
+pub fn displacement_correlation(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r_max: f64) -> Option<(f64, f64, usize)> {
+    let topo = &model.topo;
+    let pts = &model.mesh.points;
+    let (e1, e2) = (tip.dir, [-tip.dir[1], tip.dir[0]]);
+    let local = |p: [f64; 2]| {
+        let d = [p[0] - tip.x[0], p[1] - tip.x[1]];
+        [d[0] * e1[0] + d[1] * e1[1], d[0] * e2[0] + d[1] * e2[1]]
+    };
+    let mut mat = *model.material_of(flem_core::ids::ElemId::new(0));
+    let mut samples: Vec<(f64, f64, f64)> = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
+    for (e, ed) in topo.edges.iter().enumerate() {
+        let e = EdgeId::new(e);
+        for p in ed.points {
+            if p.idx() == tip.point || !topo.is_separated_at(e, p) || !seen.insert(p.idx()) {
+                continue;
+            }
+            let x = local(pts[p.idx()]);
+            let r = -x[0];
+            if r < 0.5 * r_max || r > r_max || topo.point_clusters[p.idx()].len() != 2 {
+                continue;
+            }
+            // The side of each cluster: the centroid of an element holding one of its copies.
+            let mut side = [None, None];
+            for (k, &c) in topo.point_clusters[p.idx()].iter().enumerate() {
+                let copy = topo.point_copies.row(p.idx()).iter().find(|k| topo.copy_cluster[k.idx()] == c)?;
+                let el = topo.copy_elem[copy.idx()];
+                mat = *model.material_of(el);
+                let cs = topo.elem_copies(el);
+                let n = cs.len() as f64;
+                let cen = cs.fold([0.0; 2], |a, k| {
+                    let q = pts[topo.copy_point[k].idx()];
+                    [a[0] + q[0] / n, a[1] + q[1] / n]
+                });
+                side[k] = Some((local(cen)[1] > 0.0, c.idx()));
+            }
+            let (Some((up0, c0)), Some((up1, c1))) = (side[0], side[1]) else { continue };
+            if up0 == up1 {
+                continue;
+            }
+            let (cu, cl) = if up0 { (c0, c1) } else { (c1, c0) };
+            let du = [u[cu][0] - u[cl][0], u[cu][1] - u[cl][1]];
+            let dl = [du[0] * e1[0] + du[1] * e1[1], du[0] * e2[0] + du[1] * e2[1]];
+            samples.push((r, dl[0], dl[1]));
+        }
+    }
+    if samples.len() < 2 {
+        return None;
+    }
+    let mu = mat.young / (2.0 * (1.0 + mat.poisson));
+    let kappa = match mat.plane {
+        Plane::Strain => 3.0 - 4.0 * mat.poisson,
+        Plane::Stress => (3.0 - mat.poisson) / (1.0 + mat.poisson),
+    };
+    let f = |r: f64| mu / (kappa + 1.0) * (2.0 * std::f64::consts::PI / r).sqrt();
+    let fit = |k: &dyn Fn(&(f64, f64, f64)) -> f64| {
+        let n = samples.len() as f64;
+        let (sr, sk) = samples.iter().fold((0.0, 0.0), |a, s| (a.0 + s.0, a.1 + k(s)));
+        let (mr, mk) = (sr / n, sk / n);
+        let (sxy, sxx) = samples.iter().fold((0.0, 0.0), |a, s| (a.0 + (s.0 - mr) * (k(s) - mk), a.1 + (s.0 - mr).powi(2)));
+        if sxx > 0.0 {
+            mk - sxy / sxx * mr
+        } else {
+            mk
+        }
+    };
+    let k1 = fit(&|s| f(s.0) * s.2);
+    let k2 = fit(&|s| f(s.0) * s.1);
+    (k1.is_finite() && k2.is_finite()).then_some((k1, k2, samples.len()))
+}
+
 /// The factors at one tip on several domains, with their mean and the MTS kink angle.
 #[derive(Clone, Debug, Serialize)]
 pub struct TipSif {
@@ -467,6 +547,9 @@ pub struct TipSif {
     pub mts_deg: Option<f64>,
     /// The kinked crack's direction, degrees from +x.
     pub kink_direction_deg: Option<f64>,
+    /// The cross-check by displacement correlation over the faces within the largest `r_out`:
+    /// `[K_I, K_II, points]` ([`displacement_correlation`]; less accurate than the integral).
+    pub displacement_correlation: Option<[f64; 3]>,
 }
 
 /// [`domain_sif`] on each `(r_in, r_out)`, with the means and the MTS angle.
@@ -481,7 +564,9 @@ pub fn tip_sif(model: &Model, u: &[[f64; 2]], fix: &[u8], f_ext: &[[f64; 2]], ti
     let mts = mts_angle(k1, k2);
     let dir = tip.dir[1].atan2(tip.dir[0]);
     let e_star = domains[0].e_star;
-    Ok(TipSif { tip: tip.clone(), e_star, domains, k1, k2, j, g, spread, mts_deg: mts.map(f64::to_degrees), kink_direction_deg: mts.map(|t| (dir + t).to_degrees()) })
+    let r_max = radii.iter().map(|r| r.1).fold(0.0, f64::max);
+    let dc = displacement_correlation(model, u, tip, r_max).map(|(a, b, n)| [a, b, n as f64]);
+    Ok(TipSif { tip: tip.clone(), e_star, domains, k1, k2, j, g, spread, mts_deg: mts.map(f64::to_degrees), kink_direction_deg: mts.map(|t| (dir + t).to_degrees()), displacement_correlation: dc })
 }
 
 /// The default domains at a tip: `r_out = f h` for each factor `f`, `r_in = r_out / 2`, `h` the
