@@ -174,7 +174,7 @@ fn named_refusals() {
     // A crack that does not run straight behind the tip (here: the tip's direction turned by
     // 10 deg, as a kinked crack would see it).
     let mut s = sim(&inclined_text(|t| t));
-    let mut tip = crack_tips(&s.model).unwrap()[1].clone();
+    let mut tip = crack_tips(&s.model)[1].clone();
     let (c, d) = (10f64.to_radians().cos(), 10f64.to_radians().sin());
     tip.dir = [c * tip.dir[0] - d * tip.dir[1], d * tip.dir[0] + c * tip.dir[1]];
     s.set_stage_levels(0);
@@ -195,4 +195,43 @@ fn named_refusals() {
     // Bad radius.
     let e = err_of(&inclined_text(|t| t), None, &Radii::Absolute(vec![f64::NAN]));
     assert!(e.contains("radii"), "{e}");
+}
+
+/// A tip made by a split, not by a pre-cut: cutting the edge ahead of the edge crack's tip at
+/// the tip's cluster (`Topology::cut`, what a separation rule's proposal does) moves the tip to
+/// that edge's far end, with the crack's direction along the cut edge.
+#[test]
+fn a_split_moves_the_tip() {
+    let edge = std::fs::read_to_string(root().join("configs/sif/edge_0.3_t3.toml")).unwrap().replace("../meshes/", "meshes/");
+    let mut s = sim(&edge);
+    let tips = crack_tips(&s.model);
+    assert_eq!(tips.len(), 1);
+    let p = flem_core::ids::PointId::new(tips[0].point);
+    let topo = &s.model.topo;
+    let pts = &s.model.mesh.points;
+    // The edge through the tip that points most nearly along +x.
+    let ahead = *topo
+        .point_edges
+        .row(p.idx())
+        .iter()
+        .max_by(|a, b| {
+            let dx = |e: &flem_core::ids::EdgeId| {
+                let q = pts[topo.other_end(*e, p).idx()];
+                let d = [q[0] - pts[p.idx()][0], q[1] - pts[p.idx()][1]];
+                d[0] / d[0].hypot(d[1])
+            };
+            dx(a).total_cmp(&dx(b))
+        })
+        .unwrap();
+    let q = topo.other_end(ahead, p);
+    let c = topo.point_clusters[p.idx()][0];
+    let rec = s.model.topo.cut(c, &[ahead], true);
+    assert!(!rec.new_clusters.is_empty(), "the cut split the tip's cluster");
+    s.apply_split_record(&rec);
+    let tips = crack_tips(&s.model);
+    assert_eq!(tips.len(), 1, "{tips:?}");
+    assert_eq!(tips[0].point, q.idx());
+    let (xp, xq) = (s.model.mesh.points[p.idx()], s.model.mesh.points[q.idx()]);
+    let l = (xq[0] - xp[0]).hypot(xq[1] - xp[1]);
+    assert!((tips[0].dir[0] - (xq[0] - xp[0]) / l).abs() < 1e-12 && (tips[0].dir[1] - (xq[1] - xp[1]) / l).abs() < 1e-12);
 }

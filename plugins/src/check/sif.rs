@@ -75,6 +75,10 @@ pub struct CrackTip {
     pub edge: usize,
     /// Mean length of the element edges through the tip (the element size there).
     pub h: f64,
+    /// Crack faces ending at the tip: more than one (two cracks meeting, a branch) leaves the
+    /// direction undefined and [`domain_sif`] refuses the tip ([`SifError::AmbiguousTip`]);
+    /// `dir` is then the first face's.
+    pub faces: usize,
 }
 
 /// Why the factors cannot be computed (every message names the tip or the element).
@@ -153,7 +157,7 @@ pub fn mts_angle(k1: f64, k2: f64) -> Option<f64> {
 }
 
 /// Every crack tip of the model's current topology, in point order (see the module doc).
-pub fn crack_tips(model: &Model) -> Result<Vec<CrackTip>, SifError> {
+pub fn crack_tips(model: &Model) -> Vec<CrackTip> {
     let topo = &model.topo;
     let pts = &model.mesh.points;
     // (tip point, crack face) pairs.
@@ -177,9 +181,6 @@ pub fn crack_tips(model: &Model) -> Result<Vec<CrackTip>, SifError> {
     while i < ends.len() {
         let p = ends[i].0;
         let n = ends[i..].iter().take_while(|(q, _)| *q == p).count();
-        if n > 1 {
-            return Err(SifError::AmbiguousTip { point: p.idx(), n });
-        }
         let e = ends[i].1;
         let other = topo.other_end(e, p);
         let (x, o) = (pts[p.idx()], pts[other.idx()]);
@@ -192,10 +193,10 @@ pub fn crack_tips(model: &Model) -> Result<Vec<CrackTip>, SifError> {
             (pu[0] - pv[0]).hypot(pu[1] - pv[1])
         });
         let h = h.sum::<f64>() / through.len() as f64;
-        tips.push(CrackTip { point: p.idx(), x, dir: [d[0] / len, d[1] / len], edge: e.idx(), h });
+        tips.push(CrackTip { point: p.idx(), x, dir: [d[0] / len, d[1] / len], edge: e.idx(), h, faces: n });
         i += n;
     }
-    Ok(tips)
+    tips
 }
 
 /// The tip nearest `x`; an error when none is within half the element size there.
@@ -373,6 +374,9 @@ fn element_sums<S: Shape<N>, const N: usize>(fr: &Frame, m: &Material, x: &[[f64
 /// nodal force per cluster) are checked to be zero inside the domain.
 pub fn domain_sif(model: &Model, u: &[[f64; 2]], fix: &[u8], f_ext: &[[f64; 2]], tip: &CrackTip, r_in: f64, r_out: f64) -> Result<DomainSif, SifError> {
     let point = tip.point;
+    if tip.faces > 1 {
+        return Err(SifError::AmbiguousTip { point, n: tip.faces });
+    }
     if !(r_in.is_finite() && r_out.is_finite() && 0.0 <= r_in && r_in < r_out) {
         return Err(SifError::BadRadius { point, r_in, r_out });
     }
@@ -631,7 +635,7 @@ pub fn stage_sif(sim: &mut flem_core::solver::Simulation, stage: usize, at: Opti
     if stage >= n {
         return Err(flem_core::FlemError::Other(format!("{file}: stage {} does not exist (the scene has {n})", stage + 1)));
     }
-    let all = crack_tips(&sim.model).map_err(|e| flem_core::FlemError::Other(format!("{file}: {e}")))?;
+    let all = crack_tips(&sim.model);
     if all.is_empty() {
         return Err(flem_core::FlemError::Other(format!("{file}: {}", SifError::NoTip)));
     }
