@@ -19,6 +19,7 @@ mod nonlocal;
 mod paper;
 mod parallel;
 mod plasticity;
+mod sif;
 mod skip;
 mod slope;
 mod softening;

@@ -2,7 +2,8 @@
 """Regenerate the small test meshes in configs/meshes from their .geo sources.
 
 Needs the gmsh and meshio Python packages (e.g. a venv with gmsh==4.15.2 meshio==5.3.5 numpy).
-Run from anywhere: python3 tools/gen_meshes.py
+Run from anywhere: python3 tools/gen_meshes.py (or `python3 tools/gen_meshes.py sif`: only the
+stress-intensity meshes)
 """
 import os
 import sys
@@ -48,7 +49,43 @@ def cook():
             os.unlink(f.name)
 
 
+def sif():
+    """The stress-intensity meshes (issue 34, tests/sif.rs, configs/sif/): the inclined centre
+    crack (sif_inclined.geo) at beta = 30, 45, 60 deg in triangles and at 45 deg in quads, the
+    edge crack (sif_edge.geo) at a/W = 0.3 in triangles and 0.5 in quads. Each .geo's first
+    lines are its parameters; they are replaced here."""
+    import re
+    import tempfile
+    cases = [
+        ("sif_inclined.geo", {"beta": b, "quads": 0}, "sif_inclined_%d_t3.msh" % b) for b in (30, 45, 60)
+    ] + [
+        ("sif_inclined.geo", {"beta": 45, "quads": 1}, "sif_inclined_45_q4.msh"),
+        ("sif_edge.geo", {"aw": 0.3, "quads": 0}, "sif_edge_0.3_t3.msh"),
+        ("sif_edge.geo", {"aw": 0.5, "quads": 1}, "sif_edge_0.5_q4.msh"),
+    ]
+    for geo, subs, out in cases:
+        src = open(os.path.join(HERE, geo)).read()
+        for k, v in subs.items():
+            src, n = re.subn(r"^%s = [^;]*;" % k, "%s = %s;" % (k, v), src, flags=re.M)
+            assert n == 1, (geo, k)
+        with tempfile.NamedTemporaryFile("w", suffix=".geo", delete=False) as f:
+            f.write(src)
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(f.name)
+        gmsh.model.mesh.generate(2)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        gmsh.write(os.path.join(HERE, out))
+        gmsh.finalize()
+        os.unlink(f.name)
+
+
 def main():
+    if sys.argv[1:] == ["sif"]:
+        sif()
+        return 0
+    sif()
     cook()
     mesh("rect_quad.geo", [
         ("rect_quad_v41.msh", 4.1, False),

@@ -23,6 +23,7 @@ mod chart_crack;
 mod converge;
 mod dyncall_kinds;
 mod fos;
+mod sif;
 mod stability;
 mod sweep;
 
@@ -50,6 +51,10 @@ enum Cmd {
     /// Factor of safety by strength reduction (c and tan(phi) divided by F, bisection on F;
     /// ours, docs/materials.md): DIR/fos.json and the mechanism picture.
     Fos(fos::Args),
+    /// Stress intensity factors K_I, K_II at the crack tips (pre-cut edges) from the implicit
+    /// solve of each stage: interaction integral on 2-3 domains, J as a check, the maximum
+    /// tangential stress kink angle (docs/paths.md). Prints a table, writes DIR/sif.json.
+    Sif(sif::Args),
     /// Run a scene: stages to equilibrium, results (VTU/PVD, history.csv, summary.json) into --out.
     Run {
         scene: PathBuf,
@@ -313,6 +318,7 @@ fn main() -> ExitCode {
         Some(Cmd::SweepTask { scene, task, out, threads, params }) => sweep::task(&scene, task, &out, threads, &params),
         Some(Cmd::Converge(a)) => converge::run(a),
         Some(Cmd::Fos(a)) => fos::run(a),
+        Some(Cmd::Sif(a)) => sif::run(a),
         Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
     };
     match r {

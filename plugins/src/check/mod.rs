@@ -71,6 +71,7 @@ mod assemble;
 pub mod bench;
 pub mod factor;
 pub mod kept;
+pub mod sif;
 pub mod woodbury;
 
 /// What the solver keeps between calls while the fingerprint is unchanged.
