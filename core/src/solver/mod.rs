@@ -535,7 +535,7 @@ impl NodeCtx<'_> {
 
 /// Issue 35: T3 cells under a material law other than linear elastic (plasticity). A constant
 /// strain triangle has one point: B-bar changes nothing, and under (nearly) incompressible
-/// plastic flow a triangle mesh locks (too stiff, limit loads too high; docs/plasticity.md).
+/// plastic flow a triangle mesh locks (too stiff, limit loads too high; docs/materials.md).
 /// One warning per material, naming the key and the cure: quadrilaterals (Q4 with B-bar, the
 /// default `bbar = true`; `qm6` where the registry has a stateful kernel for it).
 fn t3_plastic_warnings(model: &Model, materials: &[crate::element::model::MaterialCfg], file: &str, warnings: &mut Vec<String>) {
