@@ -12,6 +12,7 @@ mod dynplug;
 mod elements;
 mod events;
 mod fuzz;
+mod implicit_plastic;
 mod interop;
 mod layout;
 mod nonlocal;

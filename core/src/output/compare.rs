@@ -63,6 +63,16 @@ pub struct StageComparison {
     pub implicit_error: Option<String>,
     /// The comparison VTU, relative to the output folder.
     pub vtu: Option<String>,
+    /// A plastic stage (a block with a plastic law; `compare_plastic_stage`): the
+    /// Gauss-point stress difference `|s_flem - s_imp|_2 / |s_imp|_2` (in place of the nodal
+    /// one), the plastic-zone difference (elements yielded in one solution and not in the
+    /// other, over those yielded in either) and what Newton did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rel_l2_point_stress: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plastic_zone_difference: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub newton: Option<crate::plugin::check::PlasticStage>,
 }
 
 fn finite(v: f64) -> Option<f64> {
@@ -128,6 +138,70 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
     (c, Some((u_imp, s_imp)))
 }
 
+/// True when some block of the model has a plastic law (the linear check does not apply).
+pub fn is_plastic(sim: &Simulation) -> bool {
+    sim.model.blocks.iter().any(|b| !b.is_empty() && b.plastic(0).is_some())
+}
+
+/// The comparison of a plastic stage with the implicit plastic check (ours, issue 37): Newton
+/// advances its own solution, from its last converged state, to this stage's external force
+/// and prescribed displacements in `increments` load increments
+/// (`crate::plugin::check::PlasticCheck`), and the stage is compared as an elastic one is
+/// (displacements), with the Gauss-point stress in place of the nodal stress (a stateful
+/// block's nodal stress is its stored points') and the plastic zone: the elements with a
+/// yielded point in FLEM (`Block::plastic`, state not 0) against those in the implicit
+/// solution, as the fraction `|A xor B| / |A or B|` (0 when neither yielded). No VTU.
+pub fn compare_plastic_stage(sim: &Simulation, check: &mut dyn crate::plugin::check::PlasticCheck, stage: usize, tolerance: f64, increments: usize) -> StageComparison {
+    let st = sim.stages_done.last().cloned().unwrap_or_default();
+    let mut c = StageComparison {
+        stage,
+        name: st.name.clone(),
+        clusters: sim.model.topo.n_clusters(),
+        dofs: sim.state.fix.iter().map(|&b| 2 - (b & 1) as usize - ((b >> 1) & 1) as usize).sum(),
+        flem_steps: st.steps,
+        flem_converged: st.converged,
+        unbalanced_ratio: finite(st.final_ratio),
+        splits: st.splits,
+        wall_seconds_flem: st.wall_seconds,
+        ..Default::default()
+    };
+    let t0 = Instant::now();
+    let r = sim.external_force().and_then(|f| check.advance(&sim.model, &sim.state.fix, &f, &sim.state.u, increments));
+    c.wall_seconds_implicit = t0.elapsed().as_secs_f64();
+    match r {
+        Ok(st) => c.newton = Some(st),
+        Err(e) => {
+            c.implicit_error = Some(e.to_string());
+            return c;
+        }
+    }
+    let u_imp = check.displacement();
+    c.rel_l2_displacement = rel_l2(&sim.state.u, u_imp);
+    c.max_abs_displacement_error = finite(sim.state.u.iter().zip(u_imp).flat_map(|(a, b)| [(a[0] - b[0]).abs(), (a[1] - b[1]).abs()]).fold(0.0, f64::max));
+    c.max_abs_displacement = finite(u_imp.iter().flat_map(|v| [v[0].abs(), v[1].abs()]).fold(0.0, f64::max));
+    let (mut sf, mut si) = (Vec::new(), Vec::new());
+    for (b, s_imp) in sim.model.blocks.iter().zip(check.point_stress()) {
+        if let Some(s) = b.point_stress(&sim.state.u) {
+            if s.len() == s_imp.len() {
+                sf.extend(s);
+                si.extend(s_imp);
+            }
+        }
+    }
+    c.rel_l2_point_stress = rel_l2(&sf, &si);
+    let (mut either, mut differ) = (0usize, 0usize);
+    for (b, y_imp) in sim.model.blocks.iter().zip(check.yielded()) {
+        for (i, yi) in y_imp.into_iter().enumerate() {
+            let yf = b.plastic(i).is_some_and(|(_, f)| f != 0);
+            either += (yf || yi) as usize;
+            differ += (yf != yi) as usize;
+        }
+    }
+    c.plastic_zone_difference = Some(if either == 0 { 0.0 } else { differ as f64 / either as f64 });
+    c.within_tolerance = matches!((c.rel_l2_displacement, c.rel_l2_point_stress), (Some(a), Some(b)) if a <= tolerance && b <= tolerance);
+    c
+}
+
 /// The snapshot VTU of `sim` with the implicit fields and the differences added.
 pub fn comparison_vtu(sim: &Simulation, u_imp: &[[f64; 2]], s_imp: &[[f64; 3]], compress: bool) -> Result<Vec<u8>> {
     let mut vtk = snapshot_vtk(sim);
@@ -169,6 +243,19 @@ pub fn table(rows: &[StageComparison]) -> String {
             r.wall_seconds_implicit,
             if r.within_tolerance { "yes" } else { "NO" }
         );
+        if let Some(n) = &r.newton {
+            let _ = writeln!(
+                s,
+                "    plastic: rel_l2_point_stress {}, plastic-zone difference {}; Newton: {} increments, {} iterations, {} halvings, tangent {}, {}",
+                f(r.rel_l2_point_stress),
+                f(r.plastic_zone_difference),
+                n.increments,
+                n.iterations,
+                n.bisections,
+                n.tangent,
+                n.factorisation
+            );
+        }
         if let Some(e) = &r.implicit_error {
             let _ = writeln!(s, "    implicit solve failed: {e}");
         }
@@ -185,13 +272,16 @@ pub struct Comparer<'a> {
     pub rows: Vec<StageComparison>,
     /// Called with each new row (the CLI prints it).
     pub on_row: Option<Box<dyn FnMut(&StageComparison) + 'a>>,
+    /// The implicit plastic check of a plastic model, kept from stage to stage (its own
+    /// history); made at the first plastic stage from the check solver.
+    plastic: Option<Box<dyn crate::plugin::check::PlasticCheck>>,
 }
 
 impl<'a> Comparer<'a> {
     /// `dir` is created if needed (an unwritable folder fails here, before any step).
     pub fn new(inner: &'a mut dyn Observer, dir: &Path) -> Result<Self> {
         prepare_dir(dir)?;
-        Ok(Comparer { inner, dir: dir.to_path_buf(), rows: Vec::new(), on_row: None })
+        Ok(Comparer { inner, dir: dir.to_path_buf(), rows: Vec::new(), on_row: None, plastic: None })
     }
 
     fn write_json(&self, sim: &Simulation) -> Result<()> {
@@ -233,6 +323,27 @@ impl Observer for Comparer<'_> {
         self.inner.stage_end(sim, stage)?;
         let file = sim.scene.path.display().to_string();
         let cfg = sim.scene.file.check.as_ref().ok_or_else(|| FlemError::config(&file, "check", "is missing: the comparison needs a [check] section"))?;
+        if is_plastic(sim) {
+            if self.plastic.is_none() {
+                self.plastic = cfg.solver().plastic();
+            }
+            let mut row = match self.plastic.as_mut() {
+                Some(p) => compare_plastic_stage(sim, p.as_mut(), stage, cfg.tolerance, cfg.increments),
+                None => {
+                    let (mut row, _) = compare_stage(sim, cfg.solver(), stage, cfg.tolerance);
+                    row.implicit_error =
+                        Some("a plastic stage: this check solver has no implicit plastic check (CheckSolver::plastic), and its linear solve is no equilibrium of the plastic model".into());
+                    row.within_tolerance = false;
+                    row
+                }
+            };
+            row.vtu = None;
+            if let Some(f) = self.on_row.as_mut() {
+                f(&row);
+            }
+            self.rows.push(row);
+            return self.write_json(sim);
+        }
         let (mut row, fields) = compare_stage(sim, cfg.solver(), stage, cfg.tolerance);
         if let (Some((u, s)), true) = (fields, cfg.vtu) {
             let name = format!("compare_{stage:04}_{}.vtu", sanitize(&row.name));
