@@ -21,7 +21,9 @@
 //! applied force) has a scale too. The load path of a stage is the straight one from the last
 //! converged state to the stage's end (`f_ext` and the prescribed displacements), in
 //! `increments` equal steps; an increment that does not converge in `MAX_ITER` iterations (or
-//! whose solve fails) is halved, up to `MAX_BISECT` times. Each iteration's relative residual
+//! whose solve fails) is halved, up to `MAX_BISECT` successive times, and after each converged
+//! one the step doubles back towards the nominal one; at most `MAX_TRIES` tries per nominal
+//! increment (a path that needs more crawls along its limit load: the stage is given up, said). Each iteration's relative residual
 //! is recorded (the residual table of docs/materials.md: quadratic convergence with the
 //! consistent tangent).
 //!
@@ -45,8 +47,11 @@ use super::{assemble, dof_coords, factor, number_dofs};
 pub const TOL: f64 = 1e-10;
 /// Newton iterations per increment before it is halved.
 pub const MAX_ITER: usize = 25;
-/// Halvings of an increment before the stage is given up.
+/// Successive halvings of an increment before the stage is given up.
 pub const MAX_BISECT: usize = 12;
+/// Load increments tried per nominal increment (halvings included) before the stage is given
+/// up: a path that needs more crawls along a limit load.
+pub const MAX_TRIES: usize = 20;
 
 const PREFIX: &str = "the implicit plastic check";
 
@@ -60,7 +65,14 @@ pub struct NewtonCheck {
     f_int: Vec<[f64; 2]>,
     fix: Vec<u8>,
     sym: Option<(SymbolicSparseColMat<usize>, Arc<factor::Symbolic>)>,
+    /// faer's symbolic LU of the full pattern (the same every iteration: every element
+    /// coupling is assembled, zero or not), made at the first LU of the fixities.
+    lu_sym: Option<faer::sparse::linalg::solvers::SymbolicLu<usize>>,
+    /// Relative residual of convergence ([`TOL`]), Newton iterations per increment
+    /// ([`MAX_ITER`]) and tries per nominal increment ([`MAX_TRIES`]).
     pub tol: f64,
+    pub max_iter: usize,
+    pub max_tries: usize,
     counts: (usize, usize),
 }
 
@@ -75,7 +87,7 @@ fn elem_eq(conn: &[u32], eq: &[usize], out: &mut [usize; 8]) -> usize {
 
 impl NewtonCheck {
     pub fn new() -> Self {
-        NewtonCheck { tol: TOL, ..Default::default() }
+        NewtonCheck { tol: TOL, max_iter: MAX_ITER, max_tries: MAX_TRIES, ..Default::default() }
     }
 
     fn init(&mut self, model: &Model) -> Result<(), FlemError> {
@@ -88,7 +100,16 @@ impl NewtonCheck {
             });
         }
         let nc = model.topo.n_clusters();
-        *self = NewtonCheck { blocks, u: vec![[0.0; 2]; nc], f_ext: vec![[0.0; 2]; nc], f_int: vec![[0.0; 2]; nc], tol: self.tol, ..Default::default() };
+        *self = NewtonCheck {
+            blocks,
+            u: vec![[0.0; 2]; nc],
+            f_ext: vec![[0.0; 2]; nc],
+            f_int: vec![[0.0; 2]; nc],
+            tol: self.tol,
+            max_iter: self.max_iter,
+            max_tries: self.max_tries,
+            ..Default::default()
+        };
         Ok(())
     }
 
@@ -153,7 +174,11 @@ impl NewtonCheck {
             }
         }
         let full = if symmetric { full_from_lower(k)? } else { k.clone() };
-        let lu = full.sp_lu().ok()?;
+        if self.lu_sym.is_none() {
+            self.lu_sym = Some(faer::sparse::linalg::solvers::SymbolicLu::try_new(full.symbolic()).ok()?);
+        }
+        let sym = self.lu_sym.clone().expect("set above");
+        let lu = faer::sparse::linalg::solvers::Lu::try_new_with_symbolic(sym, full.as_ref()).ok()?;
         let mut x = r.to_vec();
         lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut x, r.len(), 1));
         self.counts.1 += 1;
@@ -174,7 +199,7 @@ impl NewtonCheck {
             }
         }
         let mut res = Vec::new();
-        for _ in 0..=MAX_ITER {
+        for _ in 0..=self.max_iter {
             let (fi, k) = self.assemble(model, &u, eq, n, symmetric);
             let k = k.map_err(|e| e.to_string())?;
             let (mut r, mut rn, mut fnorm) = (vec![0.0; n], 0.0, 0.0);
@@ -198,7 +223,7 @@ impl NewtonCheck {
             if rel <= self.tol {
                 return Ok((u, fi, res));
             }
-            if res.len() > MAX_ITER {
+            if res.len() > self.max_iter {
                 break;
             }
             let du = self.solve(&k, &r, symmetric).ok_or("the tangent system could not be solved")?;
@@ -211,7 +236,7 @@ impl NewtonCheck {
                 }
             }
         }
-        Err(format!("no convergence in {MAX_ITER} iterations (relative residual {:.2e})", res.last().copied().unwrap_or(f64::NAN)))
+        Err(format!("no convergence in {} iterations (relative residual {:.2e})", self.max_iter, res.last().copied().unwrap_or(f64::NAN)))
     }
 }
 
@@ -248,13 +273,19 @@ impl PlasticCheck for NewtonCheck {
             let order = factor::nested_dissection(pat.as_ref(), &dof_coords(model, &eq, n));
             let sym = factor::symbolic(pat.as_ref(), &order).map_err(|e| FlemError::Solve(format!("{PREFIX}: symbolic factorisation failed: {e}")))?;
             self.sym = Some((pat, sym));
+            self.lu_sym = None;
         }
         self.counts = (0, 0);
         let (u0, f0) = (self.u.clone(), self.f_ext.clone());
         let at = |lam: f64, a: &[[f64; 2]], b: &[[f64; 2]]| -> Vec<[f64; 2]> { a.iter().zip(b).map(|(x, y)| [x[0] + lam * (y[0] - x[0]), x[1] + lam * (y[1] - x[1])]).collect() };
         let mut st = PlasticStage::default();
-        let (mut lam, mut dl, mut halvings) = (0.0f64, 1.0 / increments.max(1) as f64, 0usize);
+        let nominal = 1.0 / increments.max(1) as f64;
+        let (mut lam, mut dl, mut halvings, mut tries) = (0.0f64, nominal, 0usize, 0usize);
         while lam < 1.0 - 1e-12 {
+            tries += 1;
+            if tries > self.max_tries * increments.max(1) {
+                return Err(FlemError::Solve(format!("{PREFIX}: {} load increments tried and the stage's path is at {lam:.6} only (the body is near its limit load)", tries - 1)));
+            }
             let target = if lam + dl > 1.0 - 1e-12 { 1.0 } else { lam + dl };
             let (f, up) = (at(target, &f0, f_ext), at(target, &u0, u_p));
             match self.increment(model, &eq, n, &f, &up, symmetric) {
@@ -267,6 +298,9 @@ impl PlasticCheck for NewtonCheck {
                     st.iterations += res.len() - 1;
                     st.table.extend(res.iter().enumerate().map(|(i, &r)| NewtonRow { increment: st.increments, level: target, iteration: i, residual: r }));
                     lam = target;
+                    // Back towards the nominal increment after a halving.
+                    dl = (2.0 * dl).min(nominal);
+                    halvings = 0;
                 }
                 Err(why) => {
                     if halvings >= MAX_BISECT {
