@@ -314,7 +314,10 @@ impl PlasticCheck for NewtonCheck {
         }
         let elastic: Vec<String> = model.blocks.iter().zip(&self.blocks).filter(|(_, ib)| ib.tangent() == TangentKind::Elastic).map(|(b, _)| format!("region \"{}\"", b.region())).collect();
         st.tangent = if elastic.is_empty() { "consistent".into() } else { format!("elastic (the law has no consistent tangent) in {}; consistent elsewhere", elastic.join(", ")) };
-        st.factorisation = format!("{} Cholesky (factor.rs), {} LU (faer; {})", self.counts.0, self.counts.1, if symmetric { "Cholesky failed" } else { "non-symmetric tangent" });
+        st.factorisation = match self.counts {
+            (c, 0) => format!("{c} Cholesky (factor.rs)"),
+            (c, l) => format!("{c} Cholesky (factor.rs), {l} LU (faer; {})", if symmetric { "a non-positive pivot in Cholesky" } else { "non-symmetric tangent" }),
+        };
         Ok(st)
     }
     fn displacement(&self) -> &[[f64; 2]] {
