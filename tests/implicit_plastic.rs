@@ -230,3 +230,36 @@ fn compare_plastic_stages_through_check() {
     let (du, ds, pz) = (rest.rel_l2_displacement.unwrap(), rest.rel_l2_point_stress.unwrap(), rest.plastic_zone_difference.unwrap());
     assert!(du < 0.02 && ds < 0.02 && pz < 0.1, "at rest: displacement {du}, stress {ds}, plastic zone {pz}");
 }
+
+/// A law without a consistent tangent (the strain-softening law, here with constant tables:
+/// the same strength as the perfectly plastic law) falls back to the elastic moduli, named in
+/// the report, and Newton still converges (linearly) to the same equilibrium as with the
+/// consistent tangent of the plain law. Reference: the plain law's Newton solution; tolerance
+/// 1e-6 relative on the footing's reaction, on the coarse footing (16 x 12 Q4) pushed by 0.006.
+#[test]
+fn law_without_tangent_falls_back_to_elastic_and_says_so() {
+    let base = config("strip_footing.toml").replace("nx = 64", "nx = 16").replace("ny = 48", "ny = 12").replace("max_steps = 9000", "max_steps = 10");
+    let soft = base.replace("dilation_angle_deg = 0.0 }", "dilation_angle_deg = 0.0, softening = { eps_ps = [0.0, 1.0], cohesion = [1.0, 1.0] } }");
+    let solve = |text: &str| {
+        let mut s = sim(text);
+        s.run(&mut flem_core::solver::NoOutput).unwrap();
+        let pts = s.model.node_set("footing", "test", "test").unwrap();
+        let foot: Vec<usize> = pts.iter().map(|p| s.model.topo.point_clusters[p.idx()][0].idx()).collect();
+        let nc = s.model.topo.n_clusters();
+        let mut up = vec![[0.0; 2]; nc];
+        for &c in &foot {
+            up[c][1] = -0.006;
+        }
+        let mut newton = NewtonCheck::new();
+        newton.max_iter = 400;
+        let st = newton.advance(&s.model, &s.state.fix.clone(), &vec![[0.0; 2]; nc], &up, 4).unwrap_or_else(|e| panic!("{e}"));
+        (foot.iter().map(|&c| newton.internal_force()[c][1]).sum::<f64>(), st)
+    };
+    let (q, st) = solve(&base);
+    let (q_soft, st_soft) = solve(&soft);
+    eprintln!("consistent: {q:.6} ({} iterations); elastic fallback: {q_soft:.6} ({} iterations): {}", st.iterations, st_soft.iterations, st_soft.tangent);
+    assert_eq!(st.tangent, "consistent");
+    assert!(st_soft.tangent.starts_with("elastic") && st_soft.tangent.contains("region"), "{}", st_soft.tangent);
+    assert!(st_soft.iterations > 2 * st.iterations, "the elastic tangent converges more slowly");
+    assert!(rel(q_soft, q) < 1e-6, "{q_soft} vs {q}");
+}

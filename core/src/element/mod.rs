@@ -13,6 +13,7 @@
 pub mod block;
 pub mod corot;
 pub mod implicit;
+pub mod implicit_law;
 pub mod kernel;
 pub mod law;
 pub mod model;

@@ -1289,7 +1289,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         };
         Some(match why {
             Some(w) => Err(format!("region \"{}\": the implicit plastic check is small strain on isoparametric elements; this block has {w}", self.region)),
-            None => Ok(Box::new(crate::element::implicit::LawImplicit::<L, N>::new::<S>(self.law.clone(), &self.x, self.opts.bbar, self.mat.thickness))),
+            None => Ok(Box::new(crate::element::implicit_law::LawImplicit::<L, N>::new::<S>(self.law.clone(), &self.x, self.opts.bbar, self.mat.thickness))),
         })
     }
 }

@@ -94,7 +94,14 @@ impl NewtonCheck {
         let mut blocks: Vec<Box<dyn ImplicitBlock>> = Vec::with_capacity(model.blocks.len());
         for b in &model.blocks {
             blocks.push(match b.implicit() {
-                None => Box::new(Linear::new(b.as_ref())),
+                None => {
+                    let n2 = 2 * b.nodes_per_elem();
+                    let mut k = vec![0.0; b.len() * n2 * n2];
+                    for i in 0..b.len() {
+                        b.stiffness(i, &mut k[i * n2 * n2..(i + 1) * n2 * n2]);
+                    }
+                    Box::new(Linear::new(b.nodes_per_elem(), k))
+                }
                 Some(Ok(ib)) => ib,
                 Some(Err(why)) => return Err(FlemError::Solve(format!("{PREFIX} cannot follow {why}"))),
             });
@@ -123,7 +130,7 @@ impl NewtonCheck {
             let (cp, ri) = (pat.col_ptr(), pat.row_idx());
             let mut vals = vec![0.0; ri.len()];
             for (ib, blk) in self.blocks.iter_mut().zip(&model.blocks) {
-                ib.evaluate(blk.as_ref(), u, &mut fi, &mut |conn, ke| {
+                ib.evaluate(&conn_of(blk.as_ref()), u, &mut fi, &mut |conn, ke| {
                     let n2 = elem_eq(conn, eq, &mut e);
                     for s in 0..n2 {
                         let col = e[s];
@@ -145,7 +152,7 @@ impl NewtonCheck {
         } else {
             let mut trip = Vec::new();
             for (ib, blk) in self.blocks.iter_mut().zip(&model.blocks) {
-                ib.evaluate(blk.as_ref(), u, &mut fi, &mut |conn, ke| {
+                ib.evaluate(&conn_of(blk.as_ref()), u, &mut fi, &mut |conn, ke| {
                     let n2 = elem_eq(conn, eq, &mut e);
                     for r in 0..n2 {
                         for s in 0..n2 {
@@ -238,6 +245,11 @@ impl NewtonCheck {
         }
         Err(format!("no convergence in {} iterations (relative residual {:.2e})", self.max_iter, res.last().copied().unwrap_or(f64::NAN)))
     }
+}
+
+/// The current connectivity of a block, element after element.
+fn conn_of(b: &dyn flem_core::element::block::Block) -> Vec<u32> {
+    (0..b.len()).flat_map(|i| b.conn(i).iter().copied()).collect()
 }
 
 /// Both triangles of a matrix stored as its lower triangle.
