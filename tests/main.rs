@@ -13,6 +13,7 @@ mod dynplug;
 mod elements;
 mod events;
 mod fuzz;
+mod implicit_plastic;
 mod interop;
 mod layout;
 mod nonlocal;

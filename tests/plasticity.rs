@@ -6,44 +6,12 @@ use flem_core::solver::{Observer, Simulation};
 
 use crate::common::{rel, root, scene, sim};
 
-/// Records the largest |reaction_y| of a node set at every history row.
-struct PeakReaction {
-    pts: Vec<PointId>,
-    peak: f64,
-    rows: usize,
-}
-impl Observer for PeakReaction {
-    fn history(&mut self, s: &Simulation, _stage: usize) -> flem_core::Result<()> {
-        self.peak = self.peak.max(s.reaction(&self.pts)[1].abs());
-        self.rows += 1;
-        Ok(())
-    }
-}
-
-fn footing_peak(text: &str) -> f64 {
-    let mut s = sim(text);
-    let pts = s.model.node_set("footing", "test", "test").unwrap();
-    let mut obs = PeakReaction { pts, peak: 0.0, rows: 0 };
-    s.run(&mut obs).unwrap_or_else(|e| panic!("{e}"));
-    assert!(obs.rows > 10);
-    obs.peak
-}
-
 fn config(name: &str) -> String {
     std::fs::read_to_string(root().join("configs/verification").join(name)).unwrap()
 }
 
-/// configs/verification/strip_footing.toml: smooth rigid strip footing on weightless Tresca
-/// soil (c = 1), half model, half-width b = 1, constant velocity. Reference: Prandtl's limit
-/// pressure (2 + pi) c = 5.1416 (Prandtl 1920; e.g. Chen 1975, Limit Analysis and Soil
-/// Plasticity). Tolerance 3 % on the peak of |reaction_footing_y| / b (measured: 5.247, +2.0 %
-/// with B-bar; without B-bar the same mesh gives 5.55 at the end and still rising).
-#[test]
-fn strip_footing_tresca_prandtl() {
-    let q = footing_peak(&config("strip_footing.toml"));
-    let prandtl = 2.0 + std::f64::consts::PI;
-    assert!(rel(q, prandtl) < 0.03, "footing pressure {q} vs Prandtl {prandtl}");
-}
+// configs/verification/strip_footing.toml against Prandtl: tests/implicit_plastic.rs
+// (`footing_newton_beside_flem_and_prandtl`, FLEM's run and Newton's on the same mesh).
 
 /// The stateful elastic block (linear_elastic law through `large_strain = false` but a law
 /// given, B-bar off) gives the forces of the stateless kernel: a random displacement applied

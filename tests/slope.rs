@@ -79,7 +79,7 @@ fn bishop(xc: f64, yc: f64, r: f64, c: f64, tan_phi: f64, gamma: f64, n: usize) 
 
 /// The smallest Bishop factor over circles: a grid of centres and radii, then two local
 /// refinements around the best. Returns (F, xc, yc, r).
-fn bishop_search(c: f64, tan_phi: f64, gamma: f64) -> (f64, f64, f64, f64) {
+pub(crate) fn bishop_search(c: f64, tan_phi: f64, gamma: f64) -> (f64, f64, f64, f64) {
     let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
     // Radii from the circle tangent to the base (r = yc) down to a 10 m shallower one, or
     // within `dr_span` of the best so far.

@@ -135,6 +135,13 @@ pub trait Block: Send + Sync {
     fn point_stress(&self, _u: &[[f64; 2]]) -> Option<Vec<[f64; 4]>> {
         None
     }
+    /// The block as the implicit plastic check's Newton solver sees it
+    /// (`element::implicit`): `None` for a stateless block (its stiffness is the whole story:
+    /// [`crate::element::implicit::Linear`]), `Some(Err(why))` for a block the check cannot
+    /// follow (large strain, incompatible modes).
+    fn implicit(&self) -> Option<Result<Box<dyn crate::element::implicit::ImplicitBlock>, String>> {
+        None
+    }
     /// An error of the block's material law (a dynamic law that failed or returned a
     /// non-finite stress; issue 25): the solver reports it instead of a bare divergence.
     fn fault(&self) -> Option<String> {

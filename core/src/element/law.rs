@@ -81,6 +81,22 @@ pub trait MaterialLaw: Clone + Send + Sync + 'static {
         *s = [[0.0; LANES]; 4];
         [false; LANES]
     }
+    /// The consistent (algorithmic) tangent of [`Self::update`]: `out[i][j]` = the derivative
+    /// of component `i` of the stress that `update(stress, deps, state)` gives with respect to
+    /// `deps[j]` (the same component orders), at the given start of the update, which the
+    /// call does not change. For a return map this is the tangent of the discrete map (de Souza
+    /// Neto, Peric & Owen 2008, section 4.3.4), not the continuum elasto-plastic one: Newton
+    /// iterations on it converge quadratically (the implicit plastic check,
+    /// `flem-plugins/src/check/newton.rs`). `false` (the default): the law has none, and a
+    /// caller falls back to the elastic moduli, saying so.
+    fn tangent(&self, _stress: &[f64; 4], _deps: [f64; 4], _state: &[f64], _out: &mut [[f64; 4]; 4]) -> bool {
+        false
+    }
+    /// True when [`Self::tangent`] is symmetric for every argument (associated flow): a
+    /// caller may then factorise by Cholesky. Default false.
+    fn tangent_symmetric(&self) -> bool {
+        false
+    }
     /// What the output shows of a point's history: `(plastic shear strain, plastic state)`,
     /// the state 0 never plastic, 1 plastic in the last update, 2 plastic in the past only.
     fn output(&self, _state: &[f64]) -> (f64, u8) {
@@ -120,6 +136,20 @@ impl MaterialLaw for LinearElastic {
         if self.plane == Plane::Strain {
             s[3] += self.lambda * (de[0] + de[1]) + (self.lambda + 2.0 * self.g) * de[3];
         }
+    }
+    /// The moduli themselves (the law is linear), as `update` applies them: the in-plane
+    /// stress does not see `dezz`; the out-of-plane row of plane strain, zero in plane stress.
+    fn tangent(&self, _stress: &[f64; 4], _deps: [f64; 4], _state: &[f64], out: &mut [[f64; 4]; 4]) -> bool {
+        let d = &self.d;
+        *out = [[d.d11, d.d12, 0.0, 0.0], [d.d12, d.d11, 0.0, 0.0], [0.0, 0.0, d.d33, 0.0], [0.0; 4]];
+        if self.plane == Plane::Strain {
+            let (l, l2g) = (self.lambda, self.lambda + 2.0 * self.g);
+            out[3] = [l, l, 0.0, l2g];
+        }
+        true
+    }
+    fn tangent_symmetric(&self) -> bool {
+        true
     }
     /// `update` on every lane at once (no history, no branch per lane).
     #[inline(always)]

@@ -1279,4 +1279,17 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
     fn fault(&self) -> Option<String> {
         self.law.fault().map(|f| format!("region \"{}\": {f}", self.region))
     }
+    fn implicit(&self) -> Option<Result<Box<dyn crate::element::implicit::ImplicitBlock>, String>> {
+        let why = if self.opts.large_strain {
+            Some("large strain ([solver] large_strain = true)")
+        } else if self.enh_fn.is_some() {
+            Some("an element kind with incompatible modes")
+        } else {
+            None
+        };
+        Some(match why {
+            Some(w) => Err(format!("region \"{}\": the implicit plastic check is small strain on isoparametric elements; this block has {w}", self.region)),
+            None => Ok(Box::new(crate::element::implicit_law::LawImplicit::<L, N>::new::<S>(self.law.clone(), &self.x, self.opts.bbar, self.mat.thickness))),
+        })
+    }
 }

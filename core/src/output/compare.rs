@@ -24,7 +24,7 @@
 //! rest at its end (the stage reached its tolerance; not a dynamic stage), every fragment held
 //! (`plugin::support::plan`: enough prescribed dofs, or none and self-equilibrated loads, which
 //! get a statically determinate support), no contact force acting, and the stage not marked
-//! `check = false` (a scene with a nonlinear material is refused as a whole, `Simulation::new`). Otherwise the row says
+//! `check = false` (a plastic stage goes to the implicit plastic check, `compare_plastic_stage`, with the same reasons; large strain is refused as a whole, `Simulation::new`). Otherwise the row says
 //! `comparable: false` with every `reason` (figures still given when the solve succeeded). On a
 //! fragment given a statically determinate support the implicit displacement is shifted by the
 //! rigid motion that fits FLEM's best (`plugin::support::align_rigid`) before the figures.
@@ -88,6 +88,16 @@ pub struct StageComparison {
     /// fragment is shifted by the rigid motion that fits FLEM's best before the comparison.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub added_supports: Vec<AddedSupport>,
+    /// A plastic stage (a block with a plastic law; `compare_plastic_stage`): the
+    /// Gauss-point stress difference `|s_flem - s_imp|_2 / |s_imp|_2` (in place of the nodal
+    /// one), the plastic-zone difference (elements yielded in one solution and not in the
+    /// other, over those yielded in either) and what Newton did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rel_l2_point_stress: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plastic_zone_difference: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub newton: Option<crate::plugin::check::PlasticStage>,
 }
 
 fn finite(v: f64) -> Option<f64> {
@@ -107,6 +117,37 @@ pub fn rel_l2<const N: usize>(a: &[[f64; N]], b: &[[f64; N]]) -> Option<f64> {
         return if d == 0.0 { Some(0.0) } else { None };
     }
     finite((d / n).sqrt())
+}
+
+/// Why the stage just ended has no equilibrium to compare (empty: it has one), besides what
+/// the implicit solve itself finds; `Err` holds the one reason that skips the solve (the scene
+/// marks the stage `check = false`). Shared by elastic and plastic stages.
+fn stage_reasons(sim: &Simulation, stage: usize, st: &crate::solver::StageResult) -> std::result::Result<Vec<String>, String> {
+    let cfg = sim.scene.file.stages.get(stage);
+    if cfg.is_some_and(|s| !s.check) {
+        return Err(format!("the scene marks this stage as not checked (stage[{stage}].check = false)"));
+    }
+    let mut reasons = Vec::new();
+    if cfg.is_some_and(|s| s.dynamic) {
+        reasons.push("FLEM is not at rest: a dynamic stage (stage.dynamic = true) runs a fixed number of steps, not to equilibrium".to_string());
+    } else if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
+        // The events solver (ours): its state is a linear solve at the stage's levels only when
+        // the stage ran to its end.
+        let max = sim.scene.file.solver.max_events;
+        if !st.converged {
+            reasons
+                .push(format!("the events solver stopped after {} events, before the end of the stage (the run's warning says why): its state is not an equilibrium at the stage's levels", st.steps));
+        } else if st.steps >= max {
+            reasons.push(format!("the events solver stopped at solver.max_events = {max}, before the end of the stage: its state is that of its last event, not an equilibrium at the stage's levels"));
+        }
+    } else if !st.converged {
+        let tol = cfg.and_then(|s| s.tolerance).unwrap_or(sim.scene.file.solver.tolerance);
+        reasons.push(format!(
+            "FLEM is not at rest: the stage stopped after {} steps with the unbalanced-force ratio {:.3e}, above its tolerance {tol:.0e} (no equilibrium reached)",
+            st.steps, st.final_ratio
+        ));
+    }
+    Ok(reasons)
 }
 
 /// Runs the implicit solve on the simulation's current state and compares. Returns the entry
@@ -129,31 +170,13 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
         wall_seconds_flem: st.wall_seconds,
         ..Default::default()
     };
-    let cfg = sim.scene.file.stages.get(stage);
-    if cfg.is_some_and(|s| !s.check) {
-        c.reason = Some(format!("the scene marks this stage as not checked (stage[{stage}].check = false)"));
-        return (c, None);
-    }
-    let mut reasons = Vec::new();
-    if cfg.is_some_and(|s| s.dynamic) {
-        reasons.push("FLEM is not at rest: a dynamic stage (stage.dynamic = true) runs a fixed number of steps, not to equilibrium".to_string());
-    } else if sim.scene.file.solver.kind == crate::scene::SolverKind::Events {
-        // The events solver (ours): its state is a linear solve at the stage's levels only when
-        // the stage ran to its end.
-        let max = sim.scene.file.solver.max_events;
-        if !st.converged {
-            reasons
-                .push(format!("the events solver stopped after {} events, before the end of the stage (the run's warning says why): its state is not an equilibrium at the stage's levels", st.steps));
-        } else if st.steps >= max {
-            reasons.push(format!("the events solver stopped at solver.max_events = {max}, before the end of the stage: its state is that of its last event, not an equilibrium at the stage's levels"));
+    let mut reasons = match stage_reasons(sim, stage, &st) {
+        Ok(r) => r,
+        Err(why) => {
+            c.reason = Some(why);
+            return (c, None);
         }
-    } else if !st.converged {
-        let tol = cfg.and_then(|s| s.tolerance).unwrap_or(sim.scene.file.solver.tolerance);
-        reasons.push(format!(
-            "FLEM is not at rest: the stage stopped after {} steps with the unbalanced-force ratio {:.3e}, above its tolerance {tol:.0e} (no equilibrium reached)",
-            st.steps, st.final_ratio
-        ));
-    }
+    };
     // What the implicit check (linear, small strain, no contact) does not model.
     if sim.state.f_con.iter().any(|f| f[0] != 0.0 || f[1] != 0.0) {
         reasons.push("contact forces act at the end of the stage, and the implicit check models no contact".to_string());
@@ -213,6 +236,79 @@ pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, t
     (c, Some((u_imp, s_imp)))
 }
 
+/// True when some block of the model has a plastic law (the linear check does not apply).
+pub fn is_plastic(sim: &Simulation) -> bool {
+    sim.model.blocks.iter().any(|b| !b.is_empty() && b.plastic(0).is_some())
+}
+
+/// The comparison of a plastic stage with the implicit plastic check (ours, issue 37): Newton
+/// advances its own solution, from its last converged state, to this stage's external force
+/// and prescribed displacements in `increments` load increments
+/// (`crate::plugin::check::PlasticCheck`), and the stage is compared as an elastic one is
+/// (displacements), with the Gauss-point stress in place of the nodal stress (a stateful
+/// block's nodal stress is its stored points') and the plastic zone: the elements with a
+/// yielded point in FLEM (`Block::plastic`, state not 0) against those in the implicit
+/// solution, as the fraction `|A xor B| / |A or B|` (0 when neither yielded). No VTU.
+pub fn compare_plastic_stage(sim: &Simulation, check: &mut dyn crate::plugin::check::PlasticCheck, stage: usize, tolerance: f64, increments: usize) -> StageComparison {
+    let st = sim.stages_done.last().cloned().unwrap_or_default();
+    let mut c = StageComparison {
+        stage,
+        name: st.name.clone(),
+        clusters: sim.model.topo.n_clusters(),
+        dofs: sim.state.fix.iter().map(|&b| 2 - (b & 1) as usize - ((b >> 1) & 1) as usize).sum(),
+        flem_steps: st.steps,
+        flem_converged: st.converged,
+        unbalanced_ratio: finite(st.final_ratio),
+        splits: st.splits,
+        wall_seconds_flem: st.wall_seconds,
+        ..Default::default()
+    };
+    let reasons = match stage_reasons(sim, stage, &st) {
+        Ok(r) => r,
+        Err(why) => {
+            c.reason = Some(why);
+            return c;
+        }
+    };
+    c.comparable = reasons.is_empty();
+    c.reason = (!reasons.is_empty()).then(|| reasons.join("; "));
+    let t0 = Instant::now();
+    let r = sim.external_force().and_then(|f| check.advance(&sim.model, &sim.state.fix, &f, &sim.state.u, increments));
+    c.wall_seconds_implicit = t0.elapsed().as_secs_f64();
+    match r {
+        Ok(st) => c.newton = Some(st),
+        Err(e) => {
+            c.implicit_error = Some(e.to_string());
+            return c;
+        }
+    }
+    let u_imp = check.displacement();
+    c.rel_l2_displacement = rel_l2(&sim.state.u, u_imp);
+    c.max_abs_displacement_error = finite(sim.state.u.iter().zip(u_imp).flat_map(|(a, b)| [(a[0] - b[0]).abs(), (a[1] - b[1]).abs()]).fold(0.0, f64::max));
+    c.max_abs_displacement = finite(u_imp.iter().flat_map(|v| [v[0].abs(), v[1].abs()]).fold(0.0, f64::max));
+    let (mut sf, mut si) = (Vec::new(), Vec::new());
+    for (b, s_imp) in sim.model.blocks.iter().zip(check.point_stress()) {
+        if let Some(s) = b.point_stress(&sim.state.u) {
+            if s.len() == s_imp.len() {
+                sf.extend(s);
+                si.extend(s_imp);
+            }
+        }
+    }
+    c.rel_l2_point_stress = rel_l2(&sf, &si);
+    let (mut either, mut differ) = (0usize, 0usize);
+    for (b, y_imp) in sim.model.blocks.iter().zip(check.yielded()) {
+        for (i, yi) in y_imp.into_iter().enumerate() {
+            let yf = b.plastic(i).is_some_and(|(_, f)| f != 0);
+            either += (yf || yi) as usize;
+            differ += (yf != yi) as usize;
+        }
+    }
+    c.plastic_zone_difference = Some(if either == 0 { 0.0 } else { differ as f64 / either as f64 });
+    c.within_tolerance = matches!((c.rel_l2_displacement, c.rel_l2_point_stress), (Some(a), Some(b)) if a <= tolerance && b <= tolerance);
+    c
+}
+
 /// The snapshot VTU of `sim` with the implicit fields and the differences added.
 pub fn comparison_vtu(sim: &Simulation, u_imp: &[[f64; 2]], s_imp: &[[f64; 3]], compress: bool) -> Result<Vec<u8>> {
     let mut vtk = snapshot_vtk(sim);
@@ -260,6 +356,19 @@ pub fn table(rows: &[StageComparison]) -> String {
                 "NO"
             }
         );
+        if let Some(n) = &r.newton {
+            let _ = writeln!(
+                s,
+                "    plastic: rel_l2_point_stress {}, plastic-zone difference {}; Newton: {} increments, {} iterations, {} halvings, tangent {}, {}",
+                f(r.rel_l2_point_stress),
+                f(r.plastic_zone_difference),
+                n.increments,
+                n.iterations,
+                n.bisections,
+                n.tangent,
+                n.factorisation
+            );
+        }
         for a in &r.added_supports {
             let _ = writeln!(s, "    support added: {}", a.note());
         }
@@ -288,13 +397,16 @@ pub struct Comparer<'a> {
     pub rows: Vec<StageComparison>,
     /// Called with each new row (the CLI prints it).
     pub on_row: Option<Box<dyn FnMut(&StageComparison) + 'a>>,
+    /// The implicit plastic check of a plastic model, kept from stage to stage (its own
+    /// history); made at the first plastic stage from the check solver.
+    plastic: Option<Box<dyn crate::plugin::check::PlasticCheck>>,
 }
 
 impl<'a> Comparer<'a> {
     /// `dir` is created if needed (an unwritable folder fails here, before any step).
     pub fn new(inner: &'a mut dyn Observer, dir: &Path) -> Result<Self> {
         prepare_dir(dir)?;
-        Ok(Comparer { inner, dir: dir.to_path_buf(), rows: Vec::new(), on_row: None })
+        Ok(Comparer { inner, dir: dir.to_path_buf(), rows: Vec::new(), on_row: None, plastic: None })
     }
 
     fn write_json(&self, sim: &Simulation) -> Result<()> {
@@ -336,6 +448,27 @@ impl Observer for Comparer<'_> {
         self.inner.stage_end(sim, stage)?;
         let file = sim.scene.path.display().to_string();
         let cfg = sim.scene.file.check.as_ref().ok_or_else(|| FlemError::config(&file, "check", "is missing: the comparison needs a [check] section"))?;
+        if is_plastic(sim) {
+            if self.plastic.is_none() {
+                self.plastic = cfg.solver().plastic();
+            }
+            let mut row = match self.plastic.as_mut() {
+                Some(p) => compare_plastic_stage(sim, p.as_mut(), stage, cfg.tolerance, cfg.increments),
+                None => {
+                    let (mut row, _) = compare_stage(sim, cfg.solver(), stage, cfg.tolerance);
+                    row.implicit_error =
+                        Some("a plastic stage: this check solver has no implicit plastic check (CheckSolver::plastic), and its linear solve is no equilibrium of the plastic model".into());
+                    row.within_tolerance = false;
+                    row
+                }
+            };
+            row.vtu = None;
+            if let Some(f) = self.on_row.as_mut() {
+                f(&row);
+            }
+            self.rows.push(row);
+            return self.write_json(sim);
+        }
         let (mut row, fields) = compare_stage(sim, cfg.solver(), stage, cfg.tolerance);
         if let (Some((u, s)), true) = (fields, cfg.vtu) {
             let name = format!("compare_{stage:04}_{}.vtu", sanitize(&row.name));

@@ -8,6 +8,7 @@
 //! solver = { type = "faer_cholesky" }    # the check solver plugin (default)
 //! tolerance = 1e-6                       # bound on both relative L2 differences
 //! vtu = true                             # write compare_NNNN_<stage>.vtu per stage
+//! increments = 20                        # load increments per plastic stage (ours)
 //! ```
 //!
 //! The trait (typetag): `solve(&self, model, fix, f_ext, u_p)`; reusable data lives behind
@@ -43,6 +44,58 @@ pub trait CheckSolver: Debug + Send + Sync {
     fn events_factor(&self, _refactor_every: usize) -> Option<Box<dyn EventsFactor>> {
         None
     }
+    /// The implicit plastic check (Newton with the laws' consistent tangents; the built-in:
+    /// `flem-plugins/src/check/newton.rs`), one per run, kept from stage to stage. `None`
+    /// (the default): the solver has none, and the comparison of a plastic stage says so.
+    fn plastic(&self) -> Option<Box<dyn PlasticCheck>> {
+        None
+    }
+}
+
+/// One Newton iteration of the implicit plastic check: the residual norm, relative to the
+/// external force (reactions included), after `iteration` corrections of load increment
+/// `increment` (ending at the fraction `level` of the stage's load path).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct NewtonRow {
+    pub increment: usize,
+    pub level: f64,
+    pub iteration: usize,
+    pub residual: f64,
+}
+
+/// What the implicit plastic check did in a stage.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct PlasticStage {
+    /// Accepted load increments and Newton iterations over all of them.
+    pub increments: usize,
+    pub iterations: usize,
+    /// Bisections of an increment that did not converge.
+    pub bisections: usize,
+    /// "consistent", or the laws that fell back to the elastic tangent, named.
+    pub tangent: String,
+    /// How the tangent systems were solved (our Cholesky, faer's LU for a non-symmetric
+    /// tangent or one that was not positive definite), with counts.
+    pub factorisation: String,
+    pub table: Vec<NewtonRow>,
+}
+
+/// The implicit plastic check of a run: its own Gauss-point stress and history, advanced
+/// stage by stage from its last converged state (never from the explicit run's).
+pub trait PlasticCheck: Send {
+    /// Advances the solution from its last converged state to the external force `f_ext`
+    /// and the prescribed displacements `u_prescribed` (on the dofs flagged in `fix`) along
+    /// the straight load path between them, in `increments` equal load increments (halved on
+    /// a Newton iteration that does not converge).
+    fn advance(&mut self, model: &Model, fix: &[u8], f_ext: &[[f64; 2]], u_prescribed: &[[f64; 2]], increments: usize) -> Result<PlasticStage>;
+    /// Converged displacement of every cluster.
+    fn displacement(&self) -> &[[f64; 2]];
+    /// Converged internal force of every cluster (at a prescribed dof: the reaction).
+    fn internal_force(&self) -> &[[f64; 2]];
+    /// Converged stress of every Gauss point `[sxx, syy, sxy, szz]`, block by block (empty for
+    /// a block without a law), as `Block::point_stress` orders them.
+    fn point_stress(&self) -> Vec<Vec<[f64; 4]>>;
+    /// Per block, per element: some point has yielded so far.
+    fn yielded(&self) -> Vec<Vec<bool>>;
 }
 
 /// The linear algebra of the events solver (`solver::events`): solves the current model for
@@ -85,6 +138,14 @@ pub struct CheckCfg {
     /// Write one comparison VTU per stage.
     #[serde(default = "yes")]
     pub vtu: bool,
+    /// Load increments per stage of the implicit plastic check (ours; halved where Newton
+    /// does not converge). Only read when the model has a plastic law.
+    #[serde(default = "default_increments")]
+    pub increments: usize,
+}
+
+pub(crate) fn default_increments() -> usize {
+    20
 }
 
 pub(crate) fn default_tol() -> f64 {
@@ -98,7 +159,7 @@ impl CheckCfg {
     /// `[check]` with every default (the check solver named "faer_cholesky", which must be
     /// linked into the program: `flem-plugins`).
     pub fn with_defaults(file: &str) -> Result<CheckCfg> {
-        let mut c = CheckCfg { solver: None, tolerance: default_tol(), vtu: true };
+        let mut c = CheckCfg { solver: None, tolerance: default_tol(), vtu: true, increments: default_increments() };
         c.fill_default(file)?;
         Ok(c)
     }
@@ -117,6 +178,9 @@ impl CheckCfg {
     /// Validates the keys (errors name `check.<key>`).
     pub fn validate(&self, file: &str) -> Result<()> {
         ParamError::range("check.tolerance", self.tolerance, 0.0, false, 1.0, false).map_err(|e| FlemError::config(file, e.key, e.msg))?;
+        if self.increments == 0 || self.increments > 100_000 {
+            return Err(FlemError::config(file, "check.increments", format!("= {} is incorrect; it must be in [1, 100000]", self.increments)));
+        }
         if let Some(s) = &self.solver {
             s.validate().map_err(|e| FlemError::config(file, format!("check.solver.{}", e.key), e.msg))?;
         }

@@ -618,13 +618,14 @@ impl Simulation {
                 ));
             }
         }
-        // The implicit check solves a linear elastic small-strain body: it has nothing to say
-        // about a law with history or large strain.
-        if scene.file.check.is_some() && model.stateful {
+        // The implicit checks are small strain: the linear solve for elastic stages, Newton
+        // with the laws' tangents for plastic ones (`output::compare`, issue 37). Large strain
+        // has none.
+        if scene.file.check.is_some() && scene.file.solver.large_strain {
             return Err(FlemError::config(
                 &file,
                 "check",
-                "compares with a linear elastic small-strain solve; it cannot check a material law other than linear_elastic or [solver] large_strain = true: remove [check]",
+                "compares with a small-strain implicit solve (linear, or Newton for plastic laws); it cannot check [solver] large_strain = true: remove [check]",
             ));
         }
         // `[output] reactions` name node sets: refused here, so that `flem check` sees it.

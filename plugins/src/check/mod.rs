@@ -71,6 +71,7 @@ mod assemble;
 pub mod bench;
 pub mod factor;
 pub mod kept;
+pub mod newton;
 pub mod sif;
 pub mod woodbury;
 
@@ -119,6 +120,11 @@ impl CheckSolver for ImplicitSolver {
     /// The events solver's kept factor with low-rank updates (`kept.rs`).
     fn events_factor(&self, refactor_every: usize) -> Option<Box<dyn flem_core::plugin::check::EventsFactor>> {
         Some(Box::new(kept::KeptFactor::new(refactor_every)))
+    }
+
+    /// The implicit plastic check: Newton with the consistent tangents (`newton.rs`).
+    fn plastic(&self) -> Option<Box<dyn flem_core::plugin::check::PlasticCheck>> {
+        Some(Box::new(newton::NewtonCheck::new()))
     }
 }
 

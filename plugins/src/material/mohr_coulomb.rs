@@ -58,6 +58,9 @@ use flem_core::element::kernel::LANES;
 use flem_core::element::law::{LawCfg, MaterialLaw, RegionElems, StatefulOpts};
 use flem_core::element::{Dmat, Material, Plane};
 
+#[path = "mohr_coulomb_tangent.rs"]
+mod tangent;
+
 #[path = "mohr_coulomb_softening.rs"]
 pub mod softening;
 pub use softening::{MohrCoulombSoftening, SofteningCfg};
@@ -96,6 +99,18 @@ struct Trial {
     pz: f64,
     /// True when the trial passes the quick test (the trial is the answer).
     inside: bool,
+}
+
+/// A return in principal stresses: the returned stresses, the plastic strain increment, its
+/// part on the shear planes, and the active planes `act[..size]` (`size = 0`: the round-off
+/// guard at the apex).
+#[derive(Clone, Copy, Debug)]
+struct Return {
+    out: [f64; 3],
+    dep: [f64; 3],
+    dep_shear: [f64; 3],
+    act: [usize; 3],
+    size: usize,
 }
 
 /// The law with its constants in the form the return uses.
@@ -217,6 +232,12 @@ impl MohrCoulomb {
     /// alone, as FLAC's does); the same arithmetic for the first two.
     #[inline(always)]
     pub fn return_parts(&self, s: [f64; 3]) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
+        self.return_active(s).map(|r| (r.out, r.dep, r.dep_shear))
+    }
+
+    /// [`Self::return_parts`] with the active set it found (the consistent tangent needs it).
+    #[inline(always)]
+    fn return_active(&self, s: [f64; 3]) -> Option<Return> {
         let tol = 1e-12 * (self.scale + s[0].abs().max(s[2].abs()));
         let viol = (0..6).filter(|&k| self.used & (1 << k) != 0).any(|k| self.f(k, &s) > tol);
         if !viol {
@@ -234,7 +255,7 @@ impl MohrCoulomb {
         let planes = &planes[..np];
         let check = 1e-9 * (self.scale + s[0].abs().max(s[2].abs()));
         // Active sets of 1, 2, 3 planes in a fixed order; the first consistent one is the return.
-        let mut best: Option<([f64; 3], [f64; 3], [f64; 3])> = None;
+        let mut best: Option<Return> = None;
         'size: for size in 1..=3usize {
             let mut idx = [0usize; 3];
             // Combinations of `size` planes in lexicographic order.
@@ -259,7 +280,7 @@ impl MohrCoulomb {
                             }
                         }
                         if planes.iter().all(|&k| self.f(k, &out) <= check) {
-                            best = Some((out, dep, dep_shear));
+                            best = Some(Return { out, dep, dep_shear, act, size });
                             break 'size;
                         }
                     }
@@ -284,7 +305,7 @@ impl MohrCoulomb {
         // Every admissible point is reached by some set; this guards round-off at the apex.
         Some(best.unwrap_or_else(|| {
             let p = if self.r[3].is_finite() { self.r[3] } else { (s[0] + s[1] + s[2]) / 3.0 };
-            ([p; 3], [0.0; 3], [0.0; 3])
+            Return { out: [p; 3], dep: [0.0; 3], dep_shear: [0.0; 3], act: [usize::MAX; 3], size: 0 }
         }))
     }
 
@@ -456,6 +477,15 @@ impl MaterialLaw for MohrCoulomb {
     }
     fn output(&self, state: &[f64]) -> (f64, u8) {
         (state[0], state[1] as u8)
+    }
+    /// The tangent of the return map (`mohr_coulomb_tangent.rs`); perfectly plastic, so the
+    /// history does not enter.
+    fn tangent(&self, st: &[f64; 4], de: [f64; 4], _state: &[f64], out: &mut [[f64; 4]; 4]) -> bool {
+        self.consistent_tangent(st, de, out);
+        true
+    }
+    fn tangent_symmetric(&self) -> bool {
+        self.associated()
     }
 }
 
