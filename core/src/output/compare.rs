@@ -272,6 +272,12 @@ pub fn compare_plastic_stage(sim: &Simulation, check: &mut dyn crate::plugin::ch
     };
     c.comparable = reasons.is_empty();
     c.reason = (!reasons.is_empty()).then(|| reasons.join("; "));
+    if !c.comparable {
+        // No equilibrium to compare: the Newton solve (a whole plastic solve, unlike the linear
+        // one an elastic stage still gets for its figures) is skipped; the next stage's advance
+        // starts from the last state it reached.
+        return c;
+    }
     let t0 = Instant::now();
     let r = sim.external_force().and_then(|f| check.advance(&sim.model, &sim.state.fix, &f, &sim.state.u, increments));
     c.wall_seconds_implicit = t0.elapsed().as_secs_f64();
