@@ -119,6 +119,24 @@ pub fn rel_l2<const N: usize>(a: &[[f64; N]], b: &[[f64; N]]) -> Option<f64> {
     finite((d / n).sqrt())
 }
 
+/// The stage just ended and its row with FLEM's side filled in (elastic and plastic stages).
+fn stage_row(sim: &Simulation, stage: usize) -> (crate::solver::StageResult, StageComparison) {
+    let st = sim.stages_done.last().cloned().unwrap_or_default();
+    let c = StageComparison {
+        stage,
+        name: st.name.clone(),
+        clusters: sim.model.topo.n_clusters(),
+        dofs: sim.state.fix.iter().map(|&b| 2 - (b & 1) as usize - ((b >> 1) & 1) as usize).sum(),
+        flem_steps: st.steps,
+        flem_converged: st.converged,
+        unbalanced_ratio: finite(st.final_ratio),
+        splits: st.splits,
+        wall_seconds_flem: st.wall_seconds,
+        ..Default::default()
+    };
+    (st, c)
+}
+
 /// Why the stage just ended has no equilibrium to compare (empty: it has one), besides what
 /// the implicit solve itself finds; `Err` holds the one reason that skips the solve (the scene
 /// marks the stage `check = false`). Shared by elastic and plastic stages.
@@ -155,21 +173,7 @@ fn stage_reasons(sim: &Simulation, stage: usize, st: &crate::solver::StageResult
 /// fragments given a statically determinate support) and nodal stress. `stage` indexes the
 /// scene's stages.
 pub fn compare_stage(sim: &Simulation, solver: &dyn CheckSolver, stage: usize, tolerance: f64) -> (StageComparison, Option<(Vec<[f64; 2]>, Vec<[f64; 3]>)>) {
-    let st = sim.stages_done.last().cloned().unwrap_or_default();
-    let nc = sim.model.topo.n_clusters();
-    let dofs = sim.state.fix.iter().map(|&b| 2 - (b & 1) as usize - ((b >> 1) & 1) as usize).sum();
-    let mut c = StageComparison {
-        stage,
-        name: st.name.clone(),
-        clusters: nc,
-        dofs,
-        flem_steps: st.steps,
-        flem_converged: st.converged,
-        unbalanced_ratio: finite(st.final_ratio),
-        splits: st.splits,
-        wall_seconds_flem: st.wall_seconds,
-        ..Default::default()
-    };
+    let (st, mut c) = stage_row(sim, stage);
     let mut reasons = match stage_reasons(sim, stage, &st) {
         Ok(r) => r,
         Err(why) => {
@@ -250,19 +254,7 @@ pub fn is_plastic(sim: &Simulation) -> bool {
 /// yielded point in FLEM (`Block::plastic`, state not 0) against those in the implicit
 /// solution, as the fraction `|A xor B| / |A or B|` (0 when neither yielded). No VTU.
 pub fn compare_plastic_stage(sim: &Simulation, check: &mut dyn crate::plugin::check::PlasticCheck, stage: usize, tolerance: f64, increments: usize) -> StageComparison {
-    let st = sim.stages_done.last().cloned().unwrap_or_default();
-    let mut c = StageComparison {
-        stage,
-        name: st.name.clone(),
-        clusters: sim.model.topo.n_clusters(),
-        dofs: sim.state.fix.iter().map(|&b| 2 - (b & 1) as usize - ((b >> 1) & 1) as usize).sum(),
-        flem_steps: st.steps,
-        flem_converged: st.converged,
-        unbalanced_ratio: finite(st.final_ratio),
-        splits: st.splits,
-        wall_seconds_flem: st.wall_seconds,
-        ..Default::default()
-    };
+    let (st, mut c) = stage_row(sim, stage);
     let reasons = match stage_reasons(sim, stage, &st) {
         Ok(r) => r,
         Err(why) => {
