@@ -29,24 +29,29 @@ def mesh(geo, outputs):
 def cook():
     """Cook's membrane (cook.geo) at n = 4, 8, 16 quads per side (cook_N.msh) and the same with
     every quad split in two triangles (cook_N_t3.msh: the transfinite surface without Recombine)."""
-    import tempfile
     src = open(os.path.join(HERE, "cook.geo")).read()
     for n in (4, 8, 16):
         for tag, recombine in (("", True), ("_t3", False)):
             text = src.replace("n = 4;", "n = %d;" % n)
             if not recombine:
                 text = text.replace("Recombine Surface{1};", "")
-            with tempfile.NamedTemporaryFile("w", suffix=".geo", delete=False) as f:
-                f.write(text)
-            gmsh.initialize()
-            gmsh.option.setNumber("General.Terminal", 0)
-            gmsh.open(f.name)
-            gmsh.model.mesh.generate(2)
-            gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-            gmsh.option.setNumber("Mesh.Binary", 0)
-            gmsh.write(os.path.join(HERE, "cook_%d%s.msh" % (n, tag)))
-            gmsh.finalize()
-            os.unlink(f.name)
+            write_msh41(text, "cook_%d%s.msh" % (n, tag))
+
+
+def write_msh41(geo_text, out):
+    """Meshes the .geo text in 2D with gmsh and writes `out` (beside this file) as ASCII msh 4.1."""
+    import tempfile
+    with tempfile.NamedTemporaryFile("w", suffix=".geo", delete=False) as f:
+        f.write(geo_text)
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.open(f.name)
+    gmsh.model.mesh.generate(2)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.option.setNumber("Mesh.Binary", 0)
+    gmsh.write(os.path.join(HERE, out))
+    gmsh.finalize()
+    os.unlink(f.name)
 
 
 def sif():
@@ -55,7 +60,6 @@ def sif():
     edge crack (sif_edge.geo) at a/W = 0.3 in triangles and 0.5 in quads. Each .geo's first
     lines are its parameters; they are replaced here."""
     import re
-    import tempfile
     cases = [
         ("sif_inclined.geo", {"beta": b, "quads": 0}, "sif_inclined_%d_t3.msh" % b) for b in (30, 45, 60)
     ] + [
@@ -68,17 +72,7 @@ def sif():
         for k, v in subs.items():
             src, n = re.subn(r"^%s = [^;]*;" % k, "%s = %s;" % (k, v), src, flags=re.M)
             assert n == 1, (geo, k)
-        with tempfile.NamedTemporaryFile("w", suffix=".geo", delete=False) as f:
-            f.write(src)
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.open(f.name)
-        gmsh.model.mesh.generate(2)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.option.setNumber("Mesh.Binary", 0)
-        gmsh.write(os.path.join(HERE, out))
-        gmsh.finalize()
-        os.unlink(f.name)
+        write_msh41(src, out)
 
 
 def main():

@@ -81,6 +81,16 @@ pub struct CrackTip {
     pub faces: usize,
 }
 
+impl CrackTip {
+    /// `p` in the tip's frame: origin at the tip, x' along `dir` (ahead of the crack), y' to its
+    /// left.
+    pub fn local(&self, p: [f64; 2]) -> [f64; 2] {
+        let (e1, e2) = (self.dir, [-self.dir[1], self.dir[0]]);
+        let d = [p[0] - self.x[0], p[1] - self.x[1]];
+        [d[0] * e1[0] + d[1] * e1[1], d[0] * e2[0] + d[1] * e2[1]]
+    }
+}
+
 /// Why the factors cannot be computed (every message names the tip or the element).
 #[derive(Debug, thiserror::Error)]
 pub enum SifError {
@@ -221,11 +231,7 @@ fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 fn check_geometry(model: &Model, tip: &CrackTip, r_out: f64) -> Result<(), SifError> {
     let topo = &model.topo;
     let pts = &model.mesh.points;
-    let (e1, e2) = (tip.dir, [-tip.dir[1], tip.dir[0]]);
-    let local = |p: [f64; 2]| {
-        let d = [p[0] - tip.x[0], p[1] - tip.x[1]];
-        [d[0] * e1[0] + d[1] * e1[1], d[0] * e2[0] + d[1] * e2[1]]
-    };
+    let local = |p: [f64; 2]| tip.local(p);
     let tol = 1e-6 * r_out;
     for (e, ed) in topo.edges.iter().enumerate() {
         let [a, b] = ed.points;
@@ -464,11 +470,7 @@ fn arr<T: Copy + Default, const N: usize>(v: &[T]) -> [T; N] {
 pub fn displacement_correlation(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r_max: f64) -> Option<(f64, f64, usize)> {
     let topo = &model.topo;
     let pts = &model.mesh.points;
-    let (e1, e2) = (tip.dir, [-tip.dir[1], tip.dir[0]]);
-    let local = |p: [f64; 2]| {
-        let d = [p[0] - tip.x[0], p[1] - tip.x[1]];
-        [d[0] * e1[0] + d[1] * e1[1], d[0] * e2[0] + d[1] * e2[1]]
-    };
+    let local = |p: [f64; 2]| tip.local(p);
     let mut mat = *model.material_of(flem_core::ids::ElemId::new(0));
     let mut samples: Vec<(f64, f64, f64)> = Vec::new();
     let mut seen = std::collections::BTreeSet::new();

@@ -187,14 +187,7 @@ impl MohrCoulomb {
     #[inline(never)]
     fn plastic_update(&self, st: &mut [f64; 4], t: &Trial, state: &mut [f64]) {
         let Trial { s, half, rad, pa, pb, pz, .. } = *t;
-        // Sort (pa >= pb always): z first, middle or last.
-        let (sorted, pos) = if pz >= pa {
-            ([pz, pa, pb], [1usize, 2, 0]) // pos[a, b, z] in sorted
-        } else if pz >= pb {
-            ([pa, pz, pb], [0, 2, 1])
-        } else {
-            ([pa, pb, pz], [0, 1, 2])
-        };
+        let (sorted, pos) = sort_principal(pa, pb, pz);
         match self.return_principal(sorted) {
             None => {
                 *st = s;
@@ -486,6 +479,20 @@ impl MaterialLaw for MohrCoulomb {
     }
     fn tangent_symmetric(&self) -> bool {
         self.associated()
+    }
+}
+
+/// The in-plane principal stresses `pa >= pb` and the out-of-plane `pz`, sorted in decreasing
+/// order, and `pos[u]`: the place of (a, b, z) among the sorted (z first, middle or last).
+/// Shared by the return map, its consistent tangent and the softening law.
+#[inline(always)]
+pub(crate) fn sort_principal(pa: f64, pb: f64, pz: f64) -> ([f64; 3], [usize; 3]) {
+    if pz >= pa {
+        ([pz, pa, pb], [1, 2, 0])
+    } else if pz >= pb {
+        ([pa, pz, pb], [0, 2, 1])
+    } else {
+        ([pa, pb, pz], [0, 1, 2])
     }
 }
 

@@ -278,13 +278,7 @@ impl MaterialLaw for MohrCoulombSoftening {
         let (mid, half) = (0.5 * (s[0] + s[1]), 0.5 * (s[0] - s[1]));
         let rad = (half * half + s[2] * s[2]).sqrt();
         let (pa, pb, pz) = (mid + rad, mid - rad, s[3]);
-        let (sorted, pos) = if pz >= pa {
-            ([pz, pa, pb], [1usize, 2, 0])
-        } else if pz >= pb {
-            ([pa, pz, pb], [0, 2, 1])
-        } else {
-            ([pa, pb, pz], [0, 1, 2])
-        };
+        let (sorted, pos) = super::sort_principal(pa, pb, pz);
         match self.return_softening(sorted, state[2]) {
             None => {
                 *st = s;

@@ -64,14 +64,7 @@ impl MohrCoulomb {
         if inside {
             return None;
         }
-        // The sort of `plastic_update`: `pos[u]` is the place of (a, b, z) among the sorted.
-        let (sorted, pos) = if pz >= pa {
-            ([pz, pa, pb], [1usize, 2, 0])
-        } else if pz >= pb {
-            ([pa, pz, pb], [0, 2, 1])
-        } else {
-            ([pa, pb, pz], [0, 1, 2])
-        };
+        let (sorted, pos) = super::sort_principal(pa, pb, pz);
         let r = self.return_active(sorted)?;
         // P = d(returned sorted) / d(sorted trial).
         let mut p = [[0.0; 3]; 3];
