@@ -85,9 +85,13 @@ impl CrackTip {
     /// `p` in the tip's frame: origin at the tip, x' along `dir` (ahead of the crack), y' to its
     /// left.
     pub fn local(&self, p: [f64; 2]) -> [f64; 2] {
+        self.rotate([p[0] - self.x[0], p[1] - self.x[1]])
+    }
+
+    /// A vector (a displacement, a jump) in the tip's frame's axes.
+    pub fn rotate(&self, v: [f64; 2]) -> [f64; 2] {
         let (e1, e2) = (self.dir, [-self.dir[1], self.dir[0]]);
-        let d = [p[0] - self.x[0], p[1] - self.x[1]];
-        [d[0] * e1[0] + d[1] * e1[1], d[0] * e2[0] + d[1] * e2[1]]
+        [v[0] * e1[0] + v[1] * e1[1], v[0] * e2[0] + v[1] * e2[1]]
     }
 }
 
@@ -505,7 +509,7 @@ pub fn displacement_correlation(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r
             }
             let (cu, cl) = if up0 { (c0, c1) } else { (c1, c0) };
             let du = [u[cu][0] - u[cl][0], u[cu][1] - u[cl][1]];
-            let dl = [du[0] * e1[0] + du[1] * e1[1], du[0] * e2[0] + du[1] * e2[1]];
+            let dl = tip.rotate(du);
             samples.push((r, dl[0], dl[1]));
         }
     }
