@@ -110,6 +110,12 @@ pub trait Block: Send + Sync {
     fn isoparametric(&self) -> bool {
         true
     }
+    /// The force pass's schedule and the cost of each of its chunks on one thread (seconds,
+    /// the median of `passes` passes in the one-thread order; `flem bench step`'s task graph,
+    /// issue 42). `None` for a block that does not run the dataflow (the default).
+    fn chunk_costs(&self, _u: &[[f64; 2]], _passes: usize) -> Option<(crate::element::kernel::Schedule, Vec<f64>)> {
+        None
+    }
     /// Stress update + internal forces for the step (stateful laws commit their
     /// integration-point state here). Default: the stateless linear path.
     fn update_internal_forces(&mut self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
@@ -586,6 +592,28 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             + (self.sched.order.capacity() + self.sched.lead.capacity() + self.sched.rest.capacity() + self.sched.region_start.capacity()) * 4
             + (self.sched.wait_start.capacity() + self.sched.wait_on.capacity()) * 4
             + (self.fw.start.capacity() + self.fw.ids.capacity() + self.fw.untouched.capacity()) * 4
+    }
+    fn chunk_costs(&self, u: &[[f64; 2]], passes: usize) -> Option<(Schedule, Vec<f64>)> {
+        let run = Self::best_chunk_fn::<false>();
+        let mut f = vec![[0.0; 2]; u.len()];
+        let shared = SharedForces::new(&mut f);
+        let mut t = vec![Vec::with_capacity(passes); self.sched.n_chunks()];
+        for _ in 0..passes.max(1) {
+            for &k in &self.sched.order {
+                let t0 = std::time::Instant::now();
+                run(self, k as usize, u, shared);
+                t[k as usize].push(t0.elapsed().as_secs_f64());
+            }
+        }
+        let cost = t
+            .into_iter()
+            .map(|mut v| {
+                v.sort_by(f64::total_cmp);
+                v[v.len() / 2]
+            })
+            .collect();
+        std::hint::black_box(&f);
+        Some((self.sched.clone(), cost))
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         let t = self.mat.thickness;

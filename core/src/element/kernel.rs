@@ -47,6 +47,7 @@
 //! runs, not only the forces, are bit-identical to one thread (tests/parallel.rs).
 //! `element::internal_force` stays the reference. `flem bench step` (`tools/src/bench.rs`)
 //! measures it all (JSON); figures of one session against Akantu are in `docs/perf/README.md`.
+use crate::element::dag::TaskGraph;
 use crate::element::{Dmat, Shape};
 
 /// Elements per pack (the width of the vectorised loop: two AVX2 or one AVX-512 register).
@@ -142,10 +143,14 @@ impl Schedule {
         (n_packs / 64).clamp(4, 64)
     }
 
-    /// Regions of a block of `n_chunks` chunks: about 16 chunks each, at most 64, from the
-    /// chunk count only (never from the thread count: the regions fix the sums).
+    /// Regions of a block of `n_chunks` chunks: about 16 chunks each, from the chunk count
+    /// only (never from the thread count: the regions fix the sums). At most 4096 (issue 42;
+    /// before it 64, which held the force pass's parallelism below 64 for any block of more
+    /// than 1024 chunks, about 5e5 elements: with a region's chunks a chain, the critical path
+    /// is about one region, so the parallelism about the number of regions). Only blocks of
+    /// more than 1024 chunks changed.
     pub fn regions_for(n_chunks: usize) -> usize {
-        (n_chunks / 16).clamp(1, 64)
+        (n_chunks / 16).clamp(1, 4096)
     }
 
     /// Chunks, colours and the sequence of the chunks (`conn` of every element, in local
@@ -405,6 +410,53 @@ impl Schedule {
     pub fn n_chunks(&self) -> usize {
         self.colours.iter().map(Vec::len).sum()
     }
+
+    /// The force pass as a task graph (issue 42): one task per chunk, of cost `cost[k]`,
+    /// waiting for `wait_on`'s chunks (the dependency structure of every run, whatever the
+    /// threads).
+    pub fn task_graph(&self, cost: &[f64]) -> TaskGraph {
+        assert_eq!(cost.len(), self.n_chunks(), "one cost per chunk");
+        TaskGraph { cost: cost.to_vec(), pred_start: self.wait_start.clone(), pred: self.wait_on.clone() }
+    }
+
+    /// Each chunk's position in the sequence (`lead` then `rest`): the priority of the list
+    /// schedule that follows the sequence.
+    pub fn sequence_rank(&self) -> Vec<u32> {
+        let mut rank = vec![0u32; self.n_chunks()];
+        for (i, &k) in self.lead.iter().chain(&self.rest).enumerate() {
+            rank[k as usize] = i as u32;
+        }
+        rank
+    }
+
+    /// The makespan of [`Self::run_dataflow`] on `threads` threads when chunk `k` takes
+    /// `cost[k]` and nothing else costs time (a model, issue 42): the free thread that comes
+    /// first takes the next lead chunk, then, once every lead chunk is taken, the next whole
+    /// region; a chunk starts when its thread is free and its waits are done.
+    pub fn simulate_dataflow(&self, cost: &[f64], threads: usize) -> f64 {
+        assert_eq!(cost.len(), self.n_chunks(), "one cost per chunk");
+        let mut done = vec![f64::NAN; cost.len()];
+        let mut free = vec![0.0f64; threads.max(1)];
+        let mut one = |t: f64, k: u32| {
+            let k = k as usize;
+            let start = self.wait_on[self.wait_start[k] as usize..self.wait_start[k + 1] as usize].iter().map(|&w| done[w as usize]).fold(t, f64::max);
+            debug_assert!(!start.is_nan(), "a chunk waits for one not yet taken");
+            done[k] = start + cost[k];
+            done[k]
+        };
+        let first_free = |free: &[f64]| (0..free.len()).reduce(|a, b| if free[b] < free[a] { b } else { a }).unwrap_or(0);
+        for &k in &self.lead {
+            let th = first_free(&free);
+            free[th] = one(free[th], k);
+        }
+        for r in 0..self.region_start.len().saturating_sub(1) {
+            let th = first_free(&free);
+            for &k in &self.rest[self.region_start[r] as usize..self.region_start[r + 1] as usize] {
+                free[th] = one(free[th], k);
+            }
+        }
+        free.iter().copied().fold(0.0, f64::max)
+    }
 }
 
 /// A raw view of the force array shared by the chunks that run at the same time.
@@ -655,6 +707,69 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The force pass's task graph on the 1e6-element grid of `flem bench step` (1414 x 707
+    /// Q4: 1953 chunks), every chunk of cost 1 (a model, not a timing; issue 42). Regions of
+    /// about 16 chunks (122; before issue 42 at most 64, which held the parallelism at 63):
+    /// the critical path is the lead chunks of one region (a row of the grid is 2.8 chunks, so
+    /// 3 of them, each sharing the column of nodes at its end with the next), then that
+    /// region's other chunks in sequence (each shares nodes with the one before it): 3 + 14 =
+    /// 17 chunks, all of one region; parallelism 1953 / 17 = 114.9 > 64. The `run_dataflow`
+    /// model finishes within 10 % of the list schedule and of the bound max(W / p, D).
+    #[test]
+    fn bench_grid_parallelism_exceeds_64() {
+        let (conn, n) = grid(1414, 707);
+        let s = Schedule::build(&conn, n);
+        let nc = s.n_chunks();
+        assert_eq!((nc, s.region_start.len() - 1), (1953, 122));
+        let unit = vec![1.0; nc];
+        let g = s.task_graph(&unit);
+        let cp = g.critical_path();
+        assert_eq!(cp.length, 17.0);
+        assert_eq!(g.parallelism(), 1953.0 / 17.0);
+        let lead_on_path: Vec<u32> = cp.tasks.iter().copied().filter(|k| s.lead.contains(k)).collect();
+        assert_eq!(lead_on_path.len(), 3, "{cp:?}");
+        assert!(cp.tasks[..3] == lead_on_path[..], "the lead chunks come first on the path: {cp:?}");
+        let r = (0..s.region_start.len() - 1).find(|&r| s.rest[s.region_start[r] as usize..s.region_start[r + 1] as usize].contains(&cp.tasks[3])).unwrap();
+        let region = &s.rest[s.region_start[r] as usize..s.region_start[r + 1] as usize];
+        assert_eq!(&cp.tasks[3..], region, "the rest of the path is one region's other chunks, in sequence");
+        let rank = s.sequence_rank();
+        for p in [1usize, 2, 4, 16, 64] {
+            let bound = (nc as f64 / p as f64).max(17.0);
+            let (list, flow) = (g.list_schedule(p, &rank), s.simulate_dataflow(&unit, p));
+            assert!(list >= bound && list <= 1.1 * bound, "{p} threads: list schedule {list}, bound {bound}");
+            assert!(flow >= bound && flow <= 1.1 * bound, "{p} threads: dataflow model {flow}, bound {bound}");
+        }
+        assert_eq!(s.simulate_dataflow(&unit, 1), nc as f64, "one thread: the work");
+    }
+
+    /// `simulate_dataflow` by hand, on a schedule written out: chunks 0 and 1 form region 0
+    /// (no shared cluster), chunk 2 is lead, chunk 3 (region 1) waits for it; costs 2, 2, 1, 1.
+    /// Two threads: thread 0 takes lead chunk 2 (0 to 1), thread 1 region 0 (0 to 2, 2 to 4),
+    /// thread 0 region 1 (1 to 2): makespan 4. The list schedule of the same graph (sequence
+    /// priority 2, 0, 1, 3) runs 0 and 1 on two threads: 2 (0-1) and 0 (0-2), 1 (1-3), 3 (2-3):
+    /// 3. One thread: 6 both.
+    #[test]
+    fn dataflow_model_by_hand() {
+        let s = Schedule {
+            chunk_packs: 1,
+            colours: vec![vec![0, 1, 2, 3]],
+            order: vec![0, 1, 2, 3],
+            lead: vec![2],
+            region_start: vec![0, 2, 3],
+            rest: vec![0, 1, 3],
+            wait_start: vec![0, 0, 0, 0, 1],
+            wait_on: vec![2],
+        };
+        let cost = [2.0, 2.0, 1.0, 1.0];
+        assert_eq!(s.sequence_rank(), vec![1, 2, 0, 3]);
+        assert_eq!(s.simulate_dataflow(&cost, 2), 4.0);
+        assert_eq!(s.simulate_dataflow(&cost, 1), 6.0);
+        let g = s.task_graph(&cost);
+        assert_eq!(g.list_schedule(2, &s.sequence_rank()), 3.0);
+        assert_eq!(g.list_schedule(1, &s.sequence_rank()), 6.0);
+        assert_eq!(g.critical_path().length, 2.0);
     }
 
     /// The schedule lets two threads work without waiting: on the 1e6-element grid of `flem

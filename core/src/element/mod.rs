@@ -12,6 +12,7 @@
 //! (`flem-plugins/src/elements/`, docs/elements.md): core names none of them.
 pub mod block;
 pub mod corot;
+pub mod dag;
 pub mod implicit;
 pub mod implicit_law;
 pub mod kernel;
