@@ -1,5 +1,22 @@
 //! `flem bench step`: explicit step throughput (issue 9), printed as one JSON object.
 //!
+//! **Rounds** (issue 42). Every timed figure is taken once per round, the rounds one after
+//! the other (`--rounds`, at least 5), each round measuring everything in turn (the triad
+//! first), so that the load of a shared machine hits every figure alike; each figure is
+//! printed as its median, its range (min, max) and its rounds. A ratio (kernel over triad,
+//! check overhead, speed-up) is formed inside each round and its median quoted; a difference
+//! between two figures is real when their ranges do not overlap.
+//!
+//! **Task graph** (issue 42, `task_graph`, `--graph-sizes`). The step at each graph size, Q4
+//! and T3, without and with a crack (a notch over half the width, pre-separated), as the task
+//! graph it runs (`flem_core::element::dag`): the force pass's chunks with their waits
+//! (`Schedule::task_graph`), then the node update's chunks (`NODE_CHUNK` nodes each,
+//! independent), then the rest of the step (loads, damping coefficients, the sums; serial),
+//! every cost measured on one thread (the least of 5: each chunk over 5 passes). Printed: work,
+//! critical path (and what it is made of), parallelism, and the speed-up on 1, 2, 4, 16 and 64
+//! threads of a list schedule of the graph and of the model of `run_dataflow` (the code as it
+//! runs), beside the measured speed-up of the step and the kernel on the `--threads` counts.
+//!
 //! Measured in one process, so every ratio compares figures of the same run:
 //! Sizes are element counts on a 2 x 1 rectangle, `nx = sqrt(2 n)` (T3: two per cell), so
 //! 2048, 32768, 524288 are exactly the peers' meshes n = 64, 256, 1024 (../shared/peers).
@@ -20,16 +37,18 @@
 //!   Each stage starts on a fresh model, so each pays the first check's one-time set-up
 //!   (corner gradients, the skip's Lipschitz constants), also timed alone (`first_check_ms`,
 //!   and its share of a checking stage, `first_check_in_stage_share`).
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use flem_core::element::block::Simd;
+use flem_core::element::dag::TaskGraph;
 use flem_core::element::model::Model;
 use flem_core::element::Plane;
 use flem_core::mesh::{CellKind, Rectangle, ValidationOptions};
 use flem_core::scene::{MaterialCfg, Scene};
-use flem_core::solver::{NoOutput, Simulation};
+use flem_core::solver::{NoOutput, Simulation, NODE_CHUNK};
 use serde_json::{json, Value};
 
 /// A registered element kind (`flem_core::element::registry`).
@@ -44,6 +63,42 @@ pub struct StepOpts {
     pub step_sizes: Vec<usize>,
     /// Radius of the nonlocal check's cost, in element sizes.
     pub nonlocal_radius_h: f64,
+    /// Rounds of every figure (at least 5).
+    pub rounds: usize,
+    /// Element counts of the task-graph analysis.
+    pub graph_sizes: Vec<usize>,
+}
+
+/// Median of `v` (the mean of the two middle values for an even count).
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    match s.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => s[n / 2],
+        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+    }
+}
+
+/// The per-round values of named figures, printed as median and range.
+#[derive(Default)]
+struct Spread(BTreeMap<String, Vec<f64>>);
+
+impl Spread {
+    fn add(&mut self, k: &str, v: f64) {
+        self.0.entry(k.to_string()).or_default().push(v);
+    }
+    fn json(&self) -> Value {
+        Value::Object(
+            self.0
+                .iter()
+                .map(|(k, v)| {
+                    let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+                    (k.clone(), json!({"median": median(v), "min": lo, "max": hi, "rounds": v.len()}))
+                })
+                .collect(),
+        )
+    }
 }
 
 /// CPU seconds used so far by every thread of this process (Linux `/proc/self/task/*/schedstat`,
@@ -74,7 +129,26 @@ pub(crate) fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
     batches[2]
 }
 
-/// The machine's own memory bandwidth, measured in the same run: the STREAM triad
+/// The least seconds per call of `f` over 5 batches of at least `min_time / 5` each: the cost
+/// of the work itself on a shared machine (the task graph's one-thread costs).
+fn least_per_call(min_time: f64, mut f: impl FnMut()) -> f64 {
+    f();
+    let t0 = Instant::now();
+    f();
+    let one = t0.elapsed().as_secs_f64().max(1e-9);
+    let reps = ((min_time / 5.0 / one).ceil() as usize).max(1);
+    (0..5)
+        .map(|_| {
+            let t = Instant::now();
+            for _ in 0..reps {
+                f();
+            }
+            t.elapsed().as_secs_f64() / reps as f64
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The machine's own memory bandwidth, measured in each round: the STREAM triad
 /// `a[i] = b[i] + s c[i]` over three arrays of 2^25 f64 (768 MiB in all, far beyond the caches),
 /// split into equal chunks over `threads` threads, counted as STREAM does (24 bytes per index:
 /// two reads and a write, the write-allocate read not counted). Median of 5 batches, GB/s.
@@ -119,57 +193,104 @@ fn model(nx: usize, ny: usize, kind: Kind) -> Result<Model> {
     Ok(Model::new(mesh, &[mat], Plane::Strain, "<bench>")?)
 }
 
-/// Kernel throughput of one mesh for each thread count.
-fn kernel_case(nx: usize, ny: usize, kind: Kind, o: &StepOpts, triad: &[(usize, f64)]) -> Result<Value> {
-    let mut m = model(nx, ny, kind)?;
-    let (ne, nc) = (m.n_elems(), m.topo.n_clusters());
-    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
-    let u: Vec<[f64; 2]> = (0..nc)
-        .map(|_| {
-            std::array::from_fn(|_| {
-                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                1e-3 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+/// Kernel throughput of one mesh for each thread count, one round at a time.
+struct KernelCase {
+    kind: Kind,
+    m: Model,
+    u: Vec<[f64; 2]>,
+    f: Vec<[f64; 2]>,
+    /// The forces on one thread (the reference of every thread count's bits).
+    reference: Vec<[f64; 2]>,
+    identical: Vec<bool>,
+    figs: Vec<Spread>,
+    min_bytes: f64,
+    zero_free: bool,
+    cluster_bytes: f64,
+    fixed: Value,
+}
+
+impl KernelCase {
+    fn new(nx: usize, ny: usize, kind: Kind, o: &StepOpts) -> Result<KernelCase> {
+        let mut m = model(nx, ny, kind)?;
+        let (ne, nc) = (m.n_elems(), m.topo.n_clusters());
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        let u: Vec<[f64; 2]> = (0..nc)
+            .map(|_| {
+                std::array::from_fn(|_| {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    1e-3 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+                })
             })
-        })
-        .collect();
-    let mut f = vec![[0.0; 2]; nc];
-    let mut reference: Option<Vec<[f64; 2]>> = None;
-    let mut per_thread = Vec::new();
-    // The bytes an element-update must move at the least: the block data the force pass
-    // streams once (`Block::kernel_bytes`: packs and their extra parts, connectivity, schedule;
-    // not the corner coordinates and ids, which it does not read), and per cluster u read
-    // (16 B), f_int read and written (32 B), and zeroed before (16 B) unless the model's pass
-    // writes every entry (`Model::zero_free`, issue 24 session 11; before it every byte the
-    // block held was counted and the zeroing was not).
-    let block_bytes = m.blocks.iter().map(|b| b.kernel_bytes()).sum::<usize>() as f64 / ne as f64;
-    let zero_free = m.zero_free();
-    let cluster_bytes = if zero_free { 48.0 } else { 64.0 };
-    let min_bytes = block_bytes + cluster_bytes * nc as f64 / ne as f64;
-    for &t in &o.threads {
-        m.set_threads(t)?;
-        let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(&u, &mut f));
+            .collect();
+        let mut f = vec![[0.0; 2]; nc];
+        m.set_threads(1)?;
         m.internal_forces(&u, &mut f);
-        let identical = match &reference {
-            None => {
-                reference = Some(f.clone());
-                true
-            }
-            Some(r) => r.iter().zip(&f).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits()),
-        };
-        let eff = min_bytes * ne as f64 / s / 1e9;
-        let tri = triad.iter().find(|(n, _)| *n == m.threads()).map(|x| x.1);
-        per_thread.push(json!({"threads": m.threads(), "ns_per_elem_update": s * 1e9 / ne as f64, "elem_updates_per_s": ne as f64 / s, "cpu_ns_per_elem_update": cpu * 1e9 / ne as f64, "bit_identical_to_first": identical,
-            "bytes_per_elem_update_min": min_bytes, "zeroing_sweep": !zero_free, "bytes_per_cluster": cluster_bytes, "effective_gb_per_s": eff, "triad_gb_per_s": tri, "fraction_of_triad": tri.map(|t| eff / t)}));
+        let reference = f.clone();
+        // The bytes an element-update must move at the least: the block data the force pass
+        // streams once (`Block::kernel_bytes`: packs and their extra parts, connectivity, schedule;
+        // not the corner coordinates and ids, which it does not read), and per cluster u read
+        // (16 B), f_int read and written (32 B), and zeroed before (16 B) unless the model's pass
+        // writes every entry (`Model::zero_free`, issue 24 session 11; before it every byte the
+        // block held was counted and the zeroing was not).
+        let block_bytes = m.blocks.iter().map(|b| b.kernel_bytes()).sum::<usize>() as f64 / ne as f64;
+        let zero_free = m.zero_free();
+        let cluster_bytes = if zero_free { 48.0 } else { 64.0 };
+        let min_bytes = block_bytes + cluster_bytes * nc as f64 / ne as f64;
+        let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
+        // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
+        let node_bytes = nc * (5 * 16 + 8 + 1);
+        let fixed = json!({
+            "kind": kind.name, "nx": nx, "ny": ny, "elements": ne, "clusters": nc,
+            "memory_bytes_per_element": {"kernel_packs": kind.bytes_per_elem, "kernel_streamed": block_bytes, "block_total": block as f64 / ne as f64, "node_state": node_bytes as f64 / ne as f64, "block_plus_node_state": (block + node_bytes) as f64 / ne as f64},
+        });
+        let n = o.threads.len();
+        Ok(KernelCase { kind, m, u, f, reference, identical: vec![true; n], figs: (0..n).map(|_| Spread::default()).collect(), min_bytes, zero_free, cluster_bytes, fixed })
     }
-    let block: usize = m.blocks.iter().map(|b| b.memory_bytes()).sum();
-    // u, v, f_int, f_ext, v_pres ([f64; 2]), mass (f64), fix (u8) per cluster.
-    let node_bytes = nc * (5 * 16 + 8 + 1);
-    let kernel_bytes = kind.bytes_per_elem;
-    Ok(json!({
-        "kind": kind.name, "nx": nx, "ny": ny, "elements": ne, "clusters": nc,
-        "kernel": per_thread,
-        "memory_bytes_per_element": {"kernel_packs": kernel_bytes, "kernel_streamed": block_bytes, "block_total": block as f64 / ne as f64, "node_state": node_bytes as f64 / ne as f64, "block_plus_node_state": (block + node_bytes) as f64 / ne as f64},
-    }))
+
+    /// One round: every thread count once; `triad` is this round's.
+    fn round(&mut self, o: &StepOpts, triad: &[(usize, f64)]) -> Result<()> {
+        let ne = self.m.n_elems() as f64;
+        for (i, &t) in o.threads.iter().enumerate() {
+            self.m.set_threads(t)?;
+            let (m, u, f) = (&self.m, &self.u, &mut self.f);
+            let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(u, f));
+            self.m.internal_forces(&self.u, &mut self.f);
+            self.identical[i] &= self.reference.iter().zip(&self.f).all(|(a, b)| a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits());
+            let eff = self.min_bytes * ne / s / 1e9;
+            let fig = &mut self.figs[i];
+            fig.add("ns_per_elem_update", s * 1e9 / ne);
+            fig.add("elem_updates_per_s", ne / s);
+            fig.add("cpu_ns_per_elem_update", cpu * 1e9 / ne);
+            fig.add("effective_gb_per_s", eff);
+            if let Some(&(_, tri)) = triad.iter().find(|(n, _)| *n == self.m.threads()) {
+                fig.add("triad_gb_per_s", tri);
+                fig.add("fraction_of_triad", eff / tri);
+            }
+        }
+        Ok(())
+    }
+
+    fn json(&self, o: &StepOpts) -> Value {
+        let per_thread: Vec<Value> = o
+            .threads
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                let mut v = self.figs[i].json();
+                let threads = if t == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { t };
+                v["threads"] = json!(threads);
+                v["bit_identical_to_one_thread"] = json!(self.identical[i]);
+                v["bytes_per_elem_update_min"] = json!(self.min_bytes);
+                v["zeroing_sweep"] = json!(!self.zero_free);
+                v["bytes_per_cluster"] = json!(self.cluster_bytes);
+                v
+            })
+            .collect();
+        let mut v = self.fixed.clone();
+        v["kernel"] = json!(per_thread);
+        let _ = self.kind;
+        v
+    }
 }
 
 fn scene_text(nx: usize, ny: usize, kind: Kind, threads: usize, steps: u64, cracking: Option<u64>) -> String {
@@ -188,20 +309,6 @@ fn scene_text(nx: usize, ny: usize, kind: Kind, threads: usize, steps: u64, crac
 fn sim(text: &str) -> Result<Simulation> {
     Ok(Simulation::new(Scene::from_str(text, Path::new("<bench scene>"), Path::new("."))?)?)
 }
-
-/// (wall, CPU) seconds per step of a whole dynamic stage of `steps` steps (best of 3 runs each).
-fn stage_time(text: &str, steps: u64) -> Result<(f64, f64)> {
-    let (mut wall, mut cpu) = (f64::INFINITY, f64::INFINITY);
-    for _ in 0..3 {
-        let (w, c) = stage_once(text, steps, true)?;
-        wall = wall.min(w);
-        cpu = cpu.min(c);
-    }
-    Ok((wall, cpu))
-}
-
-/// Rounds of the interleaved failure-check measurement (baseline, skip, every point).
-const CHECK_ROUNDS: usize = 4;
 
 /// (wall, CPU) seconds per step of one dynamic stage of `steps` steps.
 fn stage_once(text: &str, steps: u64, skip: bool) -> Result<(f64, f64)> {
@@ -250,120 +357,291 @@ impl Bare {
     }
 }
 
-/// Full step against the bare kernel and a bare step; failure checks every k steps.
-fn step_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> Result<Value> {
-    let mut s = sim(&scene_text(nx, ny, kind, threads, 1, None))?;
-    let ne = s.model.n_elems() as f64;
-    s.run_stage(0, &mut NoOutput)?;
-    let (step, step_cpu) = time_per_call(o.min_time, || s.step().expect("bench scene is stable"));
-    let (lean, lean_cpu) = time_per_call(o.min_time, || s.step_as(false).expect("bench scene is stable"));
-    let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
-    let (kernel, kernel_cpu) = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
-    // The bare explicit step: kernel plus the textbook update (no damping, no ledger).
-    let mut bare_state = Bare::of(&s);
-    let (bare, bare_cpu) = time_per_call(o.min_time, || bare_state.step(&s));
-    // The node update alone (a lean step's, default damping) with the scalar code and with the
-    // vectorised one (`Simd::best`), beside the textbook update alone; the nodes are put back.
-    let nc = s.state.u.len() as f64;
-    let (u0, v0) = (s.state.u.clone(), s.state.v.clone());
-    let (node_plain, _) = time_per_call(o.min_time, || s.bench_node_update(Simd::Plain));
-    let (node_best, _) = time_per_call(o.min_time, || s.bench_node_update(Simd::best()));
-    (s.state.u, s.state.v) = (u0, v0);
-    let mut text_state = Bare::of(&s);
-    let (node_text, _) = time_per_call(o.min_time, || text_state.update());
-    let node_update = json!({"simd": format!("{:?}", Simd::best()).to_lowercase(), "clusters": nc,
-        "ns_per_node": node_best * 1e9 / nc, "ns_per_node_scalar": node_plain * 1e9 / nc, "ns_per_node_textbook": node_text * 1e9 / nc,
-        "ns_per_elem": node_best * 1e9 / ne, "ns_per_elem_scalar": node_plain * 1e9 / ne, "ns_per_elem_textbook": node_text * 1e9 / ne,
-        "scalar_over_vector": node_plain / node_best, "over_textbook": node_best / node_text});
-    let n_steps = ((2.0 * o.min_time / step).ceil() as u64).clamp(200, 100_000);
-    let n_steps = n_steps.div_ceil(100) * 100;
-    let (stage, stage_cpu) = stage_time(&scene_text(nx, ny, kind, threads, n_steps, None), n_steps)?;
-    // What a scene without contact or failure pays over the bare step, measured as a whole
-    // stage (ledger, damping, ratio checks every `ratio_every` steps) against as many bare
-    // steps, interleaved round by round so that the load of a shared machine hits both; the
-    // best round of each. Twice: with the default (adaptive) damping, and undamped.
-    // About 1 s per stage, so that the stage set-up (loads, constraints) is a small share.
-    let n_il = (((1.0 / step).ceil() as u64).clamp(50, 50_000)).div_ceil(10) * 10;
-    let il = |damping: &str| -> Result<Value> {
-        let (mut il_stage, mut il_bare) = (f64::INFINITY, f64::INFINITY);
-        for _ in 0..7 {
+/// Full step against the bare kernel and a bare step; failure checks every k steps; one
+/// round at a time.
+struct StepCase {
+    nx: usize,
+    ny: usize,
+    kind: Kind,
+    threads: usize,
+    s: Simulation,
+    n_steps: u64,
+    n_il: u64,
+    fig: Spread,
+}
+
+impl StepCase {
+    fn new(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> Result<StepCase> {
+        let mut s = sim(&scene_text(nx, ny, kind, threads, 1, None))?;
+        s.run_stage(0, &mut NoOutput)?;
+        let (step, _) = time_per_call(o.min_time, || s.step().expect("bench scene is stable"));
+        let n_steps = ((2.0 * o.min_time / step).ceil() as u64).clamp(200, 100_000);
+        let n_steps = n_steps.div_ceil(100) * 100;
+        // About 1 s per interleaved stage, so that the stage set-up (loads, constraints) is a
+        // small share.
+        let n_il = (((1.0 / step).ceil() as u64).clamp(50, 50_000)).div_ceil(10) * 10;
+        Ok(StepCase { nx, ny, kind, threads, s, n_steps, n_il, fig: Spread::default() })
+    }
+
+    fn round(&mut self, o: &StepOpts) -> Result<()> {
+        let (nx, ny, kind, threads, n_steps, n_il) = (self.nx, self.ny, self.kind, self.threads, self.n_steps, self.n_il);
+        let s = &mut self.s;
+        let fig = &mut self.fig;
+        let ne = s.model.n_elems() as f64;
+        let (step, step_cpu) = time_per_call(o.min_time, || s.step().expect("bench scene is stable"));
+        let (lean, lean_cpu) = time_per_call(o.min_time, || s.step_as(false).expect("bench scene is stable"));
+        let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
+        let (kernel, kernel_cpu) = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
+        // The bare explicit step: kernel plus the textbook update (no damping, no ledger).
+        let mut bare_state = Bare::of(s);
+        let (bare, bare_cpu) = time_per_call(o.min_time, || bare_state.step(s));
+        // The node update alone (a lean step's, default damping) with the scalar code and with
+        // the vectorised one (`Simd::best`), beside the textbook update alone; the nodes are put back.
+        let nc = s.state.u.len() as f64;
+        let (u0, v0) = (s.state.u.clone(), s.state.v.clone());
+        let (node_plain, _) = time_per_call(o.min_time, || s.bench_node_update(Simd::Plain));
+        let (node_best, _) = time_per_call(o.min_time, || s.bench_node_update(Simd::best()));
+        (s.state.u, s.state.v) = (u0, v0);
+        let mut text_state = Bare::of(s);
+        let (node_text, _) = time_per_call(o.min_time, || text_state.update());
+        for (k, v) in [
+            ("ns_per_node", node_best * 1e9 / nc),
+            ("ns_per_node_scalar", node_plain * 1e9 / nc),
+            ("ns_per_node_textbook", node_text * 1e9 / nc),
+            ("scalar_over_vector", node_plain / node_best),
+            ("over_textbook", node_best / node_text),
+        ] {
+            fig.add(&format!("node_update.{k}"), v);
+        }
+        let (stage, stage_cpu) = stage_once(&scene_text(nx, ny, kind, threads, n_steps, None), n_steps, true)?;
+        for (k, v, c) in [("kernel", kernel, kernel_cpu), ("bare_step", bare, bare_cpu), ("step", step, step_cpu), ("lean_step", lean, lean_cpu), ("stage", stage, stage_cpu)] {
+            fig.add(&format!("ns_per_elem.{k}"), v * 1e9 / ne);
+            fig.add(&format!("cpu_ns_per_elem.{k}"), c * 1e9 / ne);
+        }
+        for (k, v) in [
+            ("lean_step_over_bare_step", lean / bare),
+            ("cpu_lean_step_over_bare_step", lean_cpu / bare_cpu),
+            ("cpu_stage_over_bare_step", stage_cpu / bare_cpu),
+            ("step_over_kernel", step / kernel),
+            ("cpu_step_over_bare_step", step_cpu / bare_cpu),
+            ("step_over_bare_step", step / bare),
+            ("stage_over_bare_step", stage / bare),
+        ] {
+            fig.add(k, v);
+        }
+        // What a scene without contact or failure pays over the bare step: a whole stage
+        // (ledger, damping, ratio checks every `ratio_every` steps) against as many bare steps,
+        // one after the other. With the default (adaptive) damping, and undamped.
+        for (name, damping) in [("interleaved", ""), ("interleaved_undamped", "[solver.damping]\ntype = \"none\"\n")] {
             let mut t = sim(&(scene_text(nx, ny, kind, threads, n_il, None) + damping))?;
             let t0 = Instant::now();
             t.run_stage(0, &mut NoOutput)?;
-            il_stage = il_stage.min(t0.elapsed().as_secs_f64() / n_il as f64);
+            let il_stage = t0.elapsed().as_secs_f64() / n_il as f64;
             let mut b = Bare::of(&t);
             let t0 = Instant::now();
             for _ in 0..n_il {
                 b.step(&t);
             }
-            il_bare = il_bare.min(t0.elapsed().as_secs_f64() / n_il as f64);
+            let il_bare = t0.elapsed().as_secs_f64() / n_il as f64;
+            fig.add(&format!("{name}.stage_ns_per_elem"), il_stage * 1e9 / ne);
+            fig.add(&format!("{name}.bare_step_ns_per_elem"), il_bare * 1e9 / ne);
+            fig.add(&format!("{name}.stage_over_bare_step"), il_stage / il_bare);
         }
-        Ok(json!({"steps": n_il, "rounds": 7, "stage_ns_per_elem": il_stage * 1e9 / ne, "bare_step_ns_per_elem": il_bare * 1e9 / ne, "stage_over_bare_step": il_stage / il_bare}))
-    };
-    let (il_adaptive, il_none) = (il("")?, il("[solver.damping]\ntype = \"none\"\n")?);
-    // Checks every k steps, with the certified skip (the default, issue 24: the bench's
-    // strength is never approached, so every check after the first is certified and skipped)
-    // and evaluating every point at every check (`every_point`). Each against its own
-    // baseline (the same stage without cracking), the three interleaved round by round so
-    // that the load of a shared machine hits all of them; the best round of each.
-    let mut checks = Vec::new();
-    for k in [1u64, 10, 100] {
-        let text = scene_text(nx, ny, kind, threads, n_steps, Some(k));
-        let plain = scene_text(nx, ny, kind, threads, n_steps, None);
-        let best = |a: (f64, f64), b: (f64, f64)| (a.0.min(b.0), a.1.min(b.1));
-        let inf = (f64::INFINITY, f64::INFINITY);
-        let (mut base, mut skip, mut every) = (inf, inf, inf);
-        for _ in 0..CHECK_ROUNDS {
-            base = best(base, stage_once(&plain, n_steps, true)?);
-            skip = best(skip, stage_once(&text, n_steps, true)?);
-            every = best(every, stage_once(&text, n_steps, false)?);
+        // Checks every k steps, with the certified skip (the default, issue 24: the bench's
+        // strength is never approached, so every check after the first is certified and
+        // skipped) and evaluating every point at every check (`every_point`). Each against its
+        // own baseline (the same stage without cracking), the three one after the other in
+        // this round.
+        let mut per_check = (0.0, 0.0);
+        for k in [1u64, 10, 100] {
+            let text = scene_text(nx, ny, kind, threads, n_steps, Some(k));
+            let plain = scene_text(nx, ny, kind, threads, n_steps, None);
+            let (b, bc) = stage_once(&plain, n_steps, true)?;
+            let (t, c) = stage_once(&text, n_steps, true)?;
+            let (te, ce) = stage_once(&text, n_steps, false)?;
+            if k == 1 {
+                // The cost of one check (k = 1), for the share a check every k steps should cost.
+                per_check = (t - b, c - bc);
+                fig.add("failure_check.us_per_check", per_check.0 * 1e6);
+                fig.add("failure_check.cpu_us_per_check", per_check.1 * 1e6);
+            }
+            for (key, v) in [
+                ("us_per_step", t * 1e6),
+                ("overhead", t / b - 1.0),
+                ("share_predicted", per_check.0 / (k as f64 * b)),
+                ("cpu_us_per_step", c * 1e6),
+                ("cpu_overhead", c / bc - 1.0),
+                ("cpu_share_predicted", per_check.1 / (k as f64 * bc)),
+                ("every_point_us_per_step", te * 1e6),
+                ("every_point_overhead", te / b - 1.0),
+                ("every_point_cpu_overhead", ce / bc - 1.0),
+                ("baseline_us_per_step", b * 1e6),
+            ] {
+                fig.add(&format!("failure_check.every_{k}.{key}"), v);
+            }
+            if k == 1 {
+                // The first check of a model pays a one-time set-up (the corner gradients of
+                // the nodal stress, the certified skip's Lipschitz constants): timed alone on a
+                // fresh simulation (one step, then the check); it is inside every stage above,
+                // which start fresh.
+                let mut t = sim(&scene_text(nx, ny, kind, threads, n_steps, Some(1)))?;
+                t.step()?;
+                let (time, step) = (t.state.time, t.state.step);
+                let (cr, cfg) = (t.cracking.as_mut().expect("cracking scene"), t.scene.file.cracking.as_ref().expect("cracking config"));
+                let t0 = Instant::now();
+                cr.check(cfg, &mut t.model, &t.state.u, &t.x0, time, step)?;
+                let first = t0.elapsed().as_secs_f64();
+                fig.add("failure_check.first_check_ms", first * 1e3);
+                fig.add("failure_check.first_check_in_stage_share", first / (n_steps as f64 * b));
+            }
         }
-        checks.push((k, base, skip, every));
+        let h = 2.0 / nx as f64;
+        let r = o.nonlocal_radius_h * h;
+        let (local, local_cpu, local_build, skipped) = check_cost(nx, ny, kind, threads, None, o)?;
+        let (nl, nl_cpu, nl_build, _) = check_cost(nx, ny, kind, threads, Some(r), o)?;
+        for (k, v) in [
+            ("us_per_check_local", local * 1e6),
+            ("us_per_check_nonlocal", nl * 1e6),
+            ("us_per_check_local_certified_skip", skipped * 1e6),
+            ("nonlocal_over_local", nl / local),
+            ("cpu_nonlocal_over_local", nl_cpu / local_cpu),
+            ("scene_build_seconds_local", local_build),
+            ("scene_build_seconds_nonlocal", nl_build),
+        ] {
+            fig.add(&format!("failure_check_nonlocal.{k}"), v);
+        }
+        Ok(())
     }
-    // The first check of a model pays a one-time set-up (the corner gradients of the nodal
-    // stress, the certified skip's Lipschitz constants): timed alone on a fresh simulation
-    // (one step, then the check); it is inside every stage above, which start fresh.
-    let first_check = {
-        let mut best = f64::INFINITY;
-        for _ in 0..3 {
-            let mut t = sim(&scene_text(nx, ny, kind, threads, n_steps, Some(1)))?;
-            t.step()?;
-            let (time, step) = (t.state.time, t.state.step);
-            let (cr, cfg) = (t.cracking.as_mut().expect("cracking scene"), t.scene.file.cracking.as_ref().expect("cracking config"));
-            let t0 = Instant::now();
-            cr.check(cfg, &mut t.model, &t.state.u, &t.x0, time, step)?;
-            best = best.min(t0.elapsed().as_secs_f64());
-        }
-        best
-    };
-    // The share a check every k steps should cost, from the cost of one check (k = 1 run).
-    let per_check = checks[0].2 .0 - checks[0].1 .0;
-    let per_check_cpu = checks[0].2 .1 - checks[0].1 .1;
-    let checks_base = checks[0].1 .0;
-    let checks: Vec<Value> = checks
-        .iter()
-        .map(|&(k, (b, bc), (t, c), (te, ce))| {
-            json!({"every": k, "us_per_step": t * 1e6, "overhead": t / b - 1.0, "share_predicted": per_check / (k as f64 * b),
-                   "cpu_us_per_step": c * 1e6, "cpu_overhead": c / bc - 1.0, "cpu_share_predicted": per_check_cpu / (k as f64 * bc),
-                   "every_point_us_per_step": te * 1e6, "every_point_overhead": te / b - 1.0, "every_point_cpu_overhead": ce / bc - 1.0,
-                   "baseline_us_per_step": b * 1e6, "rounds": CHECK_ROUNDS})
+
+    fn json(&self, o: &StepOpts) -> Value {
+        let s = &self.s;
+        json!({
+            "kind": self.kind.name, "elements": s.model.n_elems(), "threads": s.model.threads(), "dt": s.dt, "stage_steps": self.n_steps,
+            "interleaved_steps": self.n_il, "check_every": [1, 10, 100], "nonlocal_radius_over_h": o.nonlocal_radius_h,
+            "figures": self.fig.json(),
         })
-        .collect();
-    Ok(json!({
-        "kind": kind.name, "elements": ne, "threads": s.model.threads(), "dt": s.dt, "stage_steps": n_steps,
-        "ns_per_elem": {"kernel": kernel * 1e9 / ne, "bare_step": bare * 1e9 / ne, "step": step * 1e9 / ne, "lean_step": lean * 1e9 / ne, "stage": stage * 1e9 / ne},
-        "lean_step_over_bare_step": lean / bare, "cpu_lean_step_over_bare_step": lean_cpu / bare_cpu,
-        "cpu_stage_over_bare_step": stage_cpu / bare_cpu,
-        "cpu_ns_per_elem": {"kernel": kernel_cpu * 1e9 / ne, "bare_step": bare_cpu * 1e9 / ne, "step": step_cpu * 1e9 / ne, "lean_step": lean_cpu * 1e9 / ne, "stage": stage_cpu * 1e9 / ne},
-        "step_over_kernel": step / kernel,
-        "cpu_step_over_bare_step": step_cpu / bare_cpu,
-        "step_over_bare_step": step / bare,
-        "stage_over_bare_step": stage / bare,
-        "interleaved": il_adaptive, "interleaved_undamped": il_none,
-        "node_update": node_update,
-        "failure_check": {"us_per_check": per_check * 1e6, "cpu_us_per_check": per_check_cpu * 1e6, "every_k": checks, "first_check_ms": first_check * 1e3, "first_check_in_stage_share": first_check / (n_steps as f64 * checks_base)},
-        "failure_check_nonlocal": nonlocal_case(nx, ny, kind, threads, o)?,
-    }))
+    }
+}
+
+/// The step as a task graph (see the module doc): its analysis from one-thread costs, and the
+/// measured speed-ups, one round at a time.
+struct GraphCase {
+    kind: Kind,
+    crack: bool,
+    s: Simulation,
+    fig: Spread,
+    fixed: Value,
+}
+
+impl GraphCase {
+    fn new(nx: usize, ny: usize, kind: Kind, crack: bool, o: &StepOpts) -> Result<GraphCase> {
+        let mut text = scene_text(nx, ny, kind, 1, 1, None);
+        if crack {
+            // A notch over half the width at mid-height, separated from the start: a crack of
+            // nx / 2 element edges (split clusters, each face its own copies).
+            let (y, depth) = ((ny / 2) as f64 / ny as f64, (nx / 2) as f64 * 2.0 / nx as f64);
+            text = text.replacen("[[material]]", &format!("notch = {{ side = \"left\", y = {y:?}, depth = {depth:?} }}\n[model]\nseparated = [\"notch\"]\n[[material]]"), 1);
+        }
+        let mut s = sim(&text)?;
+        s.run_stage(0, &mut NoOutput)?;
+        // One-thread costs, each the least of 5 (the least disturbed on a shared machine):
+        // each chunk (5 passes), the node update, the kernel and the lean step; the rest of the
+        // step is the lean step less the kernel and the node update (0 if noise makes it less).
+        let mut kernel_graph = TaskGraph::default();
+        let mut rank = Vec::new();
+        let (mut flow_blocks, mut chunk_info) = (Vec::new(), Vec::new());
+        for (bi, b) in s.model.blocks.iter().enumerate() {
+            let Some((sched, cost)) = b.chunk_costs(&s.state.u, 5) else { continue };
+            let g = sched.task_graph(&cost);
+            let off = rank.len() as u32;
+            rank.extend(sched.sequence_rank().iter().map(|r| r + off));
+            let lead: std::collections::BTreeSet<u32> = sched.lead.iter().copied().collect();
+            chunk_info.extend((0..cost.len() as u32).map(|k| (bi, lead.contains(&k))));
+            kernel_graph = if kernel_graph.is_empty() { g } else { kernel_graph.then(&g) };
+            flow_blocks.push((sched, cost));
+        }
+        let nk = kernel_graph.len();
+        let (u0, v0) = (s.state.u.clone(), s.state.v.clone());
+        let node = least_per_call(o.min_time, || s.bench_node_update(Simd::best()));
+        (s.state.u, s.state.v) = (u0, v0);
+        let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
+        let kernel = least_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
+        let lean = least_per_call(o.min_time, || s.step_as(false).expect("bench scene is stable"));
+        let rest = (lean - kernel - node).max(0.0);
+        let nc = s.state.u.len();
+        let node_costs: Vec<f64> = (0..nc.div_ceil(NODE_CHUNK)).map(|i| node * ((nc - i * NODE_CHUNK).min(NODE_CHUNK)) as f64 / nc as f64).collect();
+        let nn = node_costs.len();
+        let node_graph = TaskGraph::independent(node_costs);
+        let step_graph = kernel_graph.then(&node_graph).then(&TaskGraph::independent(vec![rest]));
+        rank.extend((0..nn as u32 + 1).map(|i| nk as u32 + i));
+        let (w, cp) = (step_graph.work(), step_graph.critical_path());
+        // What the critical path is made of.
+        let (mut lead_n, mut lead_s, mut region_n, mut region_s, mut node_n, mut node_s) = (0, 0.0, 0, 0.0, 0, 0.0);
+        for &k in &cp.tasks {
+            let (k, c) = (k as usize, step_graph.cost[k as usize]);
+            if k < nk && chunk_info[k].1 {
+                (lead_n, lead_s) = (lead_n + 1, lead_s + c);
+            } else if k < nk {
+                (region_n, region_s) = (region_n + 1, region_s + c);
+            } else if k < nk + nn {
+                (node_n, node_s) = (node_n + 1, node_s + c);
+            }
+        }
+        let kcp = kernel_graph.critical_path();
+        let simulated: Vec<Value> = [1usize, 2, 4, 16, 64]
+            .iter()
+            .map(|&p| {
+                let list = step_graph.list_schedule(p, &rank);
+                let flow = flow_blocks.iter().map(|(sc, c)| sc.simulate_dataflow(c, p)).sum::<f64>() + node_graph.list_schedule(p, &(0..nn as u32).collect::<Vec<_>>()) + rest;
+                let kflow = flow_blocks.iter().map(|(sc, c)| sc.simulate_dataflow(c, p)).sum::<f64>();
+                json!({"threads": p, "step_list_schedule": w / list, "step_dataflow_model": w / flow, "kernel_list_schedule": kernel_graph.work() / kernel_graph.list_schedule(p, &rank[..nk]), "kernel_dataflow_model": kernel_graph.work() / kflow})
+            })
+            .collect();
+        let sched = &flow_blocks.first().map(|x| &x.0);
+        let ne = s.model.n_elems() as f64;
+        let fixed = json!({
+            "kind": kind.name, "crack": crack, "elements": ne, "clusters": nc,
+            "chunks": nk, "chunk_packs": sched.map(|s| s.chunk_packs), "regions": sched.map(|s| s.region_start.len() - 1), "lead_chunks": sched.map(|s| s.lead.len()),
+            "node_chunks": nn,
+            "one_thread_seconds": {"chunks_sum": kernel_graph.work(), "kernel": kernel, "node_update": node, "rest": rest, "lean_step": lean},
+            "work_seconds": w,
+            "critical_path": {"seconds": cp.length, "tasks": cp.tasks.len(), "lead_chunks": lead_n, "lead_seconds": lead_s, "region_chunks": region_n, "region_seconds": region_s, "node_chunks": node_n, "node_seconds": node_s, "rest_seconds": rest},
+            "parallelism": w / cp.length,
+            "kernel_work_seconds": kernel_graph.work(), "kernel_critical_path_seconds": kcp.length, "kernel_critical_path_chunks": kcp.tasks.len(),
+            "kernel_parallelism": kernel_graph.parallelism(),
+            "simulated_speedup": simulated,
+        });
+        Ok(GraphCase { kind, crack, s, fig: Spread::default(), fixed })
+    }
+
+    /// One round: the lean step and the kernel on each thread count, and their speed-ups over
+    /// one thread in this round.
+    fn round(&mut self, o: &StepOpts) -> Result<()> {
+        let ne = self.s.model.n_elems() as f64;
+        let (mut step1, mut kernel1) = (None, None);
+        for &t in std::iter::once(&1).chain(o.threads.iter().filter(|&&t| t != 1)) {
+            self.s.model.set_threads(t)?;
+            let s = &mut self.s;
+            let (lean, _) = time_per_call(o.min_time, || s.step_as(false).expect("bench scene is stable"));
+            let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
+            let (kernel, _) = time_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
+            let t = s.model.threads();
+            let (l1, k1) = (*step1.get_or_insert(lean), *kernel1.get_or_insert(kernel));
+            self.fig.add(&format!("threads_{t}.lean_step_ns_per_elem"), lean * 1e9 / ne);
+            self.fig.add(&format!("threads_{t}.kernel_ns_per_elem"), kernel * 1e9 / ne);
+            self.fig.add(&format!("threads_{t}.step_speedup"), l1 / lean);
+            self.fig.add(&format!("threads_{t}.kernel_speedup"), k1 / kernel);
+        }
+        self.s.model.set_threads(1)?;
+        Ok(())
+    }
+
+    fn json(&self) -> Value {
+        let mut v = self.fixed.clone();
+        v["measured"] = self.fig.json();
+        let _ = (self.kind, self.crack);
+        v
+    }
 }
 
 /// One failure check called directly (`Cracking::check`, nothing splits) with the paper's
@@ -399,35 +677,21 @@ fn check_cost(nx: usize, ny: usize, kind: Kind, threads: usize, radius: Option<f
     Ok((t, c, build, ts))
 }
 
-fn nonlocal_case(nx: usize, ny: usize, kind: Kind, threads: usize, o: &StepOpts) -> Result<Value> {
-    let h = 2.0 / nx as f64;
-    let r = o.nonlocal_radius_h * h;
-    let (local, local_cpu, local_build, skipped) = check_cost(nx, ny, kind, threads, None, o)?;
-    let (nl, nl_cpu, nl_build, _) = check_cost(nx, ny, kind, threads, Some(r), o)?;
-    Ok(json!({"radius": r, "radius_over_h": o.nonlocal_radius_h, "us_per_check_local": local * 1e6, "us_per_check_nonlocal": nl * 1e6, "us_per_check_local_certified_skip": skipped * 1e6,
-              "nonlocal_over_local": nl / local, "cpu_nonlocal_over_local": nl_cpu / local_cpu,
-              "scene_build_seconds_local": local_build, "scene_build_seconds_nonlocal": nl_build}))
-}
-
 pub fn step(o: &StepOpts) -> Result<()> {
-    // The machine's bandwidth at each thread count, in this run (issue 24: the kernel's
-    // effective bandwidth is quoted as a fraction of it).
-    let mut triad = Vec::new();
-    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
     // Always one thread and all threads (issue 24), besides the thread counts asked for.
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut triad_threads = Vec::new();
     for &t in [1, all].iter().chain(&o.threads) {
-        let n = if t == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { t };
-        if !triad.iter().any(|(k, _)| *k == n) {
-            triad.push((n, triad_gb_per_s(n, o.min_time)?));
+        let n = if t == 0 { all } else { t };
+        if !triad_threads.contains(&n) {
+            triad_threads.push(n);
         }
     }
-    eprintln!("bench: triad {triad:?} GB/s");
     let mut kernels = Vec::new();
     for &kind in &o.kinds {
         for &n in &o.sizes {
             let (nx, ny) = grid_for(n, kind.cell);
-            kernels.push(kernel_case(nx, ny, kind, o, &triad)?);
-            eprintln!("bench: kernel {} {} elements done", kind.name, kernels.last().unwrap()["elements"]);
+            kernels.push(KernelCase::new(nx, ny, kind, o)?);
         }
     }
     let mut steps = Vec::new();
@@ -435,17 +699,49 @@ pub fn step(o: &StepOpts) -> Result<()> {
         for &n in o.step_sizes.iter() {
             let (nx, ny) = grid_for(n, kind.cell);
             for &t in &o.threads {
-                steps.push(step_case(nx, ny, kind, t, o)?);
-                eprintln!("bench: step {} {n} elements, {t} threads done", kind.name);
+                steps.push(StepCase::new(nx, ny, kind, t, o)?);
             }
         }
     }
+    let mut graphs = Vec::new();
+    for &kind in &o.kinds {
+        for &n in &o.graph_sizes {
+            let (nx, ny) = grid_for(n, kind.cell);
+            for crack in [false, true] {
+                graphs.push(GraphCase::new(nx, ny, kind, crack, o)?);
+                eprintln!("bench: task graph {} {n} elements{} done", kind.name, if crack { ", crack" } else { "" });
+            }
+        }
+    }
+    // The rounds: each measures the triad, then every case once.
+    let mut triad = Spread::default();
+    for r in 0..o.rounds {
+        let mut this = Vec::new();
+        for &t in &triad_threads {
+            let g = triad_gb_per_s(t, o.min_time)?;
+            triad.add(&format!("threads_{t}"), g);
+            this.push((t, g));
+        }
+        for k in kernels.iter_mut() {
+            k.round(o, &this)?;
+        }
+        for s in steps.iter_mut() {
+            s.round(o)?;
+        }
+        for g in graphs.iter_mut() {
+            g.round(o)?;
+        }
+        eprintln!("bench: round {} of {} done (triad {this:?} GB/s)", r + 1, o.rounds);
+    }
     let out = json!({
         "bench": "step",
-        "cpus": std::thread::available_parallelism().map_or(1, |n| n.get()),
-        "triad": triad.iter().map(|(t, g)| json!({"threads": t, "gb_per_s": g})).collect::<Vec<_>>(),
-        "kernel": kernels,
-        "step": steps,
+        "cpus": all,
+        "rounds": o.rounds,
+        "min_time_per_figure_and_round": o.min_time,
+        "triad_gb_per_s": triad.json(),
+        "kernel": kernels.iter().map(|k| k.json(o)).collect::<Vec<_>>(),
+        "step": steps.iter().map(|s| s.json(o)).collect::<Vec<_>>(),
+        "task_graph": graphs.iter().map(GraphCase::json).collect::<Vec<_>>(),
     });
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())

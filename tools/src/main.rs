@@ -229,6 +229,13 @@ enum BenchWhat {
         /// Radius of the nonlocal failure check (ours, issue 18), in element sizes.
         #[arg(long, default_value_t = 2.0)]
         nonlocal_radius_h: f64,
+        /// Rounds of every figure (each printed as median and range; at least 5).
+        #[arg(long, default_value_t = 5)]
+        rounds: usize,
+        /// Element counts of the step's task-graph analysis, Q4 and T3 with and without a
+        /// crack (0: none).
+        #[arg(long, value_delimiter = ',', default_value = "100000,1000000")]
+        graph_sizes: Vec<usize>,
     },
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
@@ -334,7 +341,8 @@ fn main() -> ExitCode {
     }
 }
 
-fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_sizes: Vec<usize>, min_time: f64, nonlocal_radius_h: f64) -> Result<()> {
+#[allow(clippy::too_many_arguments)]
+fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_sizes: Vec<usize>, min_time: f64, nonlocal_radius_h: f64, rounds: usize, graph_sizes: Vec<usize>) -> Result<()> {
     anyhow::ensure!(nonlocal_radius_h > 0.0 && nonlocal_radius_h.is_finite(), "--nonlocal-radius-h = {nonlocal_radius_h} is incorrect; it must be > 0");
     let kinds = kinds
         .iter()
@@ -347,7 +355,10 @@ fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_s
         .collect::<Result<Vec<_>>>()?;
     anyhow::ensure!(min_time > 0.0 && min_time.is_finite(), "--min-time = {min_time} is incorrect; it must be > 0");
     anyhow::ensure!(sizes.iter().chain(&step_sizes).all(|&n| (8..=16_000_000).contains(&n)), "--sizes/--step-sizes: each must be in [8, 16000000]");
-    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes, nonlocal_radius_h })
+    anyhow::ensure!(rounds >= 5, "--rounds = {rounds} is incorrect; it must be at least 5 (a median and a range need them)");
+    let graph_sizes: Vec<usize> = graph_sizes.into_iter().filter(|&n| n != 0).collect();
+    anyhow::ensure!(graph_sizes.iter().all(|&n| (8..=16_000_000).contains(&n)), "--graph-sizes: each must be 0 or in [8, 16000000]");
+    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes, nonlocal_radius_h, rounds, graph_sizes })
 }
 
 fn plugins(libs: &[PathBuf], scene: Option<&Path>) -> Result<()> {
@@ -678,7 +689,9 @@ fn bench(what: BenchWhat) -> Result<()> {
             let b = flem_plugins::check::bench::bench_implicit(&dofs, repeats, &threads)?;
             println!("{}", serde_json::to_string_pretty(&b)?);
         }
-        BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h } => bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h)?,
+        BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h, rounds, graph_sizes } => {
+            bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h, rounds, graph_sizes)?
+        }
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Laws { elements, min_time } => bench_laws::run(elements, min_time)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,

@@ -111,8 +111,9 @@ pub trait Block: Send + Sync {
         true
     }
     /// The force pass's schedule and the cost of each of its chunks on one thread (seconds,
-    /// the median of `passes` passes in the one-thread order; `flem bench step`'s task graph,
-    /// issue 42). `None` for a block that does not run the dataflow (the default).
+    /// the least of `passes` passes in the one-thread order: on a shared machine the least
+    /// disturbed; `flem bench step`'s task graph, issue 42). `None` for a block that does not
+    /// run the dataflow (the default).
     fn chunk_costs(&self, _u: &[[f64; 2]], _passes: usize) -> Option<(crate::element::kernel::Schedule, Vec<f64>)> {
         None
     }
@@ -605,13 +606,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
                 t[k as usize].push(t0.elapsed().as_secs_f64());
             }
         }
-        let cost = t
-            .into_iter()
-            .map(|mut v| {
-                v.sort_by(f64::total_cmp);
-                v[v.len() / 2]
-            })
-            .collect();
+        let cost = t.into_iter().map(|v| v.into_iter().fold(f64::INFINITY, f64::min)).collect();
         std::hint::black_box(&f);
         Some((self.sched.clone(), cost))
     }

@@ -30,6 +30,15 @@
 //! re-points corners at new clusters whose elements shared the parent cluster before, so the
 //! colouring, the lead chunks and the waits stay valid after `remap`.
 //!
+//! **Parallelism** (issue 42). The waits make the pass a task graph (`Schedule::task_graph`,
+//! `element::dag`): a region's chunks share clusters one with the next on a banded mesh, so
+//! they are a chain, and the critical path is about one region (its lead chunks, then its
+//! others); the parallelism, work over critical path, is about the number of regions. Their
+//! cap (`Schedule::regions_for`) was 64, which held it below 64 at any size; it is 4096, so a
+//! block of 1e6 elements has 122 regions and a parallelism above 100 (`flem bench step`'s
+//! `task_graph` measures it; docs/perf/README.md). `Schedule::simulate_dataflow` models
+//! `run_dataflow` on any number of threads.
+//!
 //! **Zero-free pass** (issue 24, session 11). Since the sequence fixes each cluster's order of
 //! contributions from the mesh alone, the first contribution of every cluster is known before
 //! any pass. A model of one stateless block (`Model::internal_forces`,
@@ -674,14 +683,18 @@ mod tests {
 
     /// `run_dataflow` on pools of 1 to 4 threads: every cluster receives its chunks in the
     /// same order as with the one-thread `order` (so the same sums bit for bit), and what each
-    /// thread ran is in an order that keeps the waits. Two calls per pool (the epochs).
+    /// thread ran is in an order that keeps the waits. Two calls per pool (the epochs). On the
+    /// grids of `sequence_and_waits_fix_every_shared_cluster` and the 1e6-element bench grid.
     #[test]
     fn dataflow_keeps_the_per_cluster_order_on_every_thread_count() {
         use std::sync::atomic::AtomicU32;
         use std::sync::Mutex;
-        for (name, (conn, n)) in [("grid", grid(300, 150)), ("shuffled", shuffled(120, 90)), ("thin", grid(4000, 4))] {
+        // "bench": the 1e6-element grid of `flem bench step`, 122 regions (more than 64, the
+        // cap before issue 42).
+        for (name, (conn, n)) in [("grid", grid(300, 150)), ("shuffled", shuffled(120, 90)), ("thin", grid(4000, 4)), ("bench", grid(1414, 707))] {
             let s = Schedule::build(&conn, n);
             let (ce, nc) = (s.chunk_packs * LANES, s.n_chunks());
+            assert!(name != "bench" || s.region_start.len() - 1 > 64, "{name}: more than 64 regions");
             let want = per_cluster(&conn, n, ce, &s.order);
             for threads in 1..=4 {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();

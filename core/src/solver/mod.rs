@@ -304,7 +304,7 @@ fn generated_in_scene(e: FlemError, scene: &str) -> FlemError {
 const NSUM: usize = 14;
 
 /// Nodes per chunk of the node update (fixed: the ledger sums must not depend on threads).
-const NODE_CHUNK: usize = 4096;
+pub const NODE_CHUNK: usize = 4096;
 
 /// What the node update reads.
 struct NodeCtx<'a> {
