@@ -129,25 +129,6 @@ pub(crate) fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
     batches[2]
 }
 
-/// The least seconds per call of `f` over 5 batches of at least `min_time / 5` each: the cost
-/// of the work itself on a shared machine (the task graph's one-thread costs).
-fn least_per_call(min_time: f64, mut f: impl FnMut()) -> f64 {
-    f();
-    let t0 = Instant::now();
-    f();
-    let one = t0.elapsed().as_secs_f64().max(1e-9);
-    let reps = ((min_time / 5.0 / one).ceil() as usize).max(1);
-    (0..5)
-        .map(|_| {
-            let t = Instant::now();
-            for _ in 0..reps {
-                f();
-            }
-            t.elapsed().as_secs_f64() / reps as f64
-        })
-        .fold(f64::INFINITY, f64::min)
-}
-
 /// The machine's own memory bandwidth, measured in each round: the STREAM triad
 /// `a[i] = b[i] + s c[i]` over three arrays of 2^25 f64 (768 MiB in all, far beyond the caches),
 /// split into equal chunks over `threads` threads, counted as STREAM does (24 bytes per index:
@@ -544,9 +525,8 @@ impl GraphCase {
         }
         let mut s = sim(&text)?;
         s.run_stage(0, &mut NoOutput)?;
-        // One-thread costs, each the least of 5 (the least disturbed on a shared machine):
-        // each chunk (5 passes), the node update, the kernel and the lean step; the rest of the
-        // step is the lean step less the kernel and the node update (0 if noise makes it less).
+        // One-thread costs: each chunk (the least of 5 passes: the least disturbed on a shared
+        // machine), then the parts of the step (below).
         let mut kernel_graph = TaskGraph::default();
         let mut rank = Vec::new();
         let (mut flow_blocks, mut chunk_info) = (Vec::new(), Vec::new());
@@ -561,12 +541,23 @@ impl GraphCase {
             flow_blocks.push((sched, cost));
         }
         let nk = kernel_graph.len();
-        let (u0, v0) = (s.state.u.clone(), s.state.v.clone());
-        let node = least_per_call(o.min_time, || s.bench_node_update(Simd::best()));
-        (s.state.u, s.state.v) = (u0, v0);
-        let (u, mut f) = (s.state.u.clone(), vec![[0.0; 2]; s.state.u.len()]);
-        let kernel = least_per_call(o.min_time, || s.model.internal_forces(&u, &mut f));
-        let lean = least_per_call(o.min_time, || s.step_as(false).expect("bench scene is stable"));
+        // The force pass, the node update and the rest of the lean step, timed inside the
+        // same steps (`Simulation::part_seconds`), in 5 batches; the batch of the least step
+        // time (the least disturbed).
+        let (mut kernel, mut node, mut lean) = (0.0, 0.0, f64::INFINITY);
+        let t0 = Instant::now();
+        s.step_as(false)?;
+        let reps = ((o.min_time / 5.0 / t0.elapsed().as_secs_f64().max(1e-9)).ceil() as usize).max(1);
+        for _ in 0..5 {
+            s.part_seconds = Some([0.0; 3]);
+            for _ in 0..reps {
+                s.step_as(false)?;
+            }
+            let p = s.part_seconds.take().unwrap_or_default().map(|x| x / reps as f64);
+            if p[2] < lean {
+                (kernel, node, lean) = (p[0], p[1], p[2]);
+            }
+        }
         let rest = (lean - kernel - node).max(0.0);
         let nc = s.state.u.len();
         let node_costs: Vec<f64> = (0..nc.div_ceil(NODE_CHUNK)).map(|i| node * ((nc - i * NODE_CHUNK).min(NODE_CHUNK)) as f64 / nc as f64).collect();

@@ -334,9 +334,15 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             }
             let e0 = p * LANES;
             let conn = &self.conn[e0..(e0 + LANES).min(self.conn.len())];
+            // One bounds check per pack (a vector max of its clusters) instead of one per
+            // corner for `u` and one per corner for `f` (issue 42: 64 compare-and-branch per
+            // pack of Q4 in the hot loop).
+            let top = conn.iter().flatten().fold(0u32, |m, &c| m.max(c)) as usize;
+            assert!(top < u.len() && top < f.len(), "cluster {top} beyond the displacement ({}) or force ({}) array", u.len(), f.len());
             for (l, c) in conn.iter().enumerate() {
                 for a in 0..N {
-                    let ua = u[c[a] as usize];
+                    // SAFETY: c[a] <= top < u.len() (asserted above).
+                    let ua = unsafe { *u.get_unchecked(c[a] as usize) };
                     ug[a][0][l] = ua[0];
                     ug[a][1][l] = ua[1];
                 }
@@ -350,7 +356,8 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
                     // SAFETY: chunks running at the same time write disjoint clusters: under the
                     // dataflow (Schedule::run_dataflow) a chunk starts only when every earlier
                     // chunk sharing a cluster with it is done, and the later ones wait for it.
-                    unsafe { f.add(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
+                    // In bounds: c[a] <= top < f.len() (asserted above).
+                    unsafe { f.add_unchecked(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
                 }
             }
         }

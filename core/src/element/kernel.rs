@@ -505,6 +505,26 @@ impl SharedForces {
         x[0] += v[0];
         x[1] += v[1];
     }
+    /// The length of the array.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// `f[c] += v` without the bounds check (the caller has checked `c < self.len()`, e.g.
+    /// once for a whole pack: `ElementBlock`'s chunk loop).
+    ///
+    /// # Safety
+    /// As [`Self::add`], and `c < self.len()`.
+    #[inline(always)]
+    pub unsafe fn add_unchecked(&self, c: usize, v: [f64; 2]) {
+        debug_assert!(c < self.len);
+        // SAFETY: in bounds and exclusive by the caller's contract.
+        let x = unsafe { &mut *self.ptr.add(c) };
+        x[0] += v[0];
+        x[1] += v[1];
+    }
     /// `f[c] = 0` (the zero-free force pass: the pack of the cluster's first writer zeroes
     /// it, `ElementBlock`'s first writers).
     ///

@@ -277,6 +277,10 @@ pub struct Simulation {
     pub(crate) coeffs: DampingCoeffs,
     /// Ledger sums of each node chunk of the last step.
     partials: Vec<[f64; NSUM]>,
+    /// When `Some`, each step adds the seconds of its parts here: (force pass, node update,
+    /// whole step) (`flem bench step`'s task graph, issue 42; `None`: no clock is read).
+    #[doc(hidden)]
+    pub part_seconds: Option<[f64; 3]>,
     /// The unbalanced-force ratio of the last step when it was a full one.
     step_ratio: Option<f64>,
     scratch: Vec<[f64; 2]>,
@@ -668,6 +672,7 @@ impl Simulation {
             stats: StepStats::default(),
             coeffs: DampingCoeffs::default(),
             partials: Vec::new(),
+            part_seconds: None,
             step_ratio: None,
             scratch: Vec::new(),
             events: None,
@@ -1001,7 +1006,9 @@ impl Simulation {
             cr.before_step(&self.state.u, check_follows);
         }
         let dt = self.dt;
+        let t0 = self.part_seconds.map(|_| std::time::Instant::now());
         self.model.update_internal_forces(&self.state.u, &mut self.state.f_int);
+        let t_force = t0.map(|t| t.elapsed().as_secs_f64());
         if self.loads.has_follower || self.loads.has_time {
             self.state.f_ext.copy_from_slice(&self.f_const);
             self.loads.add_step_force(&self.model, &self.levels, &self.x0, &self.state.u, self.state.time, &mut self.state.f_ext)?;
@@ -1014,7 +1021,9 @@ impl Simulation {
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
         let corot_strain = if full && (self.model.corotational || self.model.stateful) { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
         let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
+        let t1 = self.part_seconds.map(|_| std::time::Instant::now());
         let sum = self.update_nodes(full, stats, Simd::best());
+        let t_node = t1.map(|t| t.elapsed().as_secs_f64());
         let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc, num, asum, cnt] = sum;
         self.step_ratio = full.then(|| ratio_of(num.sqrt(), asum, cnt));
         self.ledger.external_work += w;
@@ -1034,6 +1043,9 @@ impl Simulation {
             self.guard(keh)?;
         } else {
             self.stats.step = self.state.step;
+        }
+        if let (Some(p), Some(t0), Some(tf), Some(tn)) = (self.part_seconds.as_mut(), t0, t_force, t_node) {
+            *p = [p[0] + tf, p[1] + tn, p[2] + t0.elapsed().as_secs_f64()];
         }
         Ok(())
     }
