@@ -504,18 +504,29 @@ impl MaterialLaw for MohrCoulomb {
             fs[3][l] = nz;
             gam[l] = dep[0].max(dep[1]).max(dep[2]) - dep[0].min(dep[1]).min(dep[2]);
         }
+        // The elastic and face lanes without a branch: the stress selected, the history
+        // rewritten (a face lane: `h0 + gam`, state 1; an elastic one: state 1 -> 2); then the
+        // other lanes' returns, one by one.
+        for c in 0..4 {
+            for l in 0..LANES {
+                s[c][l] = if inside[l] { ts[c][l] } else { fs[c][l] };
+            }
+        }
         for l in 0..n {
-            let h = &mut state[l * stride..l * stride + 2];
-            if inside[l] {
-                (s[0][l], s[1][l], s[2][l], s[3][l]) = (ts[0][l], ts[1][l], ts[2][l], ts[3][l]);
-                if h[1] == 1.0 {
-                    h[1] = 2.0;
-                }
-            } else if face[l] {
-                (s[0][l], s[1][l], s[2][l], s[3][l]) = (fs[0][l], fs[1][l], fs[2][l], fs[3][l]);
-                h[0] += gam[l];
-                h[1] = 1.0;
+            let (h0, h1) = (state[l * stride], state[l * stride + 1]);
+            let (fl, il) = (face[l] & !inside[l], inside[l]);
+            state[l * stride] = if fl { h0 + gam[l] } else { h0 };
+            state[l * stride + 1] = if fl {
+                1.0
+            } else if il & (h1 == 1.0) {
+                2.0
             } else {
+                h1
+            };
+        }
+        for l in 0..n {
+            if !inside[l] && !face[l] {
+                let h = &mut state[l * stride..l * stride + 2];
                 let t = Trial { s: [ts[0][l], ts[1][l], ts[2][l], ts[3][l]], half: half[l], rad: rad[l], pa: pa[l], pb: pb[l], pz: pz[l], inside: false };
                 let mut sl = t.s;
                 self.plastic_update(&mut sl, &t, h);
