@@ -36,9 +36,8 @@
 use std::path::Path;
 
 use crate::error::{FlemError, Result};
-use crate::output::checkpoint::Checkpoint;
 use crate::scene::Scene;
-use crate::solver::{Observer, Simulation, StagePos};
+use crate::solver::{Ledger, Observer, Simulation, StagePos, State};
 
 /// Options of the search (`flem fos --lo --hi --rel-tol --max-trials --growth`).
 #[derive(Clone, Debug)]
@@ -135,7 +134,7 @@ pub fn trial(text: &str, path: &Path, base: &Path, f: f64, growth: f64) -> Resul
 
 /// [`trial`], its last stage started from `warm` when given (the warm start: the final state
 /// of a stable trial at the strength factor `warm.0`, captured by [`warm_state`]).
-pub fn trial_from(text: &str, path: &Path, base: &Path, f: f64, growth: f64, warm: Option<(f64, &Checkpoint)>) -> Result<(Trial, Simulation)> {
+pub fn trial_from(text: &str, path: &Path, base: &Path, f: f64, growth: f64, warm: Option<(f64, &WarmState)>) -> Result<(Trial, Simulation)> {
     let t0 = std::time::Instant::now();
     let mut sc = reduced_scene(text, path, base, f)?;
     let last = sc.file.stages.len() - 1;
@@ -153,9 +152,8 @@ pub fn trial_from(text: &str, path: &Path, base: &Path, f: f64, growth: f64, war
     let mut sim = Simulation::new(sc)?;
     let mut w = Watch { last_stage: last, rows: Vec::new() };
     match warm {
-        Some((_, ck)) => {
-            ck.restore(&mut sim)?;
-            sim.stages_done.truncate(last);
+        Some((_, ws)) => {
+            ws.restore(&mut sim, last)?;
             sim.run_from(StagePos::start(last), &mut w)?;
         }
         None => sim.run(&mut w)?,
@@ -182,10 +180,52 @@ pub fn trial_from(text: &str, path: &Path, base: &Path, f: f64, growth: f64, war
     Ok((t, sim))
 }
 
-/// The final state of a trial that stood, as the warm start of the next one (its last stage
-/// run again from there).
-pub fn warm_state(sim: &Simulation) -> Result<Checkpoint> {
-    Checkpoint::capture(sim, &StagePos::start(sim.scene.file.stages.len() - 1))
+/// The final state of a trial that stood, kept as the warm start of the next one (its last
+/// stage run again from there; `flem fos --warm`).
+pub struct WarmState {
+    state: State,
+    blocks: Vec<Vec<f64>>,
+    levels: Vec<f64>,
+    ledger: Ledger,
+}
+
+impl WarmState {
+    /// Puts the state into `sim`, a simulation freshly built from the same scene with other
+    /// strengths (the same mesh, blocks and loads), before its stage `last`.
+    fn restore(&self, sim: &mut Simulation, last: usize) -> Result<()> {
+        if self.state.u.len() != sim.state.u.len() || self.blocks.len() != sim.model.blocks.len() || self.levels.len() != sim.levels.len() {
+            return Err(FlemError::Other("fos warm start: the trial's model differs from the one it starts from".into()));
+        }
+        for (b, v) in sim.model.blocks.iter_mut().zip(&self.blocks) {
+            if !b.load_state(v) {
+                return Err(FlemError::Other(format!("fos warm start: block of region \"{}\" does not take the state of the last stable trial", b.region())));
+            }
+        }
+        sim.state.clone_from(&self.state);
+        sim.levels.clone_from(&self.levels);
+        sim.ledger = self.ledger;
+        sim.stages_done.truncate(last);
+        Ok(())
+    }
+}
+
+/// The warm start of `sim` after a trial that stood; `None` for a scene whose model the run
+/// changes (splits, contact, the events solver): its next trial starts cold.
+pub fn warm_state(sim: &Simulation) -> Option<WarmState> {
+    if sim.cracking.as_ref().is_some_and(|c| !c.cuts.is_empty()) || sim.contact.is_some() || sim.events.is_some() {
+        return None;
+    }
+    let blocks = sim
+        .model
+        .blocks
+        .iter()
+        .map(|b| {
+            let mut v = Vec::with_capacity(b.state_len());
+            b.save_state(&mut v);
+            v
+        })
+        .collect();
+    Some(WarmState { state: sim.state.clone(), blocks, levels: sim.levels.clone(), ledger: sim.ledger })
 }
 
 /// The search of the module docs over a trial `run(F) -> (flows, what the trial keeps)`: widen
@@ -257,7 +297,7 @@ pub fn factor_of_safety(text: &str, path: &Path, base: &Path, o: &FosOptions, ea
     let name = path.display().to_string();
     let mut trials = Vec::new();
     // The highest F that stood so far and its final state (warm start only).
-    let mut stood: Option<(f64, Checkpoint)> = None;
+    let mut stood: Option<(f64, WarmState)> = None;
     let (fos, bracket, flow, _) = bisect(&name, o, |f| {
         let start = stood.as_ref().filter(|s| o.warm && s.0 < f).map(|s| (s.0, &s.1));
         let (t, sim) = trial_from(text, path, base, f, o.growth, start)?;
@@ -265,7 +305,7 @@ pub fn factor_of_safety(text: &str, path: &Path, base: &Path, o: &FosOptions, ea
         let flows = t.flows;
         trials.push(t);
         if o.warm && !flows && stood.as_ref().is_none_or(|s| s.0 < f) {
-            stood = Some((f, warm_state(&sim)?));
+            stood = warm_state(&sim).map(|w| (f, w));
         }
         Ok((flows, sim))
     })?;
