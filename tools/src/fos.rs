@@ -2,6 +2,14 @@
 //! search and its criterion are `flem_core::solver::fos` (docs/materials.md); this file writes
 //! DIR/fos.json and the mechanism picture DIR/mechanism.png/.svg (plastic shear strain of the
 //! lowest F that flowed, on the deformed mesh).
+//!
+//! `--warm` (ours, off by default): the warm start of `flem_core::solver::fos` (a trial above
+//! the highest F that stood starts from that trial's final state). `--implicit` (ours): every
+//! trial by Newton (`flem_plugins::check::newton`, the implicit plastic check) instead of the
+//! explicit march, Griffiths & Lane's criterion: the trial stands when the last stage's loads,
+//! applied in `--increments` load increments (halved when an increment does not converge), reach
+//! equilibrium within the Newton budget ([`implicit_trial`]), and flows when they do not; the same
+//! bisection. No mechanism picture then (fos.json says so).
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
@@ -27,6 +35,84 @@ pub struct Args {
     /// by more than this fraction over the second half of its steps.
     #[arg(long, default_value_t = 0.1)]
     pub growth: f64,
+    /// Warm start (ours): a trial above the highest F that stood starts its last stage from that
+    /// trial's final state instead of the initial state (fewer steps; it changes the path).
+    #[arg(long)]
+    pub warm: bool,
+    /// Every trial by Newton (the implicit plastic check's solver) instead of the explicit
+    /// march (ours; docs/materials.md).
+    #[arg(long, conflicts_with = "warm")]
+    pub implicit: bool,
+    /// With --implicit: nominal load increments of the last stage's loads.
+    #[arg(long, default_value_t = 10)]
+    pub increments: usize,
+}
+
+/// Newton's budget in a strength-reduction trial (docs/materials.md): relative residual
+/// 1e-6 (the explicit slope stage stops at an unbalanced ratio of 1e-5), 15 iterations per
+/// increment, 20 tries per nominal increment (halvings included).
+pub const IMPLICIT_TOL: f64 = 1e-6;
+pub const IMPLICIT_ITER: usize = 15;
+pub const IMPLICIT_TRIES: usize = 20;
+
+/// One implicit trial at strength factor `f`: the stages' loads and supports up to the last
+/// (`Simulation::set_stage_levels`) applied by Newton from the unloaded state in `increments`
+/// nominal increments. `Ok(true)`: no equilibrium within the budget (flows); `Ok(false)`: it
+/// stands. Other failures (a law Newton cannot follow, a singular model) are errors.
+pub fn implicit_trial(text: &str, scene: &std::path::Path, base: &std::path::Path, f: f64, increments: usize) -> Result<(bool, flem_core::plugin::check::PlasticStage)> {
+    use flem_core::plugin::check::PlasticCheck;
+    let sc = flem_core::solver::fos::reduced_scene(text, scene, base, f)?;
+    let last = sc.file.stages.len().saturating_sub(1);
+    let mut s = flem_core::solver::Simulation::new(sc)?;
+    s.set_stage_levels(last);
+    let fe = s.external_force()?;
+    let zero = vec![[0.0; 2]; fe.len()];
+    let mut newton = flem_plugins::check::newton::NewtonCheck::new();
+    (newton.tol, newton.max_iter, newton.max_tries) = (IMPLICIT_TOL, IMPLICIT_ITER, IMPLICIT_TRIES);
+    match newton.advance(&s.model, &s.state.fix.clone(), &fe, &zero, increments) {
+        Ok(st) => Ok((false, st)),
+        // The two ways Newton gives a load path up (`check/newton.rs`): no equilibrium.
+        Err(flem_core::FlemError::Solve(m)) if m.contains("load increments tried") || m.contains("did not converge after") => Ok((true, Default::default())),
+        Err(e) => Err(e.into()),
+    }
+}
+
+fn run_implicit(a: &Args, text: &str, base: &std::path::Path, out: &std::path::Path) -> Result<()> {
+    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: false };
+    let mut trials = Vec::new();
+    let name = a.scene.display().to_string();
+    let (fos, bracket, _, _) = flem_core::solver::fos::bisect(&name, &o, |f| {
+        let t0 = std::time::Instant::now();
+        let (flows, st) = implicit_trial(text, &a.scene, base, f, a.increments).map_err(|e| flem_core::FlemError::Other(format!("{e:#}")))?;
+        let secs = t0.elapsed().as_secs_f64();
+        eprintln!(
+            "F = {f:.4}: {} (Newton: {} increments, {} iterations, {} halvings) {secs:.1} s",
+            if flows { "no equilibrium (flows)" } else { "equilibrium" },
+            st.increments,
+            st.iterations,
+            st.bisections
+        );
+        trials.push(serde_json::json!({"f": f, "flows": flows, "increments": st.increments, "iterations": st.iterations, "halvings": st.bisections, "seconds": secs}));
+        Ok((flows, ()))
+    })?;
+    let json = serde_json::json!({
+        "fos": fos,
+        "bracket": bracket,
+        "scene": name,
+        "solver": "implicit (Newton, consistent tangent; flem fos --implicit)",
+        "criterion": {
+            "equilibrium": "Newton reaches the last stage's loads (relative residual 1e-6, 15 iterations per increment, 20 tries per nominal increment, halvings included)",
+            "flows": "it does not within that budget",
+            "increments": a.increments,
+            "rel_tol": a.rel_tol,
+        },
+        "reduction": "c / F and tan(phi) / F for every law with a strength (dilation angle capped at the reduced friction angle)",
+        "pictures": "none (the implicit trials keep no mechanism; run without --implicit for it)",
+        "trials": trials,
+    });
+    flem_core::output::atomic_write(&out.join("fos.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
+    println!("factor of safety {fos:.4} (implicit; bracket [{:.4}, {:.4}], {} trials); {}", bracket[0], bracket[1], trials.len(), out.join("fos.json").display());
+    Ok(())
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -41,10 +127,13 @@ pub fn run(a: Args) -> Result<()> {
         }
         return Err(e.into());
     }
-    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth };
+    if a.implicit {
+        return run_implicit(&a, &text, &base, &out);
+    }
+    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: a.warm };
     let mut show = |t: &Trial| {
         eprintln!(
-            "F = {:.4}: {} (ratio {:.2e} after {} steps, {}; largest displacement {:.4e}, grew {:.1} % over the second half) {:.1} s",
+            "F = {:.4}: {} (ratio {:.2e} after {} steps, {}; largest displacement {:.4e}, grew {:.1} % over the second half){} {:.1} s",
             t.f,
             if t.flows { "flows" } else { "equilibrium" },
             t.ratio,
@@ -52,6 +141,7 @@ pub fn run(a: Args) -> Result<()> {
             if t.converged { "converged" } else { "step limit" },
             t.u_max,
             100.0 * t.growth,
+            t.from.map(|f| format!(" from F = {f:.4}")).unwrap_or_default(),
             t.seconds
         );
     };
@@ -78,6 +168,7 @@ pub fn run(a: Args) -> Result<()> {
             "flows": "the ratio is above the tolerance at the step limit and the largest displacement grew by more than `growth` over the second half",
             "growth": a.growth,
             "rel_tol": a.rel_tol,
+            "warm": a.warm,
         },
         "reduction": "c / F and tan(phi) / F for every law with a strength (dilation angle capped at the reduced friction angle)",
         "mechanism_f": r.bracket[1],

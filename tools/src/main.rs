@@ -14,6 +14,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 mod bench;
+mod bench_answer;
 mod bench_contact;
 mod bench_dyncall;
 mod bench_events;
@@ -240,6 +241,10 @@ enum BenchWhat {
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
     Dyncall(bench_dyncall::Args),
+    /// Time to answer of the plastic verification scenes (the strip footings' plateau, the
+    /// slope's factor of safety), explicit beside implicit, and the chart of wall time against
+    /// error (ours, issue 37; docs/materials.md).
+    Answer(bench_answer::Args),
     /// ns per element-update of the material laws (mohr_coulomb, large strain) against the
     /// linear elastic kernel (issue 21).
     Laws {
@@ -694,6 +699,7 @@ fn bench(what: BenchWhat) -> Result<()> {
         }
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Laws { elements, min_time } => bench_laws::run(elements, min_time)?,
+        BenchWhat::Answer(a) => bench_answer::run(&a)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
         BenchWhat::Events { dofs, events, woodbury, refactor_every } => {
             anyhow::ensure!(dofs.iter().all(|&d| d.is_finite() && (100.0..=1e7).contains(&d)), "--dofs: every value must be in [100, 1e7]");

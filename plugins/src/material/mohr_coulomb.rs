@@ -182,6 +182,36 @@ impl MohrCoulomb {
         Trial { s, half, rad, pa, pb, pz, inside: f13 <= 0.0 && t1 <= 0.0 }
     }
 
+    /// The quick test of `trial` without the square root, for a pack: with `mid`, `rr` the
+    /// centre and the squared radius of Mohr's in-plane circle and `pz` the out-of-plane
+    /// stress, the main face `F_13 <= 0` (over every order of the three principal stresses:
+    /// `F_13` of the sorted ones is the largest of `k_a s_i - k_b s_j - 2 c cos(phi)`,
+    /// `k_a = 1 + sin(phi)`, `k_b = 1 - sin(phi) > 0`) and the first tension plane are each a
+    /// bound `rad <= x` on Mohr's radius, tested as `x >= 0` and `rr <= x^2`. It may differ
+    /// from `trial`'s test by round-off at the surface; `update_lanes` uses it only to route a
+    /// pack (see there), so no result depends on it.
+    #[inline(always)]
+    fn inside_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [bool; LANES] {
+        let (ka, kb, r) = (self.n[0][0], -self.n[0][2], self.r[0]);
+        let (ra, ba, rb, ab) = (r / ka, kb / ka, r / kb, ka / kb);
+        let (t_on, st) = (self.used & 8 != 0, self.r[3]);
+        let mut inside = [false; LANES];
+        for l in 0..LANES {
+            // (pa, pb), (pa, pz), (pz, pb): the largest over the orders, each `rad <= x`.
+            let x1 = 0.5 * (r - (ka - kb) * mid[l]);
+            let x2 = ra + ba * pz[l] - mid[l];
+            let x3 = rb - ab * pz[l] + mid[l];
+            let mut x = x1.min(x2).min(x3);
+            let mut z_ok = true;
+            if t_on {
+                x = x.min(st - mid[l]);
+                z_ok = pz[l] <= st;
+            }
+            inside[l] = (x >= 0.0) & (rr[l] <= x * x) & z_ok;
+        }
+        inside
+    }
+
     /// The rest of `update` when the trial fails the quick test: the return in principal
     /// stresses (out of line: the elastic path stays small enough to inline and vectorise).
     #[inline(never)]
@@ -354,26 +384,39 @@ impl MaterialLaw for MohrCoulomb {
         }
         self.plastic_update(st, &t, state);
     }
-    /// `update` of a pack of points: the elastic trial and its quick test for every lane at
-    /// once (vectorised), `update`'s return only for the lanes that fail the test. The same
-    /// arithmetic as `update` on each lane, so the same bits.
+    /// `update` of a pack of points (bit for bit the same, lane by lane), every step written as
+    /// a loop over the lanes of plain arithmetic and selects, so that it vectorises:
+    /// - the elastic trial, and a pre-test without the square root (`Self::inside_lanes`:
+    ///   Mohr's radius squared against the room each yield plane leaves it); a pack whose lanes
+    ///   all pass it takes the trial (most packs, most steps). The pre-test only routes: a lane
+    ///   it sends on is a lane `update` may still find elastic, and the return then gives it
+    ///   the trial stress too (`return_active`'s tolerance), so the bits do not depend on it;
+    /// - else the principal stresses (one square root per lane) and the main-face return of
+    ///   every lane at once: `return_principal`'s first active set (plane 0 alone, always the
+    ///   first tried) and `plastic_update`'s rotation back, the same operations. A lane takes
+    ///   it when the scalar return would (violated, multiplier >= 0, no plane violated after);
+    ///   any other lane (edges, apex, tension) goes through `plastic_update`.
     #[inline(always)]
     fn update_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], state: &mut [f64], stride: usize, n: usize) {
         let z = [0.0; LANES];
-        let (mut ts, mut half, mut rad, mut pa, mut pb, mut pz) = ([z; 4], z, z, z, z, z);
-        let mut inside = [false; LANES];
+        let (l_, g2, g) = (self.lambda, 2.0 * self.g, self.g);
+        let (mut ts, mut half, mut mid, mut rr) = ([z; 4], z, z, z);
         for l in 0..LANES {
-            let t = self.trial(&[s[0][l], s[1][l], s[2][l], s[3][l]], [de[0][l], de[1][l], de[2][l], de[3][l]]);
-            (ts[0][l], ts[1][l], ts[2][l], ts[3][l]) = (t.s[0], t.s[1], t.s[2], t.s[3]);
-            (half[l], rad[l], pa[l], pb[l], pz[l]) = (t.half, t.rad, t.pa, t.pb, t.pz);
-            inside[l] = t.inside;
+            // `trial`'s arithmetic, in its order.
+            let tr = de[0][l] + de[1][l] + de[3][l];
+            ts[0][l] = s[0][l] + l_ * tr + g2 * de[0][l];
+            ts[1][l] = s[1][l] + l_ * tr + g2 * de[1][l];
+            ts[2][l] = s[2][l] + g * de[2][l];
+            ts[3][l] = s[3][l] + l_ * tr + g2 * de[3][l];
+            mid[l] = 0.5 * (ts[0][l] + ts[1][l]);
+            half[l] = 0.5 * (ts[0][l] - ts[1][l]);
+            rr[l] = half[l] * half[l] + ts[2][l] * ts[2][l];
         }
         let n = n.min(LANES);
-        if inside[..n].iter().all(|&i| i) {
-            // Every lane elastic (most packs, most steps): no branch per lane but the history's.
-            for c in 0..4 {
-                s[c] = ts[c];
-            }
+        let pre = self.inside_lanes(&mid, &rr, &ts[3]);
+        if pre[..n].iter().all(|&i| i) {
+            // Every lane elastic: no branch per lane but the history's.
+            *s = ts;
             for l in 0..n {
                 let h = &mut state[l * stride + 1];
                 if *h == 1.0 {
@@ -382,68 +425,108 @@ impl MaterialLaw for MohrCoulomb {
             }
             return;
         }
-        // The main-face return of every lane at once: `return_principal`'s first active set
-        // (plane 0 alone, always the first tried) and `plastic_update`'s rotation back, the
-        // same operations. A lane takes it when the scalar return would (violated, multiplier
-        // >= 0, no plane violated after); any other lane goes through `plastic_update`.
+        let (mut rad, mut pa, mut pb, mut inside) = (z, z, z, [false; LANES]);
+        let (r3, t_on) = (self.r[3], self.used & 8 != 0);
+        for l in 0..LANES {
+            rad[l] = rr[l].sqrt();
+            pa[l] = mid[l] + rad[l];
+            pb[l] = mid[l] - rad[l];
+            let pz = ts[3][l];
+            // `trial`'s quick test.
+            let (hi, lo) = (pa[l].max(pz), pb[l].min(pz));
+            let f13 = self.f(0, &[hi, 0.0, lo]);
+            let t1 = if t_on { hi - r3 } else { f64::NEG_INFINITY };
+            inside[l] = f13 <= 0.0 && t1 <= 0.0;
+        }
+        let pz = ts[3];
         let (d0, big) = (self.a[0][0], self.a[0][0].abs().max(self.a[3][3].abs()));
         let solvable = d0.abs() > 1e-12 * big;
-        let (mut fs, mut gam) = ([z; 4], z);
-        let mut face = [false; LANES];
+        let used: [bool; 6] = std::array::from_fn(|k| self.used & (1 << k) != 0);
+        // Sorted `s1 >= s2 >= s3` over (pa, pb, pz), as `sort_principal` sorts them.
+        let (mut za, mut zb, mut q) = ([false; LANES], [false; LANES], [z; 3]);
         for l in 0..LANES {
-            let (za, zb) = (pz[l] >= pa[l], pz[l] >= pb[l]);
-            // Sorted `s1 >= s2 >= s3` over (pa, pb, pz), as `plastic_update` sorts them.
-            let q = if za {
-                [pz[l], pa[l], pb[l]]
-            } else if zb {
-                [pa[l], pz[l], pb[l]]
+            za[l] = pz[l] >= pa[l];
+            zb[l] = pz[l] >= pb[l];
+            q[0][l] = if za[l] { pz[l] } else { pa[l] };
+            q[1][l] = if za[l] {
+                pa[l]
+            } else if zb[l] {
+                pz[l]
             } else {
-                [pa[l], pb[l], pz[l]]
+                pb[l]
             };
-            let tol = 1e-12 * (self.scale + q[0].abs().max(q[2].abs()));
+            q[2][l] = if zb[l] { pb[l] } else { pz[l] };
+        }
+        let (mut face, mut fs, mut gam) = ([false; LANES], [z; 4], z);
+        for l in 0..LANES {
+            let ql = [q[0][l], q[1][l], q[2][l]];
+            let tol = 1e-12 * (self.scale + ql[0].abs().max(ql[2].abs()));
             let mut viol = false;
             for k in 0..6 {
-                viol |= self.used & (1 << k) != 0 && self.f(k, &q) > tol;
+                viol |= used[k] & (self.f(k, &ql) > tol);
             }
-            let dl = self.f(0, &q) / d0;
+            let dl = self.f(0, &ql) / d0;
             let ok = dl >= -1e-14 * (1.0 + dl.abs());
-            let mut out = q;
+            let mut out = ql;
             let mut dep = [0.0; 3];
             for d in 0..3 {
                 out[d] -= dl * self.dm[0][d];
                 dep[d] += dl * self.m[0][d];
             }
-            let check = 1e-9 * (self.scale + q[0].abs().max(q[2].abs()));
+            let check = 1e-9 * (self.scale + ql[0].abs().max(ql[2].abs()));
             let mut adm = true;
             for k in 0..6 {
-                adm &= self.used & (1 << k) == 0 || self.f(k, &out) <= check;
+                adm &= !used[k] | (self.f(k, &out) <= check);
             }
-            face[l] = solvable && viol && ok && adm;
-            let (na, nb, nz) = if za {
-                (out[1], out[2], out[0])
-            } else if zb {
-                (out[0], out[2], out[1])
+            face[l] = solvable & viol & ok & adm;
+            let na = if za[l] { out[1] } else { out[0] };
+            let nb = if zb[l] {
+                out[2]
+            } else if za[l] {
+                out[2]
             } else {
-                (out[0], out[1], out[2])
+                out[1]
             };
-            let (c2, s2) = if rad[l] > 0.0 { (half[l] / rad[l], ts[2][l] / rad[l]) } else { (1.0, 0.0) };
+            let nz = if za[l] {
+                out[0]
+            } else if zb[l] {
+                out[1]
+            } else {
+                out[2]
+            };
+            let pos = rad[l] > 0.0;
+            let c2 = if pos { half[l] / rad[l] } else { 1.0 };
+            let s2 = if pos { ts[2][l] / rad[l] } else { 0.0 };
             let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
-            (fs[0][l], fs[1][l], fs[2][l], fs[3][l]) = (m + h * c2, m - h * c2, h * s2, nz);
-            let (mx, mn) = (dep[0].max(dep[1]).max(dep[2]), dep[0].min(dep[1]).min(dep[2]));
-            gam[l] = mx - mn;
+            fs[0][l] = m + h * c2;
+            fs[1][l] = m - h * c2;
+            fs[2][l] = h * s2;
+            fs[3][l] = nz;
+            gam[l] = dep[0].max(dep[1]).max(dep[2]) - dep[0].min(dep[1]).min(dep[2]);
+        }
+        // The elastic and face lanes without a branch: the stress selected, the history
+        // rewritten (a face lane: `h0 + gam`, state 1; an elastic one: state 1 -> 2); then the
+        // other lanes' returns, one by one.
+        for c in 0..4 {
+            for l in 0..LANES {
+                s[c][l] = if inside[l] { ts[c][l] } else { fs[c][l] };
+            }
         }
         for l in 0..n {
-            let h = &mut state[l * stride..l * stride + 2];
-            if inside[l] {
-                (s[0][l], s[1][l], s[2][l], s[3][l]) = (ts[0][l], ts[1][l], ts[2][l], ts[3][l]);
-                if h[1] == 1.0 {
-                    h[1] = 2.0;
-                }
-            } else if face[l] {
-                (s[0][l], s[1][l], s[2][l], s[3][l]) = (fs[0][l], fs[1][l], fs[2][l], fs[3][l]);
-                h[0] += gam[l];
-                h[1] = 1.0;
+            let (h0, h1) = (state[l * stride], state[l * stride + 1]);
+            let (fl, il) = (face[l] & !inside[l], inside[l]);
+            state[l * stride] = if fl { h0 + gam[l] } else { h0 };
+            state[l * stride + 1] = if fl {
+                1.0
+            } else if il & (h1 == 1.0) {
+                2.0
             } else {
+                h1
+            };
+        }
+        for l in 0..n {
+            if !inside[l] && !face[l] {
+                let h = &mut state[l * stride..l * stride + 2];
                 let t = Trial { s: [ts[0][l], ts[1][l], ts[2][l], ts[3][l]], half: half[l], rad: rad[l], pa: pa[l], pb: pb[l], pz: pz[l], inside: false };
                 let mut sl = t.s;
                 self.plastic_update(&mut sl, &t, h);

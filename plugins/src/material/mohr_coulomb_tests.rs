@@ -483,3 +483,90 @@ fn q4_total_form_matches_the_generic_shortcut() {
         }
     }
 }
+
+/// The square-root-free pre-test of `update_lanes` (`MohrCoulomb::inside_lanes`) against the
+/// quick test of `trial` (the reference), on random trial states clearly inside, clearly
+/// outside and within round-off of the yield surface (main face, tension cut-off, every order
+/// of `szz` among the in-plane principal stresses), for Tresca, Mohr-Coulomb with and without
+/// a cut-off. Tolerance: the two tests agree wherever the reference's `F_13` (or the cut-off's
+/// value) is beyond 1e-9 of the stress scale; on the surface they may differ, and there
+/// `update_lanes` must still give `update`'s bits (the pre-test only routes a pack).
+#[test]
+fn elastic_pre_test_agrees_with_the_quick_test() {
+    use flem_core::element::kernel::LANES;
+    let laws = [law(1.0, 0.0, 0.0, None), law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(0.5, 40.0, 40.0, Some(0.2))];
+    let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+    let mut rnd = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    };
+    let (mut agree_in, mut agree_out, mut near) = (0, 0, 0);
+    for law in &laws {
+        for round in 0..300 {
+            let mut s = [[0.0; LANES]; 4];
+            let de = [[0.0; LANES]; 4];
+            for l in 0..LANES {
+                // A principal state scaled onto the main face (or the cut-off), then pushed in or out.
+                let (sa, sb, sz) = (3.0 * rnd(), 3.0 * rnd(), 3.0 * rnd());
+                let (hi, lo) = (sa.max(sb).max(sz), sa.min(sb).min(sz));
+                let f = law.f(0, &[hi, 0.0, lo]) + law.r[0];
+                let k = match (round + l) % 4 {
+                    0 => 1.0 + 1e-15 * rnd(),
+                    1 => 0.5 + 0.4 * rnd().abs(),
+                    2 => 1.2 + rnd().abs(),
+                    _ => 1.0,
+                };
+                let t = if f > 0.0 { k * law.r[0] / f } else { 1.0 };
+                let th = 3.0 * rnd();
+                let (m, h) = (0.5 * (sa + sb) * t, 0.5 * (sa - sb) * t);
+                s[0][l] = m + h * th.cos();
+                s[1][l] = m - h * th.cos();
+                s[2][l] = h * th.sin();
+                s[3][l] = sz * t;
+            }
+            let mut mid = [0.0; LANES];
+            let mut rr = [0.0; LANES];
+            for l in 0..LANES {
+                mid[l] = 0.5 * (s[0][l] + s[1][l]);
+                let half = 0.5 * (s[0][l] - s[1][l]);
+                rr[l] = half * half + s[2][l] * s[2][l];
+            }
+            let pre = law.inside_lanes(&mid, &rr, &s[3]);
+            for l in 0..LANES {
+                let t = law.trial(&[s[0][l], s[1][l], s[2][l], s[3][l]], [0.0; 4]);
+                let (hi, lo) = (t.pa.max(t.pz), t.pb.min(t.pz));
+                let f13 = law.f(0, &[hi, 0.0, lo]);
+                let t1 = if law.r[3].is_finite() { hi - law.r[3] } else { f64::NEG_INFINITY };
+                let margin = f13.max(t1);
+                if margin.abs() > 1e-9 * (1.0 + hi.abs().max(lo.abs())) {
+                    assert_eq!(pre[l], t.inside, "state {:?}: pre-test {} vs quick test {} (F_13 {f13:.3e}, T_1 {t1:.3e})", t.s, pre[l], t.inside);
+                    if t.inside {
+                        agree_in += 1;
+                    } else {
+                        agree_out += 1;
+                    }
+                } else {
+                    near += 1;
+                }
+            }
+            // Whatever the pre-test said, the pack gives `update`'s bits (a zero increment from
+            // these states: the return of the ones outside, the trial for the others).
+            let mut sl = s;
+            let mut hist = vec![0.0; LANES * 2];
+            law.update_lanes(&mut sl, &de, &mut hist, 2, LANES);
+            for l in 0..LANES {
+                let mut r = [s[0][l], s[1][l], s[2][l], s[3][l]];
+                let mut h = [0.0; 2];
+                law.update(&mut r, [0.0; 4], &mut h);
+                for c in 0..4 {
+                    assert_eq!(sl[c][l].to_bits(), r[c].to_bits(), "lane {l} component {c}");
+                }
+                assert_eq!(hist[2 * l].to_bits(), h[0].to_bits());
+            }
+        }
+    }
+    eprintln!("inside {agree_in}, outside {agree_out}, on the surface {near}");
+    assert!(agree_in > 500 && agree_out > 500 && near > 100, "inside {agree_in}, outside {agree_out}, near {near}");
+}
