@@ -307,9 +307,10 @@ impl Cracking {
                 tip = path::route(t, &model.mesh.points, model.topo.cluster_point[c as usize], cfg.separation.route_radius());
                 match tip {
                     Some(t) => cid = model.topo.point_clusters[t.point.idx()][0],
-                    // A point on a crack (split) away from every tip: the path method grows
-                    // cracks at their tips only.
-                    None if model.topo.point_clusters[model.topo.cluster_point[c as usize].idx()].len() > 1 => continue,
+                    // A point on a crack (split), or joined by an edge to one, away from every
+                    // tip: the path method grows cracks at their tips only (no branch, no
+                    // sliver cut beside a crack).
+                    None if path::on_or_beside_crack(&model.topo, model.topo.cluster_point[c as usize]) => continue,
                     None => {}
                 }
             }
@@ -350,10 +351,14 @@ impl Cracking {
                         line = Some((q, plan.origin, plan.direction));
                     }
                     if let Some((q, to)) = plan.relocate {
+                        // The whole move, else a half, else a quarter of it.
                         let from = model.mesh.points[q.idx()];
-                        match path::check_move(model, q, to).map_err(str::to_string).and_then(|_| model.move_point(q, to)) {
-                            Ok(()) => moved = Some((q, from, to)),
-                            Err(_) => self.path.refused += 1,
+                        let at = |f: f64| [from[0] + f * (to[0] - from[0]), from[1] + f * (to[1] - from[1])];
+                        // (A model whose blocks cannot be rebuilt, stateful or co-rotational,
+                        // refuses every move: its tips are cut along the nearest link.)
+                        match [1.0, 0.5, 0.25].into_iter().map(at).find(|&x| path::check_move(model, q, x).is_ok()).map(|x| (x, model.move_point(q, x))) {
+                            Some((x, Ok(()))) => moved = Some((q, from, x)),
+                            _ => self.path.refused += 1,
                         }
                     }
                     crate::plugin::traits::Proposal { edges: plan.edges }

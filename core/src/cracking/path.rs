@@ -76,6 +76,12 @@ pub fn tip_face(topo: &Topology, p: PointId) -> Option<EdgeId> {
     face
 }
 
+/// Whether `p` has split, or an edge joins it to a point that has (a crack passes at or beside
+/// it).
+pub fn on_or_beside_crack(topo: &Topology, p: PointId) -> bool {
+    topo.point_clusters[p.idx()].len() > 1 || topo.point_edges.row(p.idx()).iter().any(|&e| topo.point_clusters[topo.other_end(e, p).idx()].len() > 1)
+}
+
 /// Mean length of the edges through `p`.
 pub fn size_at(topo: &Topology, x: &[[f64; 2]], p: PointId) -> f64 {
     let row = topo.point_edges.row(p.idx());

@@ -276,7 +276,8 @@ pub trait SeparationRule: Debug + Send + Sync {
     /// Ours (issue 34, the path method, `cracking::path`): whether the rule grows crack tips
     /// itself. When true, a failed point at a crack tip, or within [`Self::route_radius`]
     /// element sizes of one, is handed to [`Self::propose_tip`] at that tip; a failed point on
-    /// a crack (it has split) farther from every tip is not cut; other points go to
+    /// a crack (it has split), or joined to one by an edge, farther from every tip is not cut
+    /// (`cracking::path::on_or_beside_crack`); other points go to
     /// [`Self::propose`] as before. Every rule of the paper answers false (the default), and
     /// the failure check then runs exactly as without this method.
     fn grows_tips(&self) -> bool {
