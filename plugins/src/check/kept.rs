@@ -10,8 +10,9 @@
 //! y = A_0^{-1} b,  Z = A_0^{-1} W.
 //! ```
 //!
-//! Here each call's new terms come from the elements whose connectivity changed since the last
-//! call: `D = sum_e (K_e at its new clusters - K_e at its old clusters) - I (new dofs)`, a dense
+//! Here each call's new terms come from the elements whose connectivity (or, after a node moved
+//! by the path method, ours, their corner coordinates) changed since the last call:
+//! `D = sum_e (K_e at its new clusters - K_e at its old clusters) - I (new dofs)`, a dense
 //! block on a few dofs, eigen-decomposed (pairs with `|l| > 1e-12 max |l|` kept). New clusters
 //! are numbered last by the check solver's dof numbering, so the free dofs of `K_0` keep their
 //! numbers.
