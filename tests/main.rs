@@ -19,6 +19,7 @@ mod layout;
 mod nonlocal;
 mod paper;
 mod parallel;
+mod paths;
 mod plasticity;
 mod sif;
 mod skip;

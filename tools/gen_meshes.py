@@ -3,7 +3,7 @@
 
 Needs the gmsh and meshio Python packages (e.g. a venv with gmsh==4.15.2 meshio==5.3.5 numpy).
 Run from anywhere: python3 tools/gen_meshes.py (or `python3 tools/gen_meshes.py sif`: only the
-stress-intensity meshes)
+stress-intensity meshes; `paths`: the kink-angle meshes)
 """
 import os
 import sys
@@ -75,11 +75,34 @@ def sif():
         write_msh41(src, out)
 
 
+PATHS_H = {"centre": (0.1, 0.05, 0.025), "sen": (0.05, 0.025, 0.0125)}
+
+
+def paths():
+    """The kink-angle meshes (issue 34 must-show 2, configs/paths/, `flem paths`): the centre
+    crack (paths_centre.geo) and the single-edge-notched square (paths_sen.geo), unstructured
+    triangles and gmsh-recombined quads at three sizes each (PATHS_H; refinement 1 coarsest).
+    The structured Q4 grids of the same runs are the scenes' own `rectangle` meshes."""
+    import re
+    for geo in ("centre", "sen"):
+        for k, h in enumerate(PATHS_H[geo], start=1):
+            for kind, quads in (("t3", 0), ("quad", 1)):
+                src = open(os.path.join(HERE, "paths_%s.geo" % geo)).read()
+                for key, v in (("h", h), ("quads", quads)):
+                    src, n = re.subn(r"^%s = [^;]*;" % key, "%s = %s;" % (key, v), src, flags=re.M)
+                    assert n == 1, (geo, key)
+                write_msh41(src, "paths_%s_%s_%d.msh" % (geo, kind, k))
+
+
 def main():
     if sys.argv[1:] == ["sif"]:
         sif()
         return 0
+    if sys.argv[1:] == ["paths"]:
+        paths()
+        return 0
     sif()
+    paths()
     cook()
     mesh("rect_quad.geo", [
         ("rect_quad_v41.msh", 4.1, False),

@@ -24,6 +24,7 @@ mod chart_crack;
 mod converge;
 mod dyncall_kinds;
 mod fos;
+mod paths;
 mod sif;
 mod stability;
 mod sweep;
@@ -56,6 +57,10 @@ enum Cmd {
     /// solve of each stage: interaction integral on 2-3 domains, J as a check, the maximum
     /// tangential stress kink angle (docs/paths.md). Prints a table, writes DIR/sif.json.
     Sif(sif::Args),
+    /// Crack paths (issue 34): runs scenes and measures the new crack's kink over its first
+    /// element sizes at every initial tip against the MTS angle of the implicit solution, and
+    /// the debris (docs/paths.md). Prints a table; --out writes JSON.
+    Paths(paths::Args),
     /// Run a scene: stages to equilibrium, results (VTU/PVD, history.csv, summary.json) into --out.
     Run {
         scene: PathBuf,
@@ -331,6 +336,7 @@ fn main() -> ExitCode {
         Some(Cmd::Converge(a)) => converge::run(a),
         Some(Cmd::Fos(a)) => fos::run(a),
         Some(Cmd::Sif(a)) => sif::run(a),
+        Some(Cmd::Paths(a)) => paths::run(a),
         Some(Cmd::Plugins { load, scene }) => plugins(&load, scene.as_deref()),
     };
     match r {

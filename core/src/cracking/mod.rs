@@ -13,6 +13,7 @@
 pub mod events;
 pub mod initiation;
 pub mod nonlocal;
+pub mod path;
 pub mod skip;
 pub mod weibull;
 
@@ -59,6 +60,9 @@ pub struct Cracking {
     /// Every cut applied, in order: (cluster, proposed edges). A checkpoint stores it and a
     /// resumed run replays it through `Topology::cut` (checkpoint.rs).
     pub cuts: Vec<(u32, Vec<u32>)>,
+    /// The path method's moves and tip lines (ours, issue 34, `path.rs`): empty unless the
+    /// separation rule grows tips. A checkpoint keeps it (section "path").
+    pub path: path::PathState,
     /// The nonlocal average (`[cracking] nonlocal`, ours); `None`: the paper's corner mean.
     pub nonlocal: Option<nonlocal::Nonlocal>,
     /// The certified skip (ours, issue 24, `skip.rs`): on by default (it changes no result);
@@ -111,6 +115,7 @@ impl Cracking {
             index: vec![0.0; model.topo.n_clusters()],
             n_splits: 0,
             cuts: Vec::new(),
+            path: path::PathState::default(),
             nonlocal,
             certified_skip: true,
             skip_margin_factor: 1.0,
@@ -288,12 +293,28 @@ impl Cracking {
         // have yet: they are carried here as the solver will grow them (the parent's u, the
         // point's x0). Indexing `u` by a new cluster panicked with max_splits_per_check > 1.
         let (mut u_ext, mut x_ext): (Vec<[f64; 2]>, Vec<[f64; 2]>) = (Vec::new(), Vec::new());
+        // The path method (ours, `path.rs`): only when the rule grows tips.
+        let grows = cfg.separation.grows_tips();
+        let mut tips: Option<Vec<path::Tip>> = None;
         for (idx, c) in cands {
             if events.len() >= cfg.max_splits_per_check {
                 break;
             }
             let mut cid = ClusterId(c);
-            if let Some(nl) = &mut self.nonlocal {
+            let mut tip: Option<path::Tip> = None;
+            if grows {
+                let t = tips.get_or_insert_with(|| path::tips(&model.topo, &model.mesh.points));
+                tip = path::route(t, &model.mesh.points, model.topo.cluster_point[c as usize], cfg.separation.route_radius());
+                match tip {
+                    Some(t) => cid = model.topo.point_clusters[t.point.idx()][0],
+                    // A point on a crack (split), or joined by an edge to one, away from every
+                    // tip: the path method grows cracks at their tips only (no branch, no
+                    // sliver cut beside a crack).
+                    None if path::on_or_beside_crack(&model.topo, model.topo.cluster_point[c as usize]) => continue,
+                    None => {}
+                }
+            }
+            if let (None, Some(nl)) = (tip, &mut self.nonlocal) {
                 // Crack tracking: the crack edges cut earlier in this check count too; the
                 // failure of a point near a crack splits the nearest crack tip.
                 nl.sync(&model.topo, &model.mesh.points);
@@ -318,14 +339,62 @@ impl Cracking {
                 principal: self.principal[c as usize],
             };
             let chk = self.checks[c as usize];
-            let Some(prop) = cfg.separation.try_propose(&view, &chk).map_err(crate::FlemError::Other)? else { continue };
-            let r = model.topo.cut(cid, &prop.edges, true);
+            let mut moved: Option<(PointId, [f64; 2], [f64; 2])> = None;
+            let mut line: Option<(PointId, [f64; 2], f64)> = None;
+            let prop = match tip {
+                Some(t) => {
+                    let planned = self.path.lines.iter().rev().find(|l| l.point == t.point.0).map(|l| (l.origin, l.dir));
+                    let ctx = crate::plugin::traits::TipContext { model, u: ug, fan: &view, face: t.face, h: t.h, planned };
+                    let Some(plan) = cfg.separation.propose_tip(&ctx) else { continue };
+                    let far = plan.edges.iter().find(|&&e| e != t.face).map(|&e| model.topo.other_end(e, t.point));
+                    if let Some(q) = far {
+                        line = Some((q, plan.origin, plan.direction));
+                    }
+                    if let Some((q, to)) = plan.relocate {
+                        // The whole move, else a half, else a quarter of it.
+                        let from = model.mesh.points[q.idx()];
+                        let at = |f: f64| [from[0] + f * (to[0] - from[0]), from[1] + f * (to[1] - from[1])];
+                        // (A model whose blocks cannot be rebuilt, stateful or co-rotational,
+                        // refuses every move: its tips are cut along the nearest link.)
+                        match [1.0, 0.5, 0.25].into_iter().map(at).find(|&x| path::check_move(model, q, x).is_ok()).map(|x| (x, model.move_point(q, x))) {
+                            Some((x, Ok(()))) => moved = Some((q, from, x)),
+                            _ => self.path.refused += 1,
+                        }
+                    }
+                    crate::plugin::traits::Proposal { edges: plan.edges }
+                }
+                None => match cfg.separation.try_propose(&view, &chk).map_err(crate::FlemError::Other)? {
+                    Some(p) => p,
+                    None => continue,
+                },
+            };
+            let mut r = model.topo.cut(cid, &prop.edges, true);
             if r.is_empty() {
+                if let Some((q, from, _)) = moved {
+                    model.move_point(q, from).map_err(crate::FlemError::Other)?;
+                }
                 continue;
             }
             model.apply_record(&r);
+            if grows {
+                tips = None;
+            }
+            if let Some((q, from, to)) = moved {
+                self.path.moves.push(path::PathMove { cut: self.cuts.len() as u32, point: q.0, from, to });
+                r.moved.push((q, to));
+            }
+            if let Some((q, origin, dir)) = line {
+                self.path.lines.push(path::TipLine { point: q.0, origin, dir });
+            }
             if u_ext.is_empty() {
                 (u_ext, x_ext) = (u.to_vec(), x0.to_vec());
+            }
+            if let Some((q, _, to)) = moved {
+                for &k in &model.topo.point_clusters[q.idx()] {
+                    if k.idx() < x_ext.len() {
+                        x_ext[k.idx()] = to;
+                    }
+                }
             }
             for nc in &r.new_clusters {
                 debug_assert_eq!(nc.id.idx(), u_ext.len());

@@ -272,6 +272,60 @@ impl Model {
         self.refresh_zero_free();
     }
 
+    /// Moves point `p` to the reference coordinates `x` (ours: the crack-tip node relocation of
+    /// the path method, `cracking::path`, issue 34) and rebuilds the blocks holding an element
+    /// with a corner at `p` from the mesh's coordinates and their current clusters: geometry,
+    /// gradients and lumped masses follow the new position; the connectivity and the element
+    /// order are those of the block before. Refused (the reason as text, nothing changed) on a
+    /// model with stateful or co-rotational blocks (their history or rotation would be lost) or
+    /// a kind without a registered builder. The caller checks the elements' shapes first.
+    pub fn move_point(&mut self, p: PointId, x: [f64; 2]) -> std::result::Result<(), String> {
+        if self.stateful || self.corotational {
+            return Err("the model has stateful or co-rotational blocks: a node cannot be moved".into());
+        }
+        let old = self.mesh.points[p.idx()];
+        let mut touched: Vec<usize> = Vec::new();
+        for &k in self.topo.point_copies.row(p.idx()) {
+            let e = self.topo.copy_elem[k.idx()];
+            let b = self.elem_slot[e.idx()].0 as usize;
+            if !touched.contains(&b) {
+                touched.push(b);
+            }
+        }
+        touched.sort_unstable();
+        for &b in &touched {
+            if registry::find(self.blocks[b].element()).is_none() {
+                return Err(format!("element kind \"{}\" has no registered builder", self.blocks[b].element()));
+            }
+        }
+        self.mesh.points[p.idx()] = x;
+        let n = self.topo.n_clusters();
+        for &b in &touched {
+            let blk = &self.blocks[b];
+            let kind = registry::find(blk.element()).expect("checked above");
+            let mut nb = kind.builder(blk.region().to_string(), *blk.material());
+            for (i, e) in blk.elems().iter().enumerate() {
+                let c = &self.mesh.cells[e.idx()];
+                let xs: Vec<[f64; 2]> = c.corners().iter().map(|&q| self.mesh.points[q as usize]).collect();
+                nb.push(*e, &xs, blk.conn(i));
+            }
+            let mut nb = nb.finish(false);
+            if nb.len() != self.blocks[b].len() {
+                self.mesh.points[p.idx()] = old;
+                return Err("a rebuilt block lost elements".into());
+            }
+            nb.prepare(n);
+            self.blocks[b] = nb;
+            for (i, e) in self.blocks[b].elems().iter().enumerate() {
+                self.elem_slot[e.idx()] = (b as u32, i as u32);
+            }
+        }
+        if let [blk] = self.blocks.as_mut_slice() {
+            blk.enable_zero_free(n);
+        }
+        Ok(())
+    }
+
     /// The zero-free pass's first writers after a split: the block rebuilds them from its
     /// re-pointed corners (one pass over the corners and the clusters, as at the start).
     fn refresh_zero_free(&mut self) {

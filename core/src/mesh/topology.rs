@@ -58,6 +58,10 @@ pub struct SplitRecord {
     /// Edges whose cut flag was set, with the end index (0 or 1) at which they were cut.
     pub cut_edges: Vec<(EdgeId, u8)>,
     pub new_clusters: Vec<NewCluster>,
+    /// Points moved before the cut (ours: the crack-tip node relocation of a separation rule
+    /// that grows tips, `cracking::path`), with their new reference coordinates. Empty for
+    /// every other rule; `Topology::cut` never fills it.
+    pub moved: Vec<(PointId, [f64; 2])>,
 }
 
 impl SplitRecord {
@@ -67,6 +71,7 @@ impl SplitRecord {
     pub fn extend(&mut self, other: SplitRecord) {
         self.cut_edges.extend(other.cut_edges);
         self.new_clusters.extend(other.new_clusters);
+        self.moved.extend(other.moved);
     }
 }
 

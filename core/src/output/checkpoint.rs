@@ -149,7 +149,13 @@ fn fnv1a(h: &mut u64, bytes: &[u8]) {
 pub fn scene_hash(sim: &Simulation) -> u64 {
     let mut h = 0xcbf2_9ce4_8422_2325u64;
     fnv1a(&mut h, sim.scene.resolved_toml().as_bytes());
-    for p in &sim.model.mesh.points {
+    // The mesh as read: points moved by the path method (ours) are hashed where they started.
+    let moves = sim.cracking.as_ref().map_or(&[][..], |c| &c.path.moves[..]);
+    let mut points = std::borrow::Cow::Borrowed(&sim.model.mesh.points);
+    for m in moves.iter().rev() {
+        points.to_mut()[m.point as usize] = m.from;
+    }
+    for p in points.iter() {
         fnv1a(&mut h, &p[0].to_le_bytes());
         fnv1a(&mut h, &p[1].to_le_bytes());
     }
@@ -222,6 +228,10 @@ impl Checkpoint {
         if let Some(ev) = &sim.events {
             ck.put_section("events", 1, ev)?;
         }
+        // The path method's moves and tip lines (ours, issue 34): only when it moved or grew.
+        if let Some(c) = sim.cracking.as_ref().filter(|c| c.path != crate::cracking::path::PathState::default()) {
+            ck.put_section("path", 1, &c.path)?;
+        }
         // The run's warnings so far (issue 35: a resumed run kept only those of building the
         // model and lost the earlier stages'). Absent in older checkpoints: the new
         // simulation's own are kept then.
@@ -258,18 +268,30 @@ impl Checkpoint {
             return Err(FlemError::Other("a checkpoint can only be restored into a new simulation".into()));
         }
         sim.levels.clone_from(&self.levels);
+        let path: crate::cracking::path::PathState = self.section("path", 1)?.unwrap_or_default();
         if !self.cuts.is_empty() {
             let Some(cr) = sim.cracking.as_mut() else { return Err(bad("it has splits and the scene has no [cracking]".into())) };
             cr.cuts.clone_from(&self.cuts);
+            cr.path = path.clone();
             for (n, (c, edges)) in self.cuts.iter().enumerate() {
+                let mut moved = Vec::new();
+                for m in path.moves.iter().filter(|m| m.cut as usize == n) {
+                    let p = crate::ids::PointId(m.point);
+                    if p.idx() >= sim.model.mesh.points.len() {
+                        return Err(bad(format!("move before cut {n} names point {} beyond the mesh", m.point)));
+                    }
+                    sim.model.move_point(p, m.to).map_err(|e| bad(format!("move before cut {n}: {e}")))?;
+                    moved.push((p, m.to));
+                }
                 let edges: Vec<EdgeId> = edges.iter().map(|&e| EdgeId(e)).collect();
                 if *c as usize >= sim.model.topo.n_clusters() || edges.iter().any(|e| e.idx() >= sim.model.topo.edges.len()) {
                     return Err(bad(format!("cut {n} names cluster {c} or an edge beyond the mesh")));
                 }
-                let rec = sim.model.topo.cut(ClusterId(*c), &edges, true);
+                let mut rec = sim.model.topo.cut(ClusterId(*c), &edges, true);
                 if rec.is_empty() {
                     return Err(bad(format!("cut {n} (cluster {c}) splits nothing when replayed")));
                 }
+                rec.moved = moved;
                 sim.model.apply_record(&rec);
                 sim.apply_split_arrays(&rec);
             }

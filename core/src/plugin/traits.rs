@@ -273,6 +273,54 @@ pub trait SeparationRule: Debug + Send + Sync {
     fn try_propose(&self, fan: &FanView, failure: &FailureCheck) -> Result<Option<Proposal>, String> {
         Ok(self.propose(fan, failure))
     }
+    /// Ours (issue 34, the path method, `cracking::path`): whether the rule grows crack tips
+    /// itself. When true, a failed point at a crack tip, or within [`Self::route_radius`]
+    /// element sizes of one, is handed to [`Self::propose_tip`] at that tip; a failed point on
+    /// a crack (it has split), or joined to one by an edge, farther from every tip is not cut
+    /// (`cracking::path::on_or_beside_crack`); other points go to
+    /// [`Self::propose`] as before. Every rule of the paper answers false (the default), and
+    /// the failure check then runs exactly as without this method.
+    fn grows_tips(&self) -> bool {
+        false
+    }
+    /// Failed points within this many element sizes (at the tip) of a crack tip grow that tip.
+    fn route_radius(&self) -> f64 {
+        0.0
+    }
+    /// The plan at a crack tip (see [`TipContext`]); `None`: nothing is cut there.
+    fn propose_tip(&self, _ctx: &TipContext) -> Option<TipPlan> {
+        None
+    }
+}
+
+/// A crack tip as the path method sees it (ours, issue 34): the model and the displacement of
+/// the check, the tip's fan (its links include the crack face that ends there), the crack face
+/// and the tip's element size `h` (mean length of the edges through the tip).
+pub struct TipContext<'a> {
+    pub model: &'a crate::element::model::Model,
+    pub u: &'a [[f64; 2]],
+    pub fan: &'a FanView<'a>,
+    /// The crack face ending at the tip (separated at its other end, joined at the tip).
+    pub face: EdgeId,
+    pub h: f64,
+    /// The line (origin, direction in radians from +x) that this tip was grown along, when the
+    /// path method grew it: a rule that cannot evaluate a direction at the tip (a crack not yet
+    /// straight over its domain) may keep to it.
+    pub planned: Option<([f64; 2], f64)>,
+}
+
+/// What a rule that grows tips proposes: the edges to cut at the tip (the crack face and the
+/// link the crack runs along) and, optionally, a point to move first (the far end of that link,
+/// onto the predicted line: crack-tip node relocation). The core checks the move (interior
+/// point never split, every element around it keeps its orientation and a minimum angle) and
+/// cuts without it when it is refused. `origin`, `direction`: the line the crack is to follow
+/// (radians from +x), handed back in [`TipContext::planned`] at the new tip.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TipPlan {
+    pub edges: Vec<EdgeId>,
+    pub relocate: Option<(PointId, [f64; 2])>,
+    pub origin: [f64; 2],
+    pub direction: f64,
 }
 
 /// Angular distance between two directions (radians), as undirected lines (mod pi), in [0, pi/2].

@@ -1372,6 +1372,15 @@ impl Simulation {
     /// parent), recomputes masses, fixities and the constant loads.
     pub fn apply_split_record(&mut self, rec: &SplitRecord) {
         self.apply_split_arrays(rec);
+        if !rec.moved.is_empty() {
+            // A node moved (ours, the path method): the element bound of the stable step
+            // follows the new shapes before the step is judged stable.
+            let bound = self.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
+            let k = self.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
+            if bound > 0.0 {
+                self.stable.dt_element_bound = self.stable.dt_element_bound.min(k * 2.0 / bound);
+            }
+        }
         self.update_stable_step(rec);
     }
 
@@ -1391,6 +1400,13 @@ impl Simulation {
             st.f_ext.push([0.0; 2]);
             st.f_con.push([0.0; 2]);
             self.x0.push(self.model.mesh.points[nc.point.idx()]);
+        }
+        // Points moved before the cut (ours, the path method): every cluster there takes the
+        // new reference position (the displacement is kept: the node carries its own).
+        for (p, x) in &rec.moved {
+            for &c in &self.model.topo.point_clusters[p.idx()] {
+                self.x0[c.idx()] = *x;
+            }
         }
         st.mass = self.model.masses();
         let (fix, vpres, _) = self.loads.constraints(&self.model, &self.levels);

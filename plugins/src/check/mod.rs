@@ -72,6 +72,7 @@ pub mod bench;
 pub mod factor;
 pub mod kept;
 pub mod newton;
+pub mod paths;
 pub mod sif;
 pub mod woodbury;
 

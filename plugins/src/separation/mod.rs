@@ -27,6 +27,7 @@
 pub mod coulomb_traction;
 pub mod shear_plane_nearest;
 pub mod sigma1_nearest;
+pub mod tip_mts;
 pub mod traction;
 
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
@@ -35,7 +36,7 @@ use flem_core::ids::EdgeId;
 use flem_core::plugin::traits::{line_angle, ray_angle, FanView, LinkGeom, Proposal};
 
 /// The registered rule names (typetag `type = "..."`), in documentation order.
-pub const NAMES: &[&str] = &["sigma1_nearest", "shear_plane_nearest", "traction", "coulomb_traction"];
+pub const NAMES: &[&str] = &["sigma1_nearest", "shear_plane_nearest", "traction", "coulomb_traction", "tip_mts"];
 
 /// Angular tie tolerance (radians).
 pub const TIE: f64 = 1e-9;
@@ -168,6 +169,7 @@ mod tests {
         ("shear_plane_nearest.rs", include_str!("shear_plane_nearest.rs")),
         ("traction.rs", include_str!("traction.rs")),
         ("coulomb_traction.rs", include_str!("coulomb_traction.rs")),
+        ("tip_mts.rs", include_str!("tip_mts.rs")),
     ];
 
     /// Every ```toml block of every rule's module doc parses, its `[cracking.separation]`
