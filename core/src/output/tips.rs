@@ -22,13 +22,16 @@
 //! # Branches
 //! A branch is a tip followed through time: at each record, a branch whose tip is still a tip
 //! keeps it; otherwise the tips whose path back to the roots passes within `min_branch` of its
-//! last tip continue it (the crack grew from there). When several tips
-//! continue one branch (it forked), the one
-//! farthest from the branch's fork (then the lowest point id) keeps the branch and the others open new branches whose `parent` is it; their *fork* is
-//! where their path meets the continuing tip's path (the branching point). A tip that continues
-//! no branch starts a branch of its own (a crack from the notch faces elsewhere; fork: where
-//! its path meets an older branch's, else the root it starts from). Tips not connected to a
-//! root (a crack of its own, e.g. from a compressed impact zone) get rows with an empty branch.
+//! last tip continue it (the crack grew from there). When several tips continue one branch (it
+//! forked), the one farthest from the branch's fork (then the lowest point id) keeps the branch
+//! and the others open new branches whose `parent` is it; their *fork* is where their path
+//! meets the continuing tip's path (the branching point). A tip that continues no branch (a
+//! side crack that grew to `min_branch`, a crack from the notch faces elsewhere) starts a branch
+//! whose fork is where its path meets another tip's path and whose parent is that tip's branch
+//! (else: its root, no parent). A branch's identity can pass to a side crack that is momentarily
+//! the farther from its fork; the crack's front is the farthest tip of all. Tips not connected
+//! to a root (a crack of its own, e.g. from a compressed impact zone) get one row per crack,
+//! with an empty branch.
 //!
 //! # Speed (a window of ours)
 //! A branch's speed at a record is the chord speed `|x_k - x_j| / (t_k - t_j)`: `x_k` its tip
@@ -327,12 +330,16 @@ impl TipTracker {
             if owner[k].is_some() {
                 continue;
             }
-            // A new crack from the roots, or one whose old tip is no longer on its path: it
-            // forks where its path meets an earlier branch's, else at its root.
-            let others: Vec<&Vec<u32>> = (0..reach.len()).filter(|&j| j != k && owner[j].is_some()).map(|j| &chains[j]).collect();
-            let meet = chains[k].iter().copied().find(|q| others.iter().any(|c| c.contains(q))).unwrap_or(*chains[k].last().expect("a chain holds its tip"));
+            // A new crack from the roots, or one whose old tip is no longer near its path: it
+            // forks where its path meets an earlier tip's path (that tip's branch is its
+            // parent), else at its root.
+            let meet = chains[k].iter().copied().find_map(|q| (0..reach.len()).find(|&j| j != k && owner[j].is_some() && chains[j].contains(&q)).map(|j| (q, owner[j])));
+            let (fork, parent) = match meet {
+                Some((q, o)) => (pts[q as usize], o),
+                None => (pts[*chains[k].last().expect("a chain holds its tip") as usize], None),
+            };
             let id = self.state.branches.len() as u32;
-            self.state.branches.push(Branch { parent: None, tip: reach[k], fork: pts[meet as usize], track: Vec::new(), alive: true });
+            self.state.branches.push(Branch { parent, tip: reach[k], fork, track: Vec::new(), alive: true });
             owner[k] = Some(id);
         }
         let t = sim.state.time;
