@@ -86,6 +86,8 @@ pub struct TipState {
     /// The run's first split point (the root when there is no notch).
     pub origin: Option<u32>,
     pub log: Option<LogMark>,
+    /// Separated edge ends at the last record (a record without a change writes no rows).
+    pub last_ends: Option<usize>,
 }
 
 /// One tip at a record (for tests and callers).
@@ -108,8 +110,6 @@ pub struct TipTracker {
     notch: Vec<bool>,
     on_boundary: Vec<bool>,
     pub state: TipState,
-    /// Number of crack-face ends at the last record (no change: no new rows).
-    last_ends: usize,
     /// The tips of the last record.
     pub last: Vec<Tip>,
     row: String,
@@ -170,7 +170,6 @@ impl TipTracker {
             notch,
             on_boundary,
             state: TipState::default(),
-            last_ends: usize::MAX,
             last: Vec::new(),
             row: String::new(),
         })
@@ -215,8 +214,8 @@ impl TipTracker {
     /// length, and whether the cracks changed since the last record.
     pub fn locate(&mut self, sim: &Simulation) -> (Vec<Tip>, f64, bool) {
         let (adj, vert, length, ends, mean_edge) = self.graph(sim);
-        let changed = ends != self.last_ends;
-        self.last_ends = ends;
+        let changed = self.state.last_ends != Some(ends);
+        self.state.last_ends = Some(ends);
         let pts = &sim.model.mesh.points;
         let n = adj.len();
         // Roots: the notch's points, else the first split's point.
@@ -441,7 +440,6 @@ impl TipTracker {
         let src = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
         self.log.resume(&src.join("crack_tips.csv"), st.log, path)?;
         self.state = st;
-        self.last_ends = usize::MAX;
         Ok(())
     }
 }
