@@ -61,6 +61,10 @@ impl<F: FnMut(&Simulation)> Observer for StopAt<F> {
     fn progress(&mut self, p: &Progress) {
         self.w.progress(p)
     }
+    fn stage_end(&mut self, sim: &Simulation, stage: usize) -> flem_core::Result<()> {
+        // The writer's tip tracker records at stage ends (crack_tips.csv).
+        self.w.stage_end(sim, stage)
+    }
     fn should_stop(&mut self, sim: &Simulation) -> bool {
         sim.state.step >= self.at
     }

@@ -8,6 +8,7 @@ mod compare;
 mod configs;
 mod contact;
 mod cracking;
+mod dynamic;
 mod dynkinds;
 mod dynplug;
 mod elements;

@@ -94,6 +94,20 @@ def paths():
                 write_msh41(src, "paths_%s_%s_%d.msh" % (geo, kind, k))
 
 
+def dynamic():
+    """The dynamic-fracture meshes (issue 36, configs/dynamic/, docs/dynamic.md): Kalthoff-Winkler
+    (kalthoff.geo) at h = 1 and 0.6 mm in the crack band, the branching plate (branching.geo) at
+    h = 0.5 and 0.35 mm; triangles. Written beside their .geo in configs/dynamic/."""
+    import re
+    dyn = os.path.join(HERE, "..", "dynamic")
+    for geo, hs in (("kalthoff.geo", (("1", 0.001), ("0.6", 0.0006))), ("branching.geo", (("0.5", 0.0005), ("0.35", 0.00035)))):
+        src = open(os.path.join(dyn, geo)).read()
+        for tag, h in hs:
+            text, n = re.subn(r"^h = [^;]*;", "h = %r;" % h, src, flags=re.M)
+            assert n == 1, geo
+            write_msh41(text, os.path.join(dyn, "%s_h%s.msh" % (geo[:-4], tag)))
+
+
 def main():
     if sys.argv[1:] == ["sif"]:
         sif()
@@ -101,6 +115,10 @@ def main():
     if sys.argv[1:] == ["paths"]:
         paths()
         return 0
+    if sys.argv[1:] == ["dynamic"]:
+        dynamic()
+        return 0
+    dynamic()
     sif()
     paths()
     cook()

@@ -262,14 +262,18 @@ pub enum LoadCfg {
     Traction { name: String, edges: String, value: [LoadValue; 2] },
     /// Force on every point of a node set (each component a number or an expression).
     Point { name: String, nodes: String, value: [LoadValue; 2] },
-    /// Prescribed velocity of a node set (components not given are free).
+    /// Prescribed velocity of a node set (components not given are free). Each component a
+    /// number or an expression of x, y, t (`crate::expr`; issue 36: a ramp such as
+    /// `"16.5 * min(t / 1e-6, 1)"`), evaluated at the middle of every step (the velocity of the
+    /// central-difference half step); the kinetic energy the prescribed nodes gain is work done
+    /// on the body (`solver::loads::Loads::ramp_velocities`).
     Velocity {
         name: String,
         nodes: String,
         #[serde(default)]
-        x: Option<f64>,
+        x: Option<LoadValue>,
         #[serde(default)]
-        y: Option<f64>,
+        y: Option<LoadValue>,
     },
     /// Prescribed displacement of a node set, applied at the start of each stage.
     Displacement {
@@ -307,6 +311,10 @@ pub struct StageCfg {
     /// Run a fixed number of steps (dynamics) instead of marching to equilibrium.
     #[serde(default)]
     pub dynamic: bool,
+    /// With `dynamic = true` (issue 36): the stage ends at this run time (the first step that
+    /// reaches it to within half a step), or at its step limit if that comes first.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_time: Option<f64>,
     /// Write a snapshot at the end of the stage.
     #[serde(default = "yes")]
     pub snapshot: bool,
@@ -370,6 +378,10 @@ pub struct OutputCfg {
     /// Draw the pictures (PNG and SVG in `plots/`, as `flem plot`) at the end of `flem run`.
     #[serde(default)]
     pub plots: bool,
+    /// The time window of the crack-tip speed in `crack_tips.csv` (`crate::output::tips`;
+    /// ours, issue 36); default 10 x the mean element edge over the Rayleigh speed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tip_window: Option<f64>,
 }
 
 fn default_ck_seconds() -> f64 {
@@ -396,6 +408,7 @@ impl Default for OutputCfg {
             checkpoint_keep: default_ck_keep(),
             snapshot_on_split: false,
             plots: false,
+            tip_window: None,
         }
     }
 }
@@ -641,17 +654,28 @@ impl Scene {
             let lv: Vec<&LoadValue> = match l {
                 LoadCfg::Pressure { value, .. } => vec![value],
                 LoadCfg::Traction { value, .. } | LoadCfg::Point { value, .. } => value.iter().collect(),
+                LoadCfg::Velocity { x, y, .. } => x.iter().chain(y.iter()).collect(),
                 _ => Vec::new(),
             };
             for (d, v) in lv.iter().enumerate() {
-                let key = if lv.len() == 1 { format!("load[{i}].value") } else { format!("load[{i}].value[{d}]") };
+                let key = match l {
+                    LoadCfg::Velocity { x, .. } => format!("load[{i}].{}", if d == 0 && x.is_some() { "x" } else { "y" }),
+                    _ if lv.len() == 1 => format!("load[{i}].value"),
+                    _ => format!("load[{i}].value[{d}]"),
+                };
                 v.compile().map_err(|e| FlemError::config(&n, key, e))?;
             }
             // Expressions are bounded where they are evaluated (solver::loads).
             let numbers = lv.iter().filter_map(|v| if let LoadValue::Number(x) = v { Some(*x) } else { None });
             let vals: Vec<f64> = match l {
                 LoadCfg::Pressure { .. } | LoadCfg::Traction { .. } | LoadCfg::Point { .. } => numbers.collect(),
-                LoadCfg::Velocity { x, y, .. } | LoadCfg::Displacement { x, y, .. } => {
+                LoadCfg::Velocity { x, y, .. } => {
+                    if x.is_none() && y.is_none() {
+                        return Err(FlemError::config(&n, format!("load[{i}]"), "prescribes neither x nor y; give at least one"));
+                    }
+                    numbers.collect()
+                }
+                LoadCfg::Displacement { x, y, .. } => {
                     if x.is_none() && y.is_none() {
                         return Err(FlemError::config(&n, format!("load[{i}]"), "prescribes neither x nor y; give at least one"));
                     }
@@ -669,6 +693,9 @@ impl Scene {
             }
         }
         range(&n, "output.checkpoint_seconds", f.output.checkpoint_seconds, 0.0, true, f64::INFINITY, false)?;
+        if let Some(w) = f.output.tip_window {
+            range(&n, "output.tip_window", w, 0.0, false, MAX_MAGNITUDE, true)?;
+        }
         if f.output.checkpoint_keep == 0 {
             return Err(FlemError::config(&n, "output.checkpoint_keep", "= 0 is incorrect; it must be >= 1"));
         }
@@ -696,6 +723,12 @@ impl Scene {
             }
             if st.max_steps == Some(0) {
                 return Err(FlemError::config(&n, format!("stage[{i}].max_steps"), "= 0 is incorrect; it must be >= 1"));
+            }
+            if let Some(t) = st.end_time {
+                range(&n, &format!("stage[{i}].end_time"), t, 0.0, false, MAX_MAGNITUDE, true)?;
+                if !st.dynamic {
+                    return Err(FlemError::config(&n, format!("stage[{i}].end_time"), "is only possible with dynamic = true (a stage marched to equilibrium ends there)"));
+                }
             }
         }
         if let Some(c) = &f.contact {

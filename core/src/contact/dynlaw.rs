@@ -66,7 +66,7 @@ impl ContactLaw for DynContact {
         let ns = self.0.entry.n_state.min(3);
         let fail = |out: &mut [PairForce], msg: String| {
             self.0.record(msg);
-            out.iter_mut().for_each(|o| *o = PairForce { normal: f64::NAN, tangential: f64::NAN, active: true, stored: f64::NAN, dissipated: f64::NAN });
+            out.iter_mut().for_each(|o| *o = PairForce { normal: f64::NAN, tangential: f64::NAN, active: true, stored: f64::NAN, dissipated: f64::NAN, fracture: 0.0 });
         };
         let (inst, f) = match (self.0.live(), self.0.entry.contact_evaluate) {
             (Ok(p), Some(f)) => (p, f),
@@ -118,7 +118,7 @@ impl ContactLaw for DynContact {
                     );
                 }
                 (h.en, h.es, h.max_open) = (slots[0], slots[1], slots[2]);
-                out[start + i] = PairForce { normal: c.normal, tangential: c.tangential, active: c.active != 0, stored: c.stored, dissipated: c.dissipated };
+                out[start + i] = PairForce { normal: c.normal, tangential: c.tangential, active: c.active != 0, stored: c.stored, dissipated: c.dissipated, fracture: 0.0 };
             }
             start += m;
         }

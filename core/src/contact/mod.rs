@@ -92,6 +92,13 @@
 //! either sign; the explicit scheme's impact loss at contact), the area change above; the
 //! notched plate's residual went from 3.6e-2..4.8e-2 (lost) to 1e-5..8e-5 (breakdown in the
 //! test's comment).
+//!
+//! Fracture energy (issue 36): the part of a law's dissipation that is fracture
+//! ([`PairForce::fracture`]) is summed by [`Contact::compute`] into `Contact::fracture_step`
+//! and by the solver into the ledger's `fracture` (a part of `contact_dissipated`, not a
+//! separate term of the balance). A split itself dissipates nothing: the node's copies keep
+//! their displacement, the strain energy is unchanged and goes to the faces' motion; without a
+//! cohesive law the energy a crack releases leaves as waves and kinetic energy.
 pub mod dynlaw;
 pub mod search;
 
@@ -192,6 +199,11 @@ pub struct PairForce {
     pub stored: f64,
     /// Energy dissipated in this step (slip, dashpots, fracture).
     pub dissipated: f64,
+    /// The part of `dissipated` that is fracture energy (issue 36: a cohesive law's softening,
+    /// `G_f` x area once a pair has opened past `delta_f`); the ledger's `fracture` sums it.
+    /// 0 for laws without cohesion, and for laws from plugin libraries (the ABI has no field
+    /// for it: their dissipation is all in `dissipated`).
+    pub fracture: f64,
 }
 
 /// Per-pair history (paper eq. 10-14: e_n, e_s accumulate per pair). Plain data so that it

@@ -106,6 +106,8 @@ pub struct Contact {
     pub rebuilds: u64,
     /// Pairs in contact after the last step.
     pub n_active: usize,
+    /// Fracture energy dissipated in the last step (the laws' [`PairForce::fracture`]).
+    pub fracture_step: f64,
 }
 
 /// The force of one pair after a step, for tests and output.
@@ -171,6 +173,7 @@ impl Contact {
             areas_stale: true,
             rebuilds: 0,
             n_active: 0,
+            fracture_step: 0.0,
         };
         c.rebuild_surfaces(model);
         Ok(c)
@@ -552,9 +555,11 @@ impl Contact {
         self.next.clear();
         self.reports.clear();
         let (mut stored, mut diss) = (0.0, self.released);
+        self.fracture_step = 0.0;
         for k in 0..n {
             let (g, o) = (&self.geo[k], &self.out[k]);
             diss += o.dissipated;
+            self.fracture_step += o.fracture;
             if !o.active {
                 continue;
             }

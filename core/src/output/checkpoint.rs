@@ -55,8 +55,8 @@
 //! # Files, versions, sections
 //! `checkpoint_{seq:06}.bin`: the newest `checkpoint_keep` are kept; older ones are removed
 //! only after the new one is in place. The scene hash is FNV-1a of the resolved TOML + the
-//! mesh's points and cells. `FORMAT_VERSION` is 2: version-1 files, which carried the logs'
-//! contents, are refused by name. `--resume` refuses a log that is shorter or whose recorded
+//! mesh's points and cells. `FORMAT_VERSION` is 3 (issue 36: the ledger's `fracture`; version 2
+//! files lack it and are refused by name); version-1 files carried the logs' contents. `--resume` refuses a log that is shorter or whose recorded
 //! prefix changed (naming the log and the checkpoint), truncates it to the recorded length (or
 //! copies the prefix when resuming into another folder; a log the checkpoint did not record
 //! yet is removed) and appends from there, so the logs end byte for byte as in an
@@ -83,7 +83,7 @@ pub const MAGIC: &[u8; 8] = b"FLEMCKPT";
 /// Version of the layout and of the [`Checkpoint`] payload. 2: the output section records the
 /// CSV logs' lengths and checksums instead of their contents (the CSV files beside the
 /// checkpoint are part of the state).
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 
 /// One named, versioned, opaque part of a checkpoint (postcard bytes).
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -21,6 +21,7 @@ pub mod csvlog;
 pub mod lock;
 pub mod run;
 pub mod sweep;
+pub mod tips;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -234,6 +235,8 @@ pub struct OutputWriter {
     ck_seconds: f64,
     ck_time: std::time::Instant,
     scene_hash: u64,
+    /// `crack_tips.csv` (scenes with `[cracking]`; `tips.rs`).
+    pub tips: Option<tips::TipTracker>,
 }
 
 impl OutputWriter {
@@ -297,6 +300,7 @@ impl OutputWriter {
             ck_seconds: sim.scene.file.output.checkpoint_seconds,
             ck_time: std::time::Instant::now(),
             scene_hash: crate::output::checkpoint::scene_hash(sim),
+            tips: if sim.scene.file.cracking.is_some() { Some(tips::TipTracker::new(dir, sim, sim.scene.file.output.tip_window)?) } else { None },
         };
         atomic_write(&dir.join("scene.resolved.toml"), sim.scene.resolved_toml().as_bytes())?;
         Ok(w)
@@ -312,6 +316,9 @@ impl OutputWriter {
             self.history.resume(&src.join("history.csv"), w.history, path)?;
             self.splits.resume(&src.join("splits.csv"), w.splits, path)?;
             self.snapshots = w.snapshots;
+        }
+        if let (Some(t), Some(st)) = (self.tips.as_mut(), ck.section::<tips::TipState>(tips::TIPS_SECTION, tips::TIPS_SECTION_VERSION)?) {
+            t.resume(st, path)?;
         }
         self.ck_seq = ck.seq + 1;
         self.last_checkpoint = Some(path.to_path_buf());
@@ -336,6 +343,9 @@ impl OutputWriter {
         self.splits.append(&[])?;
         self.history.sync()?;
         self.splits.sync()?;
+        if let Some(t) = self.tips.as_mut() {
+            t.finish()?;
+        }
         let l = &sim.ledger;
         let (one, two) = sim.model.topo.crack_counts();
         let v = serde_json::json!({
@@ -351,7 +361,7 @@ impl OutputWriter {
             "dt_over_dt_crit": sim.dt / sim.stable.dt_crit,
             "dt_element_bound": sim.stable.dt_element_bound,
             "stages": sim.stages_done,
-            "energy": {"external_work": l.external(), "kinetic": l.kinetic, "strain": l.strain, "damping": l.dissipated(), "residual": l.residual(), "relative_residual": l.relative_residual()},
+            "energy": {"external_work": l.external(), "kinetic": l.kinetic, "strain": l.strain, "damping": l.dissipated(), "contact_energy": l.contact_energy, "contact_dissipated": l.contact_dissipated, "fracture": l.fracture, "residual": l.residual(), "relative_residual": l.relative_residual()},
             "splits": sim.cracking.as_ref().map(|c| c.n_splits).unwrap_or(0),
             "beyond_criterion": sim.cracking.as_ref().map(|c| c.beyond_criterion()).unwrap_or(0),
             "crack_faces": {"separated_one_end": one, "separated_both_ends": two},
@@ -442,11 +452,21 @@ impl Observer for OutputWriter {
             self.row.push('\n');
         }
         self.splits.append(self.row.as_bytes())?;
+        if let Some(t) = self.tips.as_mut() {
+            t.splits(sim, _rec, events)?;
+        }
         if sim.scene.file.output.snapshot_on_split && !events.is_empty() {
             let n = sim.cracking.as_ref().map_or(0, |c| c.n_splits);
             self.snapshot(sim, sim.stages_done.len(), &format!("stage{}_split{n}", sim.stages_done.len()))?;
         }
         Ok(())
+    }
+
+    fn stage_end(&mut self, sim: &Simulation, stage: usize) -> Result<()> {
+        match self.tips.as_mut() {
+            Some(t) => t.stage_end(sim, stage),
+            None => Ok(()),
+        }
     }
 
     fn progress(&mut self, p: &Progress) {
@@ -471,6 +491,10 @@ impl Observer for OutputWriter {
         ck.seq = self.ck_seq;
         self.history.sync()?;
         self.splits.sync()?;
+        if let Some(t) = &self.tips {
+            t.sync()?;
+            ck.put_section(tips::TIPS_SECTION, tips::TIPS_SECTION_VERSION, &t.checkpoint_state())?;
+        }
         ck.put_section(OUTPUT_SECTION, OUTPUT_SECTION_VERSION, &WriterState { snapshots: self.snapshots.clone(), history: self.history.mark(), splits: self.splits.mark() })?;
         let path = self.dir.join(crate::output::checkpoint::file_name(ck.seq));
         atomic_write(&path, &ck.encode(self.scene_hash)?)?;

@@ -207,7 +207,7 @@ impl Simulation {
                     levels[k] = v;
                 }
             }
-            let (_, vp, _) = self.loads.constraints(&self.model, &levels);
+            let (_, vp, _) = self.loads.constraints(&self.model, &levels, 0.0);
             if let Some(c) = vp.iter().position(|v| v[0] != 0.0 || v[1] != 0.0) {
                 let p = self.model.topo.cluster_point[c];
                 return Err(FlemError::config(
@@ -229,7 +229,7 @@ impl Simulation {
         probe.copy_from_slice(levels);
         let mut f = Vec::new();
         self.loads.constant_force(&self.model, &probe, &self.state.mass, &mut f);
-        let (fix, _, up) = self.loads.constraints(&self.model, &probe);
+        let (fix, _, up) = self.loads.constraints(&self.model, &probe, 0.0);
         let mut u_p = vec![[0.0; 2]; fix.len()];
         for (c, d, v) in up {
             u_p[c][d] = v;
@@ -363,7 +363,7 @@ impl Simulation {
         // The state: u of the last solve (events_set_state before the split; the new clusters
         // took their parents' u), at rest, the constraints and loads of the held levels.
         self.state.v.iter_mut().for_each(|v| *v = [0.0; 2]);
-        let (fix, vp, _) = self.loads.constraints(&self.model, &self.levels);
+        let (fix, vp, _) = self.loads.constraints(&self.model, &self.levels, self.state.time);
         self.state.fix = fix;
         self.state.v_pres = vp;
         self.refresh_constant_force();

@@ -21,8 +21,9 @@ enum Kind {
     Edge { faces: Vec<(ElemId, u8)>, pressure: Field, traction: [Field; 2], follow: bool, ends: Option<Vec<[f64; 6]>> },
     /// `at`: per point, the value of expressions without `t` (None: numbers, or `t` used).
     Point { points: Vec<PointId>, value: [Field; 2], at: Option<Vec<[f64; 2]>> },
-    /// Prescribed velocity (`displacement = false`) or displacement of the given components.
-    Prescribed { points: Vec<PointId>, value: [Option<f64>; 2], displacement: bool },
+    /// Prescribed velocity (`displacement = false`; each component a number or an expression
+    /// of x, y, t) or displacement (numbers) of the given components.
+    Prescribed { points: Vec<PointId>, value: [Option<Field>; 2], displacement: bool },
 }
 
 #[derive(Clone, Debug)]
@@ -41,7 +42,7 @@ impl Load {
         match &self.kind {
             Kind::Edge { pressure, traction, .. } => pressure.uses_t() || traction.iter().any(Field::uses_t),
             Kind::Point { value, .. } => value.iter().any(Field::uses_t),
-            Kind::Prescribed { .. } => false,
+            Kind::Prescribed { value, .. } => value.iter().flatten().any(Field::uses_t),
         }
     }
 }
@@ -55,8 +56,11 @@ pub struct Loads {
     pub gravity: [f64; 2],
     /// True when some pressure follows the deformed edge (recomputed every step).
     pub has_follower: bool,
-    /// True when some load is an expression of time (recomputed every step, that load only).
+    /// True when some force load is an expression of time (recomputed every step, that load only).
     pub has_time: bool,
+    /// True when some prescribed velocity is an expression of time (issue 36: a ramp; set at
+    /// every step by [`Self::ramp_velocities`]).
+    pub velocity_of_t: bool,
     /// The scene file, for messages of expressions evaluated during the run.
     file: String,
 }
@@ -134,8 +138,13 @@ impl Loads {
                 }
                 LoadCfg::Traction { edges, value, .. } => Kind::Edge { faces: faces(edges)?, pressure: Field::Const(0.0), traction: [field(&value[0])?, field(&value[1])?], follow: false, ends: None },
                 LoadCfg::Point { nodes, value, .. } => Kind::Point { points: model.node_set(nodes, &key("nodes"), file)?, value: [field(&value[0])?, field(&value[1])?], at: None },
-                LoadCfg::Velocity { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: false },
-                LoadCfg::Displacement { nodes, x, y, .. } => Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [*x, *y], displacement: true },
+                LoadCfg::Velocity { nodes, x, y, .. } => {
+                    let comp = |v: &Option<crate::scene::LoadValue>| v.as_ref().map(&field).transpose();
+                    Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [comp(x)?, comp(y)?], displacement: false }
+                }
+                LoadCfg::Displacement { nodes, x, y, .. } => {
+                    Kind::Prescribed { points: model.node_set(nodes, &key("nodes"), file)?, value: [x.map(Field::Const), y.map(Field::Const)], displacement: true }
+                }
             };
             let level = scene.stages.iter().filter_map(|st| st.levels.get(l.name())).fold(1.0f64, |m, v| m.max(v.abs()));
             let mut load = Load { name: l.name().to_string(), key: format!("load[{i}]"), level, kind };
@@ -164,8 +173,10 @@ impl Loads {
             }
             loads.push(load);
         }
-        let has_time = loads.iter().any(Load::uses_t);
-        Ok(Loads { loads, point_fix, gravity: scene.model.gravity, has_follower, has_time, file: file.to_string() })
+        let is_prescribed = |l: &&Load| matches!(l.kind, Kind::Prescribed { .. });
+        let has_time = loads.iter().filter(|l| !is_prescribed(l)).any(Load::uses_t);
+        let velocity_of_t = loads.iter().filter(is_prescribed).any(Load::uses_t);
+        Ok(Loads { loads, point_fix, gravity: scene.model.gravity, has_follower, has_time, velocity_of_t, file: file.to_string() })
     }
 
     /// The two points of a face (element, local edge), in the element's order.
@@ -301,9 +312,11 @@ impl Loads {
         Ok(())
     }
 
-    /// Constraints at the given levels: fixity bits, prescribed velocity per cluster, and the
-    /// prescribed displacements `(cluster, dof, value)` to impose at the stage start.
-    pub fn constraints(&self, model: &Model, levels: &[f64]) -> (Vec<u8>, Vec<[f64; 2]>, Vec<(usize, usize, f64)>) {
+    /// Constraints at the given levels: fixity bits, prescribed velocity per cluster (an
+    /// expression at time `time`; a value that is not finite counts as 0 here and stops the run
+    /// at the next step, [`Self::ramp_velocities`]), and the prescribed displacements
+    /// `(cluster, dof, value)` to impose at the stage start.
+    pub fn constraints(&self, model: &Model, levels: &[f64], time: f64) -> (Vec<u8>, Vec<[f64; 2]>, Vec<(usize, usize, f64)>) {
         let nc = model.topo.n_clusters();
         let mut fix: Vec<u8> = model.topo.cluster_point.iter().map(|p| self.point_fix[p.idx()]).collect();
         let mut vp = vec![[0.0; 2]; nc];
@@ -315,6 +328,18 @@ impl Loads {
                     for (d, val) in value.iter().enumerate() {
                         let Some(val) = val else { continue };
                         fix[c.idx()] |= 1 << d;
+                        let val = match val.constant() {
+                            Some(v) => v,
+                            None => {
+                                let x = model.mesh.points[p.idx()];
+                                let v = val.at(x[0], x[1], time);
+                                if v.is_finite() {
+                                    v
+                                } else {
+                                    0.0
+                                }
+                            }
+                        };
                         if *displacement {
                             up.push((c.idx(), d, lev * val));
                         } else {
@@ -325,5 +350,36 @@ impl Loads {
             }
         }
         (fix, vp, up)
+    }
+
+    /// Prescribed velocities that are expressions of time (issue 36): sets `v_pres` of their
+    /// dofs to the value at `time` (the caller passes the middle of the coming step, where the
+    /// central-difference velocity lives) and returns the work this takes, as the energy ledger
+    /// counts a free dof's: a prescribed dof going from `v-` (`v`, the last half step's velocity)
+    /// to `v+` is pushed by the inertial force `m (v+ - v-) / dt` besides the element forces,
+    /// whose trapezoidal work over the step is `1/2 m (v+^2 - v-^2)` (first value), of which
+    /// `1/2 m (v+^2 - v- v+)` belongs to the step's second half (second value: the ledger's
+    /// pending work). The element and contact forces' work on these dofs is summed by the node
+    /// update as for any prescribed dof, so the ledger stays exact for linear elasticity. A value
+    /// that is not finite, or beyond 1e100, stops the run naming the load.
+    pub fn ramp_velocities(&self, model: &Model, levels: &[f64], time: f64, v: &[[f64; 2]], mass: &[f64], v_pres: &mut [[f64; 2]]) -> Result<(f64, f64)> {
+        let (mut work, mut pending) = (0.0, 0.0);
+        for (l, &lev) in self.loads.iter().zip(levels) {
+            let Kind::Prescribed { points, value, displacement: false } = &l.kind else { continue };
+            for (d, f) in value.iter().enumerate() {
+                let Some(f) = f.as_ref().filter(|f| f.uses_t()) else { continue };
+                for p in points {
+                    let x = model.mesh.points[p.idx()];
+                    let val = lev * checked(f.at(x[0], x[1], time), f, &l.key, &self.file, x, time, l.level)?;
+                    for &c in &model.topo.point_clusters[p.idx()] {
+                        let (c, m, vm) = (c.idx(), mass[c.idx()], v[c.idx()][d]);
+                        work += 0.5 * m * (val * val - vm * vm);
+                        pending += 0.5 * m * (val * val - vm * val);
+                        v_pres[c][d] = val;
+                    }
+                }
+            }
+        }
+        Ok((work, pending))
     }
 }

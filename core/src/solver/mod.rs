@@ -116,6 +116,11 @@ pub struct Ledger {
     /// Energy dissipated by contacts (friction slip, dashpots, fracture), cumulative.
     #[serde(default)]
     pub contact_dissipated: f64,
+    /// The fracture energy in `contact_dissipated` (issue 36: a cohesive law's softening,
+    /// `crate::contact::PairForce::fracture`), cumulative; not a separate term of the
+    /// residual. Per unit crack length: `crate::output::tips`.
+    #[serde(default)]
+    pub fracture: f64,
 }
 
 impl Ledger {
@@ -610,7 +615,7 @@ impl Simulation {
             }
         }
         t3_plastic_warnings(&model, &scene.file.materials, &file, &mut warnings);
-        if loads.has_time {
+        if loads.has_time || loads.velocity_of_t {
             // A load of t in a stage marched to equilibrium follows the relaxation's pseudo-time.
             let quasi: Vec<String> = scene.file.stages.iter().enumerate().filter(|(_, s)| !s.dynamic).map(|(i, s)| stage_label(i, s)).collect();
             let which: Vec<String> = loads.loads.iter().filter(|l| l.uses_t()).map(|l| format!("\"{}\"", l.name)).collect();
@@ -703,7 +708,7 @@ impl Simulation {
     }
 
     fn apply_constraints_bits(&mut self) {
-        let (fix, vp, _) = self.loads.constraints(&self.model, &self.levels);
+        let (fix, vp, _) = self.loads.constraints(&self.model, &self.levels, self.state.time);
         self.state.fix = fix;
         self.state.v_pres = vp;
     }
@@ -916,7 +921,7 @@ impl Simulation {
                 self.levels[k] = v;
             }
         }
-        let (fix, vp, up) = self.loads.constraints(&self.model, &self.levels);
+        let (fix, vp, up) = self.loads.constraints(&self.model, &self.levels, self.state.time);
         self.state.fix = fix;
         self.state.v_pres = vp;
         // A prescribed velocity is imposed at once: the kinetic energy it adds is work done on
@@ -1017,20 +1022,28 @@ impl Simulation {
             let (stored, diss) = c.compute(cfg.law.as_ref(), &self.x0, &self.state.u, &self.state.v, dt, &mut self.state.f_con);
             self.ledger.contact_energy = stored;
             self.ledger.contact_dissipated += diss;
+            self.ledger.fracture += c.fracture_step;
         }
         self.coeffs = self.scene.file.solver.damping().coeffs(&self.stats);
         let corot_strain = if full && (self.model.corotational || self.model.stateful) { Some(self.model.strain_energy(&self.state.u, &mut self.scratch)) } else { None };
         let stats = self.scene.file.solver.damping.as_deref().is_some_and(|d| d.uses_rayleigh_stats());
+        // Prescribed velocities of time (a ramp): their value at the step's middle, and the
+        // work of the inertial force that changes them (`Loads::ramp_velocities`).
+        let (w_ramp, pw_ramp) = if self.loads.velocity_of_t {
+            self.loads.ramp_velocities(&self.model, &self.levels, self.state.time + 0.5 * dt, &self.state.v, &self.state.mass, &mut self.state.v_pres)?
+        } else {
+            (0.0, 0.0)
+        };
         let t1 = self.part_seconds.map(|_| std::time::Instant::now());
         let sum = self.update_nodes(full, stats, Simd::best());
         let t_node = t1.map(|t| t.elapsed().as_secs_f64());
         let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc, num, asum, cnt] = sum;
         self.step_ratio = full.then(|| ratio_of(num.sqrt(), asum, cnt));
-        self.ledger.external_work += w;
+        self.ledger.external_work += w + w_ramp;
         self.ledger.damping += dmp;
         self.ledger.contact_work += wc;
         if full {
-            self.ledger.pending_ext = pw;
+            self.ledger.pending_ext = pw + pw_ramp;
             self.ledger.pending_damp = pd;
             self.ledger.pending_contact = pc;
             self.ledger.kinetic = ke;
@@ -1267,10 +1280,12 @@ impl Simulation {
             }
             // The ledger is summed in full only on steps after which it is read.
             let kn = k + 1;
+            // `end_time` (dynamic stages): the step that reaches it is the stage's last.
+            let last = kn == max_steps || st.end_time.is_some_and(|te| self.state.time + 1.5 * self.dt >= te);
             // A dynamic stage does not stop at equilibrium: its ratio is taken only on steps
             // that are full for another reason (and at its end).
             let full = (!st.dynamic && kn % every == 0)
-                || kn == max_steps
+                || last
                 || (hist_every > 0 && kn % hist_every == 0)
                 || (snap_every > 0 && kn % snap_every == 0)
                 || (split_snap && check_every > 0 && kn % check_every == 0);
@@ -1280,7 +1295,7 @@ impl Simulation {
                 splits += self.check_failure(obs)?;
                 checks += 1;
             }
-            if (k % every == 0 && (full || !st.dynamic)) || k == max_steps {
+            if (k % every == 0 && (full || !st.dynamic)) || last {
                 ratio = self.step_unbalanced_ratio();
                 self.last_ratio = ratio;
                 if ratio < 0.5 * best {
@@ -1309,11 +1324,14 @@ impl Simulation {
                 obs.progress(&Progress { stage: i, n_stages, step: self.state.step, stage_step: k, max_steps, dt: self.dt, ratio, tolerance: tol });
             }
             // The stage's last step gets its row at the stage end (below), not twice.
-            if hist_every > 0 && k % hist_every == 0 && k < max_steps {
+            if hist_every > 0 && k % hist_every == 0 && k < max_steps && !last {
                 obs.history(self, i)?;
             }
             if snap_every > 0 && k % snap_every == 0 {
                 obs.snapshot(self, i, &format!("{}_step{}", i, k))?;
+            }
+            if last {
+                break;
             }
         }
         ratio = self.unbalanced_ratio();
@@ -1409,7 +1427,7 @@ impl Simulation {
             }
         }
         st.mass = self.model.masses();
-        let (fix, vpres, _) = self.loads.constraints(&self.model, &self.levels);
+        let (fix, vpres, _) = self.loads.constraints(&self.model, &self.levels, st.time);
         // Keep the velocities of prescribed dofs as they were (no new jump).
         st.fix = fix;
         st.v_pres = vpres;

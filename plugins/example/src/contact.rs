@@ -102,6 +102,6 @@ impl Contact for ExampleSpringDashpot {
             ds = 0.0;
         }
         diss += -((normal - h[0]) * k.vn + ds * k.vs) * k.dt;
-        PairForce { normal, tangential: h[1] + ds, active: true, stored: 0.5 * h[0] * h[0] / kn + 0.5 * h[1] * h[1] / ks, dissipated: diss }
+        PairForce { normal, tangential: h[1] + ds, active: true, stored: 0.5 * h[0] * h[0] / kn + 0.5 * h[1] * h[1] / ks, dissipated: diss, fracture: 0.0 }
     }
 }

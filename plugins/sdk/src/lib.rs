@@ -531,7 +531,7 @@ mod tests {
         }
         fn evaluate(&self, k: &PairKinematics, fresh: bool, state: &mut [f64]) -> PairForce {
             state[0] += 1.0;
-            PairForce { normal: k.gap * 10.0 + fresh as u8 as f64, tangential: state[0], active: !k.new, stored: 0.0, dissipated: 0.0 }
+            PairForce { normal: k.gap * 10.0 + fresh as u8 as f64, tangential: state[0], active: !k.new, stored: 0.0, dissipated: 0.0, fracture: 0.0 }
         }
     }
 

@@ -22,7 +22,9 @@
 //! stored + dissipated changes by exactly minus the work the ledger credits the pair's forces
 //! (trapezoid: `1/2 (F_old + F_new) . (dgap, dslip)`, `F_old` the last step's force):
 //! - fracture: `A (R(delta_max) - R(delta_max,old))` as `delta_max` grows, with
-//!   `R(d) = W(d) - 1/2 T(d) d` and `W` the area under the envelope (total `G_f A`);
+//!   `R(d) = W(d) - 1/2 T(d) d` and `W` the area under the envelope (total `G_f A`); this
+//!   (and the cohesive energy lost with a shrinking area, below) is also `PairForce::fracture`,
+//!   the ledger's fracture energy (issue 36);
 //! - Coulomb slip (trial `e_s* = e_s,old - k_s A dslip` capped to `e_s`): the tangential work
 //!   `1/2 (e_s,old + e_s) dslip` with `dslip = (e_s,old - e_s*) / (k_s A)`, less the change of
 //!   `e_s^2 / (2 k_s A)`: `(e_s,old + e_s)(e_s* - e_s) / (2 k_s A)` (the former
@@ -189,14 +191,19 @@ impl ContactLaw for Cohesive {
         for ((k, h), o) in kin.iter().zip(hist.iter_mut()).zip(out.iter_mut()) {
             let (kn, ks) = (self.normal_stiffness * k.area, self.shear_stiffness * k.area);
             let cohesive = h.fresh && h.max_open < df;
-            let mut diss = 0.0;
+            let (mut diss, mut frac) = (0.0, 0.0);
             if k.area_old > 0.0 && k.area != k.area_old && !k.new {
                 // The area changed (a split gave part of the slave's faces to another node).
                 let r = k.area / k.area_old;
                 if r < 1.0 {
                     // The normal energy, A x its value per unit area, goes with the part of
                     // the zone that left: dissipated. (`e_s`, scaled by the core, keeps its.)
-                    diss += (1.0 - r) * (h.stored - 0.5 * h.es * h.es / ks).max(0.0);
+                    let lost = (1.0 - r) * (h.stored - 0.5 * h.es * h.es / ks).max(0.0);
+                    diss += lost;
+                    if cohesive {
+                        // The cohesive zone's energy that went with the faces given away.
+                        frac += lost;
+                    }
                 }
                 // The ledger credits this step the last step's forces, on the old area:
                 // normal -T A_old = r^-1/2 e_n, tangential r^-1/2 e_s, where the law starts from
@@ -216,13 +223,15 @@ impl ContactLaw for Cohesive {
                 if !k.new {
                     diss += 0.5 * h.es * (h.es / ks - k.dslip);
                 }
-                *o = PairForce { dissipated: diss, ..PairForce::default() };
+                *o = PairForce { dissipated: diss, fracture: frac, ..PairForce::default() };
                 continue;
             }
             let (normal, stored_n, cap_extra) = if k.gap > 0.0 {
                 let old = h.max_open;
                 h.max_open = h.max_open.max(k.gap);
-                diss += k.area * (self.released(h.max_open) - self.released(old));
+                let f = k.area * (self.released(h.max_open) - self.released(old));
+                diss += f;
+                frac += f;
                 let t = if k.gap >= h.max_open { self.envelope(k.gap) } else { self.envelope(h.max_open) / h.max_open * k.gap };
                 (-t * k.area, 0.5 * t * k.gap * k.area, self.tensile_strength * k.area * (1.0 - h.max_open / df).max(0.0))
             } else {
@@ -239,7 +248,7 @@ impl ContactLaw for Cohesive {
                 diss += slip_dissipation(es_old, trial, es, ks);
             }
             let active = k.gap < 0.0 || (h.fresh && h.max_open < df);
-            *o = PairForce { normal, tangential: es, active, stored: stored_n + 0.5 * es * es / ks, dissipated: diss };
+            *o = PairForce { normal, tangential: es, active, stored: stored_n + 0.5 * es * es / ks, dissipated: diss, fracture: frac };
         }
     }
 }

@@ -60,7 +60,7 @@ impl ContactLaw for Penalty {
             h.en = el;
             h.es = ft;
             let diss = (-(normal - el) * k.vn - ft * k.vs) * k.dt;
-            *o = PairForce { normal, tangential: ft, active: true, stored: 0.5 * el * el / kn, dissipated: diss };
+            *o = PairForce { normal, tangential: ft, active: true, stored: 0.5 * el * el / kn, dissipated: diss, fracture: 0.0 };
         }
     }
 }

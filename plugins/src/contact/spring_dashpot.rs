@@ -100,7 +100,7 @@ impl ContactLaw for SpringDashpot {
                 ds = 0.0;
             }
             diss += -((normal - h.en) * k.vn + ds * k.vs) * k.dt;
-            *o = PairForce { normal, tangential: h.es + ds, active: true, stored: 0.5 * h.en * h.en / kn + 0.5 * h.es * h.es / ks, dissipated: diss };
+            *o = PairForce { normal, tangential: h.es + ds, active: true, stored: 0.5 * h.en * h.en / kn + 0.5 * h.es * h.es / ks, dissipated: diss, fracture: 0.0 };
         }
     }
 }

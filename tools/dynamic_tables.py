@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""The tables of docs/dynamic.md (issue 36) from run folders of configs/dynamic/ scenes:
+    python3 tools/dynamic_tables.py kalthoff out/kalthoff_h1 ...
+    python3 tools/dynamic_tables.py branching out/branching_h0.5 ...
+Reads crack_tips.csv, splits.csv and summary.json (standard library only). Definitions: the
+front is the tip (with a branch) farthest from the notch tip at each record; its speed is the
+advance of that distance over a 2 us window; the Kalthoff angle is the mean angle (from the
+notch line) of the front while it is 10-20 mm from the notch tip; frac_gc_* is the ledger's
+fracture energy over G_c x the front's chord, its arc along the crack, or the crack-face length;
+symmetry: each split point's distance to the nearest split point mirrored about y = 0.02."""
+import csv, json, math, sys
+
+def load(d):
+    tips = list(csv.DictReader(open(d + "/crack_tips.csv")))
+    splits = list(csv.DictReader(open(d + "/splits.csv")))
+    summ = json.load(open(d + "/summary.json"))
+    return tips, splits, summ
+
+def f(x):
+    return float(x) if x not in ("", None) else float("nan")
+
+def front(tips, tip0):
+    """Per record time: the tip (with a branch) farthest from the notch tip."""
+    by = {}
+    for r in tips:
+        if r["branch"] == "":
+            continue
+        t = f(r["time"]); x, y = f(r["x"]), f(r["y"])
+        dd = math.hypot(x - tip0[0], y - tip0[1])
+        if t not in by or dd > by[t][0]:
+            by[t] = (dd, x, y, f(r["arc"]), f(r["speed"]))
+    return sorted(by.items())
+
+def common(d, tip0, gc, cr):
+    tips, splits, s = load(d)
+    fr = front(tips, tip0)
+    vmax = max((f(r["speed"]) for r in tips if r["speed"] != ""), default=float("nan"))
+    # Front speed: the advance of the front's distance from the notch tip over a window W = 2 us.
+    W = 2e-6
+    vfront = float("nan")
+    for k, (t, v) in enumerate(fr):
+        js = [j for j in range(k) if fr[j][0] <= t - W]
+        if js:
+            tj, vj = fr[js[-1]]
+            s_ = (v[0] - vj[0]) / (t - tj)
+            vfront = s_ if math.isnan(vfront) else max(vfront, s_)
+    last = fr[-1][1] if fr else (0, 0, 0, 0, 0)
+    en = s["energy"]
+    face = f(tips[-1]["crack_length"])
+    res = dict(steps=s["steps"], splits=s["splits"], wall=s["stages"][0]["wall_seconds"], dt=s["dt"],
+               vfront=vfront, vfront_cr=vfront / cr, chord=last[0], arc=last[3], face=face,
+               frac=en["fracture"], frac_gc_chord=en["fracture"] / (gc * last[0]) if last[0] else float("nan"),
+               frac_gc_arc=en["fracture"] / (gc * last[3]) if last[3] else float("nan"),
+               frac_gc_face=en["fracture"] / (gc * face) if face else float("nan"),
+               resid=en["relative_residual"], isolated=len({r["time"] for r in tips if r["branch"] == ""}) and sum(1 for r in tips if r["branch"] == "" and r["time"] == tips[-1]["time"]))
+    return tips, splits, fr, res
+
+def kalthoff(d):
+    tip0 = (0.05, 0.025)
+    tips, splits, fr, res = common(d, tip0, 2.213e4, 2803.0)
+    # Mean angle of the crack front while it is 10-20 mm from the notch tip (chord from the tip).
+    ang = [math.degrees(math.atan2(v[2] - tip0[1], v[1] - tip0[0])) for _, v in fr if 0.010 <= v[0] <= 0.020]
+    ang_all = [math.degrees(math.atan2(f(r["y"]) - tip0[1], f(r["x"]) - tip0[0])) for r in splits if 0.010 <= math.hypot(f(r["x"]) - tip0[0], f(r["y"]) - tip0[1]) <= 0.020]
+    impact = sum(1 for r in splits if f(r["x"]) < 0.03)
+    res.update(angle_front=sum(ang) / len(ang) if ang else float("nan"), angle_splits=sum(ang_all) / len(ang_all) if ang_all else float("nan"), splits_x_lt_30mm=impact)
+    return res
+
+def branching(d):
+    tip0 = (0.05, 0.02)
+    tips, splits, fr, res = common(d, tip0, 3.0, 2125.0)
+    t_end = tips[-1]["time"]
+    final = [r for r in tips if r["time"] == t_end and r["branch"] != ""]
+    reach = [r for r in final if f(r["x"]) >= 0.095]
+    forks = sorted(f(r["fork_x"]) for r in final if r["parent"] != "" and f(r["x"]) >= 0.08)
+    # Symmetry about y = 0.02: each split point's distance to the nearest mirrored split point.
+    pts = [(f(r["x"]), f(r["y"])) for r in splits]
+    mir = [(x, 0.04 - y) for x, y in pts]
+    import bisect
+    mir.sort()
+    xs = [p[0] for p in mir]
+    dists = []
+    for x, y in pts:
+        i = bisect.bisect_left(xs, x - 0.002); best = 1.0
+        while i < len(mir) and mir[i][0] <= x + 0.002:
+            best = min(best, math.hypot(mir[i][0] - x, mir[i][1] - y)); i += 1
+        dists.append(best)
+    dists.sort()
+    longf = sorted(f(r["fork_x"]) for r in final if r["parent"] != "" and math.hypot(f(r["x"]) - f(r["fork_x"]), f(r["y"]) - f(r["fork_y"])) >= 0.005)
+    res.update(first_fork_x_of_branch_ge_5mm=longf[0] if longf else float("nan"), tips_final=len(final), tips_at_right=len(reach), fork_x_of_branches_past_80mm=forks,
+               sym_median_mm=1e3 * dists[len(dists) // 2], sym_p90_mm=1e3 * dists[int(0.9 * len(dists))],
+               ymin_mm=1e3 * min(p[1] for p in pts), ymax_mm=1e3 * max(p[1] for p in pts))
+    return res
+
+kind = sys.argv[1]
+for d in sys.argv[2:]:
+    r = (kalthoff if kind == "kalthoff" else branching)(d)
+    print(d.split("/")[-1], {k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
