@@ -421,6 +421,19 @@ impl Model {
     }
 
     /// Lumped mass of every cluster.
+    /// Every block's saved state (`Block::save_state`: point stress, history, last displacements,
+    /// internal work), in block order: what a checkpoint and `flem fos`'s warm start keep.
+    pub fn block_states(&self) -> Vec<Vec<f64>> {
+        self.blocks
+            .iter()
+            .map(|b| {
+                let mut v = Vec::with_capacity(b.state_len());
+                b.save_state(&mut v);
+                v
+            })
+            .collect()
+    }
+
     pub fn masses(&self) -> Vec<f64> {
         let mut m = vec![0.0; self.topo.n_clusters()];
         for b in &self.blocks {

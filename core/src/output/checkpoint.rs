@@ -211,16 +211,7 @@ impl Checkpoint {
         // Stateful blocks (plastic laws, large strain): every block's point stress, history,
         // last displacements and internal work (`Block::save_state`), in block order.
         if sim.model.stateful {
-            let blocks: Vec<Vec<f64>> = sim
-                .model
-                .blocks
-                .iter()
-                .map(|b| {
-                    let mut v = Vec::with_capacity(b.state_len());
-                    b.save_state(&mut v);
-                    v
-                })
-                .collect();
+            let blocks = sim.model.block_states();
             ck.put_section("blocks", 1, &blocks)?;
         }
         // The events solver's stage loop (its path, factor, left-out clusters, counters, the

@@ -215,16 +215,7 @@ pub fn warm_state(sim: &Simulation) -> Option<WarmState> {
     if sim.cracking.as_ref().is_some_and(|c| !c.cuts.is_empty()) || sim.contact.is_some() || sim.events.is_some() {
         return None;
     }
-    let blocks = sim
-        .model
-        .blocks
-        .iter()
-        .map(|b| {
-            let mut v = Vec::with_capacity(b.state_len());
-            b.save_state(&mut v);
-            v
-        })
-        .collect();
+    let blocks = sim.model.block_states();
     Some(WarmState { state: sim.state.clone(), blocks, levels: sim.levels.clone(), ledger: sim.ledger })
 }
 
