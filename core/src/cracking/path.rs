@@ -98,20 +98,7 @@ pub fn size_at(topo: &Topology, x: &[[f64; 2]], p: PointId) -> f64 {
 
 /// Every tip of the topology, in point order.
 pub fn tips(topo: &Topology, x: &[[f64; 2]]) -> Vec<Tip> {
-    let mut pts: Vec<PointId> = Vec::new();
-    for (e, ed) in topo.edges.iter().enumerate() {
-        if ed.sides[1].is_none() {
-            continue;
-        }
-        let e = EdgeId::new(e);
-        let [a, b] = ed.points;
-        match (topo.is_separated_at(e, a), topo.is_separated_at(e, b)) {
-            (true, false) => pts.push(b),
-            (false, true) => pts.push(a),
-            _ => {}
-        }
-    }
-    pts.sort_unstable();
+    let mut pts: Vec<PointId> = topo.joined_crack_ends().into_iter().map(|(p, _)| p).collect();
     pts.dedup();
     pts.into_iter().filter_map(|p| tip_face(topo, p).map(|face| Tip { point: p, face, h: size_at(topo, x, p) })).collect()
 }

@@ -243,6 +243,27 @@ impl Topology {
         self.is_separated_at(e, pts[0]) as u8 + self.is_separated_at(e, pts[1]) as u8
     }
 
+    /// The crack's ends that are still joined: `(q, e)` for every interior edge `e` separated
+    /// at its other end and joined at `q`, sorted by point, then edge. Crack tips are among these
+    /// points (`cracking::path::tips`, flem-plugins' `check::sif::crack_tips`).
+    pub fn joined_crack_ends(&self) -> Vec<(PointId, EdgeId)> {
+        let mut ends = Vec::new();
+        for (e, ed) in self.edges.iter().enumerate() {
+            if ed.sides[1].is_none() {
+                continue;
+            }
+            let e = EdgeId::new(e);
+            let [a, b] = ed.points;
+            match (self.is_separated_at(e, a), self.is_separated_at(e, b)) {
+                (true, false) => ends.push((b, e)),
+                (false, true) => ends.push((a, e)),
+                _ => {}
+            }
+        }
+        ends.sort_unstable_by_key(|&(p, e)| (p.idx(), e.idx()));
+        ends
+    }
+
     /// The fan of cluster `c` around its point.
     pub fn fan(&self, c: ClusterId) -> Fan {
         let p = self.cluster_point[c.idx()];

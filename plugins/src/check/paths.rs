@@ -56,7 +56,7 @@ pub fn crack_faces(model: &Model) -> Vec<bool> {
         .map(|e| {
             let ed = &topo.edges[e];
             let id = EdgeId::new(e);
-            ed.sides[1].is_some() && (topo.is_separated_at(id, ed.points[0]) || topo.is_separated_at(id, ed.points[1]))
+            ed.sides[1].is_some() && topo.crack_state(id) > 0
         })
         .collect()
 }

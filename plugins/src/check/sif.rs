@@ -58,7 +58,7 @@
 //! in it must be a linear elastic `q4` or `t3` of one material.
 use flem_core::element::model::Model;
 use flem_core::element::{self, Material, Plane, Shape};
-use flem_core::ids::{EdgeId, PointId};
+use flem_core::ids::EdgeId;
 use serde::Serialize;
 
 use crate::elements::{Q4, T3};
@@ -175,21 +175,7 @@ pub fn crack_tips(model: &Model) -> Vec<CrackTip> {
     let topo = &model.topo;
     let pts = &model.mesh.points;
     // (tip point, crack face) pairs.
-    let mut ends: Vec<(PointId, EdgeId)> = Vec::new();
-    for (e, ed) in topo.edges.iter().enumerate() {
-        let e = EdgeId::new(e);
-        if ed.sides[1].is_none() {
-            continue;
-        }
-        let [a, b] = ed.points;
-        let (sa, sb) = (topo.is_separated_at(e, a), topo.is_separated_at(e, b));
-        if sa && !sb {
-            ends.push((b, e));
-        } else if sb && !sa {
-            ends.push((a, e));
-        }
-    }
-    ends.sort_unstable_by_key(|&(p, e)| (p.idx(), e.idx()));
+    let ends = topo.joined_crack_ends();
     let mut tips = Vec::new();
     let mut i = 0;
     while i < ends.len() {
@@ -200,13 +186,7 @@ pub fn crack_tips(model: &Model) -> Vec<CrackTip> {
         let (x, o) = (pts[p.idx()], pts[other.idx()]);
         let d = [x[0] - o[0], x[1] - o[1]];
         let len = d[0].hypot(d[1]);
-        let through = topo.point_edges.row(p.idx());
-        let h = through.iter().map(|&k| {
-            let [u, v] = topo.edges[k.idx()].points;
-            let (pu, pv) = (pts[u.idx()], pts[v.idx()]);
-            (pu[0] - pv[0]).hypot(pu[1] - pv[1])
-        });
-        let h = h.sum::<f64>() / through.len() as f64;
+        let h = flem_core::cracking::path::size_at(topo, pts, p);
         tips.push(CrackTip { point: p.idx(), x, dir: [d[0] / len, d[1] / len], edge: e.idx(), h, faces: n });
         i += n;
     }

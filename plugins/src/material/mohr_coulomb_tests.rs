@@ -265,14 +265,7 @@ fn strength_reduced_divides_c_and_tan_phi() {
 fn update_lanes_is_update_bit_for_bit() {
     use flem_core::element::kernel::LANES;
     let laws = [law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(1.0, 0.0, 0.0, None), law(0.0, 35.0, 35.0, Some(0.0))];
-    // A small deterministic generator (xorshift), values in [-1, 1).
-    let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
-    let mut rnd = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    };
+    let mut rnd = xorshift(0x9E37_79B9_7F4A_7C15);
     let (mut n_pl, mut n_el) = (0, 0);
     for law in &laws {
         for round in 0..400 {
@@ -495,13 +488,7 @@ fn q4_total_form_matches_the_generic_shortcut() {
 fn elastic_pre_test_agrees_with_the_quick_test() {
     use flem_core::element::kernel::LANES;
     let laws = [law(1.0, 0.0, 0.0, None), law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(0.5, 40.0, 40.0, Some(0.2))];
-    let mut x: u64 = 0x2545_F491_4F6C_DD1D;
-    let mut rnd = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    };
+    let mut rnd = xorshift(0x2545_F491_4F6C_DD1D);
     let (mut agree_in, mut agree_out, mut near) = (0, 0, 0);
     for law in &laws {
         for round in 0..300 {
@@ -569,4 +556,16 @@ fn elastic_pre_test_agrees_with_the_quick_test() {
     }
     eprintln!("inside {agree_in}, outside {agree_out}, on the surface {near}");
     assert!(agree_in > 500 && agree_out > 500 && near > 100, "inside {agree_in}, outside {agree_out}, near {near}");
+}
+
+/// A small deterministic generator (xorshift) from `seed`, values in [-1, 1): the random states
+/// of the bit-for-bit tests above.
+fn xorshift(seed: u64) -> impl FnMut() -> f64 {
+    let mut x = seed;
+    move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
 }
