@@ -23,12 +23,14 @@
 //! the line and the data array, section and piece (a cut file, a bad tag, a non-number, a
 //! wrong count).
 mod raw;
+mod raw3;
 mod rect;
 mod rects;
 mod select;
 pub mod topology;
 
 pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
+pub use raw3::{tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};
 pub use rect::{Notch, Rectangle};
 pub use rects::{Part, Rectangles};
 pub use select::SetCfg;
@@ -42,4 +44,10 @@ use crate::error::Result;
 #[typetag::serde(tag = "type")]
 pub trait MeshSource: std::fmt::Debug + Send + Sync {
     fn load(&self, base_dir: &std::path::Path) -> Result<RawMesh>;
+
+    /// The mesh in its own dimension (issue 38): a 3D source (a gmsh file with volumes, the
+    /// `box` generator) gives [`AnyMesh::Three`]; the default is the 2D mesh of [`Self::load`].
+    fn load_any(&self, base_dir: &std::path::Path) -> Result<AnyMesh> {
+        Ok(AnyMesh::Two(self.load(base_dir)?))
+    }
 }
