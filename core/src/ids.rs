@@ -38,3 +38,7 @@ id_type!(
     /// An element edge (a pair of points), shared by one or two elements.
     EdgeId
 );
+id_type!(
+    /// An element face of a 3D mesh (three or four points), shared by one or two elements.
+    FaceId
+);

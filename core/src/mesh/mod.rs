@@ -28,6 +28,7 @@ mod rect;
 mod rects;
 mod select;
 pub mod topology;
+pub mod topology3;
 
 pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
 pub use raw3::{tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};

@@ -86,7 +86,7 @@ impl<T: Copy> Csr<T> {
     pub fn row(&self, i: usize) -> &[T] {
         &self.items[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
-    fn from_pairs(n: usize, pairs: &[(u32, T)]) -> Self {
+    pub(crate) fn from_pairs(n: usize, pairs: &[(u32, T)]) -> Self {
         let mut offsets = vec![0u32; n + 1];
         for &(r, _) in pairs {
             offsets[r as usize + 1] += 1;
@@ -388,41 +388,49 @@ impl Topology {
     /// Connected fragments: elements joined through shared clusters. Returns the fragment
     /// index of every element and the number of fragments (deterministic: by smallest element).
     pub fn fragments(&self) -> (Vec<u32>, usize) {
-        let ne = self.n_elems();
-        let mut parent: Vec<u32> = (0..ne as u32).collect();
-        fn root(p: &mut [u32], mut i: u32) -> u32 {
-            while p[i as usize] != i {
-                p[i as usize] = p[p[i as usize] as usize];
-                i = p[i as usize];
-            }
-            i
-        }
-        let mut first_elem_of_cluster = vec![u32::MAX; self.n_clusters()];
-        for (k, &c) in self.copy_cluster.iter().enumerate() {
-            let e = self.copy_elem[k].0;
-            let f = &mut first_elem_of_cluster[c.idx()];
-            if *f == u32::MAX {
-                *f = e;
-            } else {
-                let (a, b) = (root(&mut parent, *f), root(&mut parent, e));
-                if a != b {
-                    parent[a.max(b) as usize] = a.min(b);
-                }
-            }
-        }
-        let mut id = vec![u32::MAX; ne];
-        let mut frag = vec![0u32; ne];
-        let mut n = 0u32;
-        for e in 0..ne as u32 {
-            let r = root(&mut parent, e);
-            if id[r as usize] == u32::MAX {
-                id[r as usize] = n;
-                n += 1;
-            }
-            frag[e as usize] = id[r as usize];
-        }
-        (frag, n as usize)
+        fragments_of(self.n_elems(), self.n_clusters(), &self.copy_cluster, &self.copy_elem)
     }
+}
+
+/// Union-find root with path halving (the fans' and fragments' components, 2D and 3D).
+pub(crate) fn root(p: &mut [u32], mut i: u32) -> u32 {
+    while p[i as usize] != i {
+        p[i as usize] = p[p[i as usize] as usize];
+        i = p[i as usize];
+    }
+    i
+}
+
+/// Connected fragments of `ne` elements joined through shared clusters, from the cluster and
+/// element of every copy (2D [`Topology::fragments`] and 3D `Topology3::fragments`): the
+/// fragment index of every element and the number of fragments, numbered by smallest element.
+pub(crate) fn fragments_of(ne: usize, n_clusters: usize, copy_cluster: &[ClusterId], copy_elem: &[ElemId]) -> (Vec<u32>, usize) {
+    let mut parent: Vec<u32> = (0..ne as u32).collect();
+    let mut first_elem_of_cluster = vec![u32::MAX; n_clusters];
+    for (k, &c) in copy_cluster.iter().enumerate() {
+        let e = copy_elem[k].0;
+        let f = &mut first_elem_of_cluster[c.idx()];
+        if *f == u32::MAX {
+            *f = e;
+        } else {
+            let (a, b) = (root(&mut parent, *f), root(&mut parent, e));
+            if a != b {
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+    }
+    let mut id = vec![u32::MAX; ne];
+    let mut frag = vec![0u32; ne];
+    let mut n = 0u32;
+    for e in 0..ne as u32 {
+        let r = root(&mut parent, e);
+        if id[r as usize] == u32::MAX {
+            id[r as usize] = n;
+            n += 1;
+        }
+        frag[e as usize] = id[r as usize];
+    }
+    (frag, n as usize)
 }
 
 #[cfg(test)]
