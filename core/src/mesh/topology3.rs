@@ -17,7 +17,7 @@
 //! point (the plane normal to the direction of failure): the element faces closest to that
 //! plane.
 use super::topology::{fragments_of, root, Csr, NewCluster};
-use super::{RawMesh3, NO_CORNER};
+use super::{CellKind3, RawCell3, RawMesh3, NO_CORNER};
 use crate::ids::{ClusterId, CopyId, ElemId, FaceId, PointId};
 
 /// An element face: its points (a triangle's 4th is `PointId(NO_CORNER)`), in the order of
@@ -368,47 +368,48 @@ impl Topology3 {
     }
 }
 
+/// A structured n x n x n box of unit H8 cells, or each cube split into six T4 around its
+/// main diagonal (0-6), conforming across cubes (every cube uses the same split). For tests
+/// (the scenes' generator is the `box` mesh source).
+#[doc(hidden)]
+pub fn unit_cubes(n: usize, tets: bool) -> RawMesh3 {
+    let m = n + 1;
+    let id = |i: usize, j: usize, k: usize| (i + m * (j + m * k)) as u32;
+    let mut points = Vec::new();
+    for k in 0..m {
+        for j in 0..m {
+            for i in 0..m {
+                points.push([i as f64, j as f64, k as f64]);
+            }
+        }
+    }
+    let mut cells = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let h = [id(i, j, k), id(i + 1, j, k), id(i + 1, j + 1, k), id(i, j + 1, k), id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)];
+                if tets {
+                    // The six tetrahedra of the Kuhn split around the diagonal 0-6, each
+                    // positive (checked below).
+                    for t in [[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]] {
+                        let mut nodes = [0u32; 8];
+                        for (a, &b) in t.iter().enumerate() {
+                            nodes[a] = h[b];
+                        }
+                        cells.push(RawCell3 { kind: CellKind3::T4, nodes });
+                    }
+                } else {
+                    cells.push(RawCell3 { kind: CellKind3::H8, nodes: h });
+                }
+            }
+        }
+    }
+    RawMesh3 { source: "cube".into(), points, cells, ..Default::default() }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::{CellKind3, RawCell3};
-
-    /// A structured n x n x n box of unit H8 cells, or each cube split into six T4 around its
-    /// main diagonal (0-6), conforming across cubes (every cube uses the same split).
-    fn cube(n: usize, tets: bool) -> RawMesh3 {
-        let m = n + 1;
-        let id = |i: usize, j: usize, k: usize| (i + m * (j + m * k)) as u32;
-        let mut points = Vec::new();
-        for k in 0..m {
-            for j in 0..m {
-                for i in 0..m {
-                    points.push([i as f64, j as f64, k as f64]);
-                }
-            }
-        }
-        let mut cells = Vec::new();
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    let h = [id(i, j, k), id(i + 1, j, k), id(i + 1, j + 1, k), id(i, j + 1, k), id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)];
-                    if tets {
-                        // The six tetrahedra of the Kuhn split around the diagonal 0-6, each
-                        // positive (checked below).
-                        for t in [[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]] {
-                            let mut nodes = [0u32; 8];
-                            for (a, &b) in t.iter().enumerate() {
-                                nodes[a] = h[b];
-                            }
-                            cells.push(RawCell3 { kind: CellKind3::T4, nodes });
-                        }
-                    } else {
-                        cells.push(RawCell3 { kind: CellKind3::H8, nodes: h });
-                    }
-                }
-            }
-        }
-        RawMesh3 { source: "cube".into(), points, cells, ..Default::default() }
-    }
 
     fn centroid(m: &RawMesh3, e: ElemId) -> [f64; 3] {
         let c = m.cells[e.idx()];
@@ -438,14 +439,14 @@ mod tests {
     /// centre point) links 8 hexes through 12 faces, 24 tetrahedra through 36 faces.
     #[test]
     fn faces_and_fans_of_structured_boxes() {
-        let h = cube(2, false);
+        let h = unit_cubes(2, false);
         let t = Topology3::new(&h);
         assert_eq!(t.faces.len(), 36);
         assert_eq!(t.faces.iter().filter(|f| f.sides[1].is_some()).count(), 12);
         let centre = 13; // (1, 1, 1)
         let fan = t.fan(ClusterId(centre));
         assert_eq!((fan.copies.len(), fan.links.len()), (8, 12));
-        let tm = cube(2, true);
+        let tm = unit_cubes(2, true);
         for c in &tm.cells {
             let x = c.corners().iter().map(|&p| tm.points[p as usize]).collect::<Vec<_>>();
             assert!(crate::mesh::tet_volume6(x[0], x[1], x[2], x[3]) > 0.0);
@@ -469,7 +470,7 @@ mod tests {
     fn a_plane_of_splits_divides_a_box_in_two() {
         for tets in [false, true] {
             for axis in [0, 2] {
-                let m = cube(2, tets);
+                let m = unit_cubes(2, tets);
                 let t = split_plane(&m, axis, 1.0);
                 let (_, nfrag) = t.fragments();
                 assert_eq!(nfrag, 2, "tets {tets} axis {axis}");
@@ -490,7 +491,7 @@ mod tests {
                 }
             }
         }
-        let m = cube(2, false);
+        let m = unit_cubes(2, false);
         let mut t = Topology3::new(&m);
         let fan = t.fan(ClusterId(13));
         let all_up = vec![1.0; fan.copies.len()];
@@ -508,7 +509,7 @@ mod tests {
     /// point split.
     #[test]
     fn a_crack_front_inside_the_body_keeps_one_fragment() {
-        let m = cube(2, false);
+        let m = unit_cubes(2, false);
         let mut t = Topology3::new(&m);
         let faces: Vec<FaceId> = (0..t.faces.len())
             .map(FaceId::new)

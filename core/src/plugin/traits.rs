@@ -49,6 +49,43 @@ pub fn principal_values(s: [f64; 3], szz: f64) -> Principal {
     Principal { s1: c + r, s3: c - r, s2: -szz, theta1: 0.0 }
 }
 
+/// Principal stresses of a 3D stress (issue 38): `p.s1 >= p.s2 >= p.s3` compression positive
+/// (so every criterion's `check` reads them as it reads the 2D ones, `s2` now the true
+/// intermediate stress; `theta1 = 0`), and the unit directions of sigma1 and sigma3. The
+/// failure plane of the paper's rule read in 3D contains the sigma1 and sigma2 directions: its
+/// normal is `d3` (the most tensile direction; docs/3d.md).
+#[derive(Copy, Clone, Debug, PartialEq, Default)]
+pub struct Principal3 {
+    pub p: Principal,
+    pub d1: [f64; 3],
+    pub d3: [f64; 3],
+}
+
+/// [`Principal3`] of a tension-positive stress `[sxx, syy, szz, sxy, syz, szx]` (Voigt order of
+/// the 3D elements). Eigenvectors by nalgebra's symmetric eigen-decomposition (Jacobi-free QL;
+/// the same input gives the same output); each direction's sign is fixed so that its largest
+/// component is positive (ties: the first). Where two principal values are equal the direction
+/// within their plane is nalgebra's choice, deterministic but arbitrary (as theta1 = 0 is in 2D).
+pub fn principal3(s: [f64; 6]) -> Principal3 {
+    let m = nalgebra::Matrix3::new(-s[0], -s[3], -s[5], -s[3], -s[1], -s[4], -s[5], -s[4], -s[2]);
+    let e = nalgebra::SymmetricEigen::new(m);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| e.eigenvalues[b].total_cmp(&e.eigenvalues[a]).then(a.cmp(&b)));
+    let dir = |k: usize| {
+        let v = e.eigenvectors.column(k);
+        let mut d = [v[0], v[1], v[2]];
+        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let big = (0..3).fold(0, |b, i| if d[i].abs() > d[b].abs() { i } else { b });
+        let sg = if d[big] < 0.0 { -1.0 } else { 1.0 } / n;
+        for x in &mut d {
+            *x *= sg;
+        }
+        d
+    };
+    let (a, b, c) = (e.eigenvalues[order[0]], e.eigenvalues[order[1]], e.eigenvalues[order[2]]);
+    Principal3 { p: Principal { s1: a, s3: c, s2: b, theta1: 0.0 }, d1: dir(order[0]), d3: dir(order[2]) }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Failure criteria
 // ---------------------------------------------------------------------------------------------
@@ -255,6 +292,20 @@ pub struct FanView<'a> {
     pub principal: Principal,
 }
 
+/// What a separation rule sees of a failing cluster of a 3D model (issue 38): its fan (copies
+/// linked through faces, `mesh::topology3`), the point, the centroid of each copy's element and
+/// the unit normal of each link's face (in the order of `fan.links`), whether the point has
+/// split before, and the nodal principal stresses.
+#[derive(Clone, Debug)]
+pub struct FanView3<'a> {
+    pub fan: &'a crate::mesh::topology3::Fan3,
+    pub x: [f64; 3],
+    pub centroids: &'a [[f64; 3]],
+    pub face_normals: &'a [[f64; 3]],
+    pub never_split: bool,
+    pub principal: Principal3,
+}
+
 /// The edges a rule proposes to cut at a point. The core cuts them only if the fan then falls
 /// into exactly two non-empty parts.
 #[derive(Clone, Debug, PartialEq)]
@@ -290,6 +341,12 @@ pub trait SeparationRule: Debug + Send + Sync {
     /// The plan at a crack tip (see [`TipContext`]); `None`: nothing is cut there.
     fn propose_tip(&self, _ctx: &TipContext) -> Option<TipPlan> {
         None
+    }
+    /// The rule in a 3D model (issue 38): the faces to cut at a failed point (the core cuts
+    /// them only if the fan then falls apart). `Err` (the default): the rule has no 3D form,
+    /// and a 3D scene that names it is refused with the rule's name.
+    fn propose_3d(&self, _fan: &FanView3, _failure: &FailureCheck) -> Result<Option<Vec<crate::ids::FaceId>>, String> {
+        Err("this separation rule has no 3D form (docs/3d.md lists the rules that do)".into())
     }
 }
 
@@ -333,4 +390,30 @@ pub fn line_angle(a: f64, b: f64) -> f64 {
 pub fn ray_angle(a: f64, b: f64) -> f64 {
     let d = (a - b).rem_euclid(2.0 * std::f64::consts::PI);
     d.min(2.0 * std::f64::consts::PI - d)
+}
+
+#[cfg(test)]
+mod tests3 {
+    use super::*;
+
+    /// Reference: construction. The tension-positive stress R diag(3, -1, 2) R^T (R a rotation
+    /// about an oblique axis) has compression-positive principal values 1 >= -2 >= -3, sigma3
+    /// along R e_x (the tension 3) and sigma1 along R e_y, up to sign; to 1e-12.
+    #[test]
+    fn principal3_of_a_rotated_diagonal_stress() {
+        let r = nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(nalgebra::Vector3::new(1.0, 2.0, -0.5)), 0.7);
+        let d = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(3.0, -1.0, 2.0));
+        let m = r.matrix() * d * r.matrix().transpose();
+        let p = principal3([m[(0, 0)], m[(1, 1)], m[(2, 2)], m[(0, 1)], m[(1, 2)], m[(2, 0)]]);
+        assert!((p.p.s1 - 1.0).abs() < 1e-12 && (p.p.s2 + 2.0).abs() < 1e-12 && (p.p.s3 + 3.0).abs() < 1e-12, "{p:?}");
+        let ex = r * nalgebra::Vector3::x();
+        let ey = r * nalgebra::Vector3::y();
+        let dot3 = ex[0] * p.d3[0] + ex[1] * p.d3[1] + ex[2] * p.d3[2];
+        let dot1 = ey[0] * p.d1[0] + ey[1] * p.d1[1] + ey[2] * p.d1[2];
+        assert!((dot3.abs() - 1.0).abs() < 1e-12 && (dot1.abs() - 1.0).abs() < 1e-12, "{p:?}");
+        // An in-plane stress gives the 2D principal values (s2 the out-of-plane 0).
+        let q = principal3([1.0, -0.5, 0.0, 0.3, 0.0, 0.0]);
+        let q2 = principal([1.0, -0.5, 0.3], 0.0);
+        assert!((q.p.s1 - q2.s1).abs() < 1e-14 && (q.p.s3 - q2.s3).abs() < 1e-14 && q.p.s2.abs() < 1e-14);
+    }
 }

@@ -16,6 +16,16 @@
 //! for rays, (0, pi/2] for lines), then the smaller edge id (see [`super`]).
 //! Angles in radians. Parameter: `cap_unsplit_boundary` (bool, default `false` = the paper).
 //!
+//! **In 3D** (issue 38; the paper's rule read in 3D, ours, docs/3d.md): the failure plane
+//! contains the sigma1 and sigma2 directions, so its normal is `n = d3` (the most tensile
+//! direction). The fan's elements are sorted by the side of the plane through the point their
+//! centroid lies on, `s_e = (c_e - x) . n`; the elements with `s_e > 0` joined (through
+//! the fan's links among them) to the one of largest `s_e` form one part, and every joined face
+//! between that part and the rest is cut (`Topology3::plane_cut`): the element faces closest to
+//! the plane. At a point that has split before, the cut is made only if those faces' normals
+//! are within pi/4 of `n` on average (mean of `|n_f . n|` >= cos(pi/4): the paper's cap of
+//! section 3.1, read in 3D); at a never-split point only with `cap_unsplit_boundary = true`.
+//!
 //! ```toml
 //! [cracking.separation]
 //! type = "sigma1_nearest"
@@ -28,7 +38,9 @@
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::plugin::traits::{FailureCheck, FanView, Proposal, SeparationRule};
+use flem_core::ids::FaceId;
+use flem_core::mesh::topology3::Topology3;
+use flem_core::plugin::traits::{FailureCheck, FanView, FanView3, Proposal, SeparationRule};
 
 use super::{cap_for, closed_cut, open_cut};
 
@@ -56,6 +68,38 @@ impl SeparationRule for Sigma1Nearest {
         failure.mode?;
         propose_along(fan, fan.principal.theta1, self.cap_unsplit_boundary)
     }
+
+    fn propose_3d(&self, fan: &FanView3, failure: &FailureCheck) -> Result<Option<Vec<FaceId>>, String> {
+        if failure.mode.is_none() {
+            return Ok(None);
+        }
+        Ok(plane_faces(fan, fan.principal.d3, !fan.never_split || self.cap_unsplit_boundary))
+    }
+}
+
+/// The faces of a 3D fan closest to the plane through its point with unit normal `n` (see the
+/// module doc); with `cap`, `None` unless the faces' normals are within pi/4 of `n` on average
+/// (the mean of `|n_f . n|` at least cos(pi/4)).
+pub(crate) fn plane_faces(fan: &FanView3, n: [f64; 3], cap: bool) -> Option<Vec<FaceId>> {
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let side: Vec<f64> = fan.centroids.iter().map(|c| dot([c[0] - fan.x[0], c[1] - fan.x[1], c[2] - fan.x[2]], n)).collect();
+    let faces = Topology3::plane_cut(fan.fan, &side);
+    if faces.is_empty() {
+        return None;
+    }
+    if cap {
+        let (mut sum, mut k) = (0.0, 0usize);
+        for (l, nf) in fan.fan.links.iter().zip(fan.face_normals) {
+            if faces.contains(&l.face) {
+                sum += dot(*nf, n).abs();
+                k += 1;
+            }
+        }
+        if sum < std::f64::consts::FRAC_PI_4.cos() * k as f64 {
+            return None;
+        }
+    }
+    Some(faces)
 }
 
 #[cfg(test)]
@@ -160,5 +204,86 @@ mod tests {
         f80.never_split = true;
         assert_eq!(ids(paper.propose(&f80, &failed(Tension, &[]))), Some(vec![0]), "80 deg: the nearer link");
         assert_eq!(ids(capped.propose(&f80, &failed(Tension, &[]))), None);
+    }
+
+    /// The rule read in 3D (module doc) on the centre point of a 2 x 2 x 2 box of unit cubes.
+    /// Reference: construction. Tension along x, or along a direction 20 deg from x in the xz
+    /// plane: the fan falls into two parts, each on one side of the plane through the point
+    /// normal to the tension; on H8 (and on T4 along x) the faces cut are those of the plane
+    /// x = 1, 4 + 4 hexahedra (12 + 12 tetrahedra). Tension 60 deg from x on H8: the plane z = 1. At a point that has split before, tension 30 deg from x is cut
+    /// (within the pi/4 cap); tension along the cube's diagonal (54.7 deg from every face
+    /// normal, H8) is refused there and cut at a never-split point.
+    #[test]
+    fn three_d_closed_fan_cuts_the_plane_normal_to_the_tension() {
+        use flem_core::ids::ClusterId;
+        use flem_core::mesh::topology3::{unit_cubes, Topology3};
+        use flem_core::plugin::traits::{principal3, FanView3};
+        for tets in [false, true] {
+            let m = unit_cubes(2, tets);
+            let t = Topology3::new(&m);
+            let fan = t.fan(ClusterId(13));
+            let centroid = |k: flem_core::ids::CopyId| {
+                let c = m.cells[t.copy_elem[k.idx()].idx()];
+                let n = c.corners().len() as f64;
+                std::array::from_fn(|d| c.corners().iter().map(|&p| m.points[p as usize][d]).sum::<f64>() / n)
+            };
+            let centroids: Vec<[f64; 3]> = fan.copies.iter().map(|&k| centroid(k)).collect();
+            let normals: Vec<[f64; 3]> = fan
+                .links
+                .iter()
+                .map(|l| {
+                    let p: Vec<[f64; 3]> = t.faces[l.face.idx()].corners().iter().map(|q| m.points[q.idx()]).collect();
+                    let (a, b) = ([p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]], [p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]]);
+                    let n = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+                    let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                    [n[0] / l, n[1] / l, n[2] / l]
+                })
+                .collect();
+            for (deg, axis, never_split, want) in [(0.0, 0, true, true), (20.0, 0, true, true), (60.0, 2, true, true), (30.0, 0, false, !tets)] {
+                let a = f64::to_radians(deg);
+                let (c, s) = (a.cos(), a.sin());
+                // uniaxial tension 1 along (c, 0, s)
+                let stress = [c * c, 0.0, s * s, 0.0, 0.0, c * s];
+                let view = FanView3 { fan: &fan, x: [1.0, 1.0, 1.0], centroids: &centroids, face_normals: &normals, never_split, principal: principal3(stress) };
+                let got = Sigma1Nearest::default().propose_3d(&view, &failed(Tension, &[])).unwrap();
+                if never_split || !tets {
+                    assert_eq!(got.is_some(), want, "tets {tets} deg {deg} never_split {never_split}");
+                }
+                let Some(faces) = got else { continue };
+                let parts = Topology3::fan_parts(&fan, &faces);
+                assert_eq!(parts.len(), 2, "tets {tets} deg {deg}");
+                // Each part's elements on one side of the plane through the point normal to the
+                // tension (signed distances of the centroids all of one sign).
+                let sd = |k: flem_core::ids::CopyId| {
+                    let x = centroid(k);
+                    (x[0] - 1.0) * c + (x[2] - 1.0) * s
+                };
+                for p in &parts {
+                    assert!(p.iter().all(|&k| sd(k) > 0.0) || p.iter().all(|&k| sd(k) <= 0.0), "tets {tets} deg {deg}");
+                }
+                // H8 (any of these angles) and T4 along x: exactly the plane x[axis] = 1, halves.
+                if !tets || deg == 0.0 {
+                    for f in &faces {
+                        assert!(t.faces[f.idx()].corners().iter().all(|p| m.points[p.idx()][axis] == 1.0), "tets {tets} deg {deg}");
+                    }
+                    assert_eq!(parts[0].len(), parts[1].len());
+                    for p in &parts {
+                        let lo = p.iter().filter(|&&k| centroid(k)[axis] < 1.0).count();
+                        assert!(lo == 0 || lo == p.len(), "each part on one side of the plane");
+                    }
+                }
+            }
+            if !tets {
+                let d = 1.0 / 3.0;
+                let diag = principal3([d, d, d, d, d, d]);
+                for (never_split, want) in [(false, false), (true, true)] {
+                    let view = FanView3 { fan: &fan, x: [1.0; 3], centroids: &centroids, face_normals: &normals, never_split, principal: diag };
+                    assert_eq!(Sigma1Nearest::default().propose_3d(&view, &failed(Tension, &[])).unwrap().is_some(), want, "diagonal, never_split {never_split}");
+                }
+            }
+            // A check that did not fail proposes nothing.
+            let view = FanView3 { fan: &fan, x: [1.0; 3], centroids: &centroids, face_normals: &normals, never_split: true, principal: principal3([1.0, 0.0, 0.0, 0.0, 0.0, 0.0]) };
+            assert_eq!(Sigma1Nearest::default().propose_3d(&view, &FailureCheck::default()), Ok(None));
+        }
     }
 }
