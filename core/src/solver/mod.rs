@@ -74,20 +74,21 @@ use crate::plugin::damping::{DampingCoeffs, StepStats};
 use crate::scene::Scene;
 use crate::solver::loads::Loads;
 
-/// Nodal state, one array per field, indexed by cluster.
+/// Nodal state, one array per field, indexed by cluster; `D` components per node (2: every
+/// scene so far; 3: a 3D model, issue 38, docs/3d.md).
 #[derive(Clone, Debug, Default)]
-pub struct State {
-    pub u: Vec<[f64; 2]>,
-    pub v: Vec<[f64; 2]>,
-    pub f_int: Vec<[f64; 2]>,
-    pub f_ext: Vec<[f64; 2]>,
+pub struct State<const D: usize = 2> {
+    pub u: Vec<[f64; D]>,
+    pub v: Vec<[f64; D]>,
+    pub f_int: Vec<[f64; D]>,
+    pub f_ext: Vec<[f64; D]>,
     /// Contact forces (all zero without `[contact]`).
-    pub f_con: Vec<[f64; 2]>,
+    pub f_con: Vec<[f64; D]>,
     pub mass: Vec<f64>,
-    /// Prescribed-dof bits (1: x, 2: y).
+    /// Prescribed-dof bits (1: x, 2: y, 4: z).
     pub fix: Vec<u8>,
     /// Velocity of prescribed dofs.
-    pub v_pres: Vec<[f64; 2]>,
+    pub v_pres: Vec<[f64; D]>,
     pub time: f64,
     pub step: u64,
 }
@@ -315,14 +316,14 @@ const NSUM: usize = 14;
 /// Nodes per chunk of the node update (fixed: the ledger sums must not depend on threads).
 pub const NODE_CHUNK: usize = 4096;
 
-/// What the node update reads.
-struct NodeCtx<'a> {
+/// What the node update reads (`D` components per node).
+struct NodeCtx<'a, const D: usize = 2> {
     mass: &'a [f64],
     fix: &'a [u8],
-    f_int: &'a [[f64; 2]],
-    f_ext: &'a [[f64; 2]],
-    f_con: &'a [[f64; 2]],
-    v_pres: &'a [[f64; 2]],
+    f_int: &'a [[f64; D]],
+    f_ext: &'a [[f64; D]],
+    f_con: &'a [[f64; D]],
+    v_pres: &'a [[f64; D]],
     dt: f64,
     inv_dt: f64,
     c1: f64,
@@ -344,31 +345,31 @@ fn ratio_of(num: f64, sum: f64, cnt: f64) -> f64 {
 }
 
 /// The node update of a step (see [`NodeCtx::update`]).
-type UpdateFn = fn(&NodeCtx, usize, &mut [[f64; 2]], &mut [[f64; 2]]) -> [f64; NSUM];
+type UpdateFn<const D: usize = 2> = fn(&NodeCtx<D>, usize, &mut [[f64; D]], &mut [[f64; D]]) -> [f64; NSUM];
 
 /// [`pick_update`] for a scene's contact flag and damping mode (0 none, 1 viscous, 2 with the
 /// local term, 3 with a constant eta) known at run time.
-fn pick_variant(contact: bool, damp: u8, full: bool, stats: bool, simd: Simd) -> UpdateFn {
+fn pick_variant<const D: usize>(contact: bool, damp: u8, full: bool, stats: bool, simd: Simd) -> UpdateFn<D> {
     match (contact, damp) {
-        (false, 0) => pick_update::<false, 0>(full, stats, simd),
-        (false, 1) => pick_update::<false, 1>(full, stats, simd),
-        (false, 2) => pick_update::<false, 2>(full, stats, simd),
-        (false, _) => pick_update::<false, 3>(full, stats, simd),
-        (true, 0) => pick_update::<true, 0>(full, stats, simd),
-        (true, 1) => pick_update::<true, 1>(full, stats, simd),
-        (true, 2) => pick_update::<true, 2>(full, stats, simd),
-        (true, _) => pick_update::<true, 3>(full, stats, simd),
+        (false, 0) => pick_update::<D, false, 0>(full, stats, simd),
+        (false, 1) => pick_update::<D, false, 1>(full, stats, simd),
+        (false, 2) => pick_update::<D, false, 2>(full, stats, simd),
+        (false, _) => pick_update::<D, false, 3>(full, stats, simd),
+        (true, 0) => pick_update::<D, true, 0>(full, stats, simd),
+        (true, 1) => pick_update::<D, true, 1>(full, stats, simd),
+        (true, 2) => pick_update::<D, true, 2>(full, stats, simd),
+        (true, _) => pick_update::<D, true, 3>(full, stats, simd),
     }
 }
 
 /// The node update of a step: the variant of the scene (contact `C`, damping mode `L`) and of
 /// the step (`full`, `stats`), vectorised for `simd` when this CPU has it (`node_simd.rs`: the
-/// same results bit for bit), else the scalar [`NodeCtx::update`].
-fn pick_update<const C: bool, const L: u8>(full: bool, stats: bool, simd: Simd) -> UpdateFn {
+/// same results bit for bit; 2D only), else the scalar [`NodeCtx::update`].
+fn pick_update<const D: usize, const C: bool, const L: u8>(full: bool, stats: bool, simd: Simd) -> UpdateFn<D> {
     let vector = match (full, stats) {
-        (true, _) => node_simd::vector_update::<C, L, true, true>(simd),
-        (false, true) => node_simd::vector_update::<C, L, false, true>(simd),
-        (false, false) => node_simd::vector_update::<C, L, false, false>(simd),
+        (true, _) => node_simd::vector_update::<D, C, L, true, true>(simd),
+        (false, true) => node_simd::vector_update::<D, C, L, false, true>(simd),
+        (false, false) => node_simd::vector_update::<D, C, L, false, false>(simd),
     };
     vector.unwrap_or(match (full, stats) {
         (true, _) => |x, k, u, v| x.update::<C, L, true, true>(k, u, v),
@@ -377,7 +378,7 @@ fn pick_update<const C: bool, const L: u8>(full: bool, stats: bool, simd: Simd) 
     })
 }
 
-impl NodeCtx<'_> {
+impl<const D: usize> NodeCtx<'_, D> {
     /// Central-difference update of the clusters `c0..c0 + u.len()`; returns the ledger sums
     /// `[w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc]` of the chunk. `CONTACT = false`
     /// compiles the contact force out (a scene without contact pays nothing for it), `DAMP`
@@ -389,7 +390,7 @@ impl NodeCtx<'_> {
     /// dof), so that eleven running sums do not chain one add latency per dof; the lanes are
     /// fixed by position, so the sums do not depend on the number of threads.
     #[inline]
-    fn update<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c0: usize, u: &mut [[f64; 2]], v: &mut [[f64; 2]]) -> [f64; NSUM] {
+    fn update<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c0: usize, u: &mut [[f64; D]], v: &mut [[f64; D]]) -> [f64; NSUM] {
         let mut acc = [[0.0f64; NSUM]; 4];
         let n = u.len();
         let mut i = 0;
@@ -424,9 +425,10 @@ impl NodeCtx<'_> {
         out
     }
 
-    /// One node of [`Self::update`]: its two dofs into the lanes `a` (x) and `b` (y).
+    /// One node of [`Self::update`]: its dofs into the lanes `a` (x, and z in 3D) and `b` (y).
     #[inline(always)]
-    fn node<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c: usize, uc: &mut [f64; 2], vc: &mut [f64; 2], a: &mut [f64; NSUM], b: &mut [f64; NSUM]) {
+    fn node<const CONTACT: bool, const DAMP: u8, const FULL: bool, const STATS: bool>(&self, c: usize, uc: &mut [f64; D], vc: &mut [f64; D], a: &mut [f64; NSUM], b: &mut [f64; NSUM]) {
+        const { assert!(D == 2 || D == 3, "the node update is for 2 or 3 components") };
         let m = self.mass[c];
         // One division per node instead of two per dof (the ledger stays exact to round-off).
         let dt_m = self.dt / m;
@@ -440,10 +442,14 @@ impl NodeCtx<'_> {
         };
         let (ux, ax) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 0, fix & 1 == 0, m, dt_m, c1, c2, uc, vc, a);
         let (uy, ay) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 1, fix & 2 == 0, m, dt_m, c1, c2, uc, vc, b);
+        let (mut un, mut ap) = (ux + uy, ax + ay);
+        if D == 3 {
+            let (uz, az) = self.dof::<CONTACT, DAMP, FULL, STATS>(c, 2, fix & 4 == 0, m, dt_m, c1, c2, uc, vc, a);
+            (un, ap) = (un + uz, ap + az);
+        }
         if FULL {
             // The unbalanced-force ratio of this step, fused (the same terms, in the same
             // order per node, as `Simulation::unbalanced_ratio`).
-            let (un, ap) = (ux + uy, ax + ay);
             a[11] = a[11].max(un);
             if ap > 0.0 {
                 a[12] += ap.sqrt();
@@ -466,8 +472,8 @@ impl NodeCtx<'_> {
         dt_m: f64,
         c1: f64,
         c2: f64,
-        uc: &mut [f64; 2],
-        vc: &mut [f64; 2],
+        uc: &mut [f64; D],
+        vc: &mut [f64; D],
         s: &mut [f64; NSUM],
     ) -> (f64, f64) {
         let dt = self.dt;
@@ -1434,6 +1440,65 @@ impl Simulation {
         self.refresh_constant_force();
         if let Some(c) = self.contact.as_mut() {
             c.on_split(&self.model, rec);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The node update in 3D (issue 38) against the central-difference formulas by hand, for
+    /// every damping mode: a free node under a force, with viscous damping
+    /// `v+ = ((1 - a dt/2) v- + dt F / m) / (1 + a dt/2)`, `u+ = u- + dt v+`; a node with z fixed
+    /// takes the prescribed z velocity; a 3D node whose z force is zero and z fixed moves in x
+    /// and y exactly as the same 2D node does (the 2D update is the reference). Tolerance 1e-15
+    /// relative (the same operations).
+    #[test]
+    fn node_update_in_three_dimensions() {
+        let dt = 0.01;
+        let (m, f, v0, u0) = (2.0, [3.0, -1.0, 0.5], [0.1, 0.2, -0.3], [1.0, 2.0, 3.0]);
+        for (a, beta) in [(0.0, 0.0), (4.0, 0.0), (0.0, 0.2)] {
+            let (c1, c2) = (1.0 - 0.5 * a * dt, 1.0 / (1.0 + 0.5 * a * dt));
+            let damp = if beta != 0.0 {
+                2
+            } else if a != 0.0 {
+                1
+            } else {
+                0
+            };
+            for fix in [0u8, 4] {
+                let (mass, fixv, f_int, f_ext, f_con, v_pres) = (vec![m], vec![fix], vec![[0.0; 3]], vec![f], vec![[0.0; 3]], vec![[0.0, 0.0, 0.7]]);
+                let ctx = NodeCtx::<3> { mass: &mass, fix: &fixv, f_int: &f_int, f_ext: &f_ext, f_con: &f_con, v_pres: &v_pres, dt, inv_dt: 1.0 / dt, c1, c2, beta, eta_hdt: 0.0, a_hdt: 0.5 * a * dt };
+                let (mut u, mut v) = (vec![u0], vec![v0]);
+                let up = pick_variant::<3>(false, damp, true, false, Simd::best());
+                let sums = up(&ctx, 0, &mut u, &mut v);
+                for d in 0..3 {
+                    let want_v = if d == 2 && fix == 4 {
+                        0.7
+                    } else {
+                        let fd = if beta != 0.0 { f[d] - beta * f[d].abs() * v0[d].signum() } else { f[d] };
+                        if damp == 0 {
+                            v0[d] + dt / m * fd
+                        } else {
+                            (c1 * v0[d] + dt / m * fd) * c2
+                        }
+                    };
+                    assert!((v[0][d] - want_v).abs() <= 1e-15 * want_v.abs().max(1.0), "a {a} beta {beta} fix {fix} dof {d}: {} vs {want_v}", v[0][d]);
+                    assert!((u[0][d] - (u0[d] + dt * want_v)).abs() <= 1e-15 * u0[d].abs().max(1.0));
+                }
+                // External work of the step: dt/2 F . (v- + v+) over the free dofs.
+                let w: f64 = (0..3).filter(|&d| !(d == 2 && fix == 4)).map(|d| 0.5 * dt * f[d] * (v0[d] + v[0][d])).sum();
+                assert!(damp != 0 || (sums[0] - w).abs() <= 1e-15 * w.abs().max(1e-12), "{} vs {w}", sums[0]);
+                if fix == 4 {
+                    // x and y as the 2D update of the same node.
+                    let (f2, c2d, p2) = (vec![[f[0], f[1]]], vec![[0.0; 2]], vec![[0.0; 2]]);
+                    let ctx2 = NodeCtx::<2> { mass: &mass, fix: &[0], f_int: &c2d, f_ext: &f2, f_con: &c2d, v_pres: &p2, dt, inv_dt: 1.0 / dt, c1, c2, beta, eta_hdt: 0.0, a_hdt: 0.5 * a * dt };
+                    let (mut u2, mut v2) = (vec![[u0[0], u0[1]]], vec![[v0[0], v0[1]]]);
+                    pick_variant::<2>(false, damp, true, false, Simd::Plain)(&ctx2, 0, &mut u2, &mut v2);
+                    assert_eq!((u2[0], v2[0]), ([u[0][0], u[0][1]], [v[0][0], v[0][1]]));
+                }
+            }
         }
     }
 }

@@ -21,15 +21,27 @@ use super::{NodeCtx, UpdateFn, NSUM};
 use crate::element::block::Simd;
 
 /// The vectorised node update of `simd` for the variant `<C, L, FULL, STATS>` of
-/// [`NodeCtx::update`]; `None` when `simd` is `Plain` or this CPU lacks it.
-pub(super) fn vector_update<const C: bool, const L: u8, const FULL: bool, const STATS: bool>(simd: Simd) -> Option<UpdateFn> {
+/// [`NodeCtx::update`]; `None` when `simd` is `Plain`, this CPU lacks it, or the model is not
+/// 2D (`D != 2`: the scalar update, issue 38).
+pub(super) fn vector_update<const D: usize, const C: bool, const L: u8, const FULL: bool, const STATS: bool>(simd: Simd) -> Option<UpdateFn<D>> {
+    if D != 2 {
+        return None;
+    }
     match simd {
         // A CPU with AVX-512 F runs AVX2: the same code (wider registers would not hold more
         // than the two nodes of the four lanes).
         #[cfg(target_arch = "x86_64")]
         Simd::Avx2 | Simd::Avx512 if Simd::Avx2.detected() => {
-            // SAFETY: the CPU has AVX2 (`detected`, on the line above).
-            Some(|x, k, u, v| unsafe { x86::update_avx2::<C, L, FULL, STATS>(x, k, u, v) })
+            // SAFETY: the CPU has AVX2 (`detected`, on the line above); `D == 2` (checked at the
+            // top), so `NodeCtx<D>` is `NodeCtx<2>` and `[f64; D]` is `[f64; 2]`: the casts are
+            // between identical types.
+            Some(|x: &NodeCtx<D>, k, u: &mut [[f64; D]], v: &mut [[f64; D]]| unsafe {
+                let x = &*(x as *const NodeCtx<D> as *const NodeCtx<2>);
+                let (n, m) = (u.len(), v.len());
+                let u = std::slice::from_raw_parts_mut(u.as_mut_ptr() as *mut [f64; 2], n);
+                let v = std::slice::from_raw_parts_mut(v.as_mut_ptr() as *mut [f64; 2], m);
+                x86::update_avx2::<C, L, FULL, STATS>(x, k, u, v)
+            })
         }
         _ => None,
     }
