@@ -18,6 +18,7 @@ pub mod implicit_law;
 pub mod kernel;
 pub mod law;
 pub mod model;
+pub mod model3;
 pub mod registry;
 pub mod stateful;
 #[cfg(test)]

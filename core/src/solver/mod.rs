@@ -63,6 +63,7 @@
 pub mod events;
 pub mod fos;
 pub mod loads;
+pub mod march3;
 mod node_simd;
 
 use crate::cracking::Cracking;
