@@ -14,6 +14,7 @@ pub mod mesh;
 pub mod output;
 pub mod plugin;
 pub mod scene;
+pub mod scene3;
 pub mod solver;
 
 pub use error::{FlemError, Result};

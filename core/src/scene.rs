@@ -768,7 +768,7 @@ impl Scene {
 
 /// Turns a TOML/serde error into a message naming the file, with a "did you mean" for an
 /// unknown plugin name.
-fn parse_error(file: &str, _text: &str, e: toml::de::Error) -> FlemError {
+pub(crate) fn parse_error(file: &str, _text: &str, e: toml::de::Error) -> FlemError {
     let msg = e.to_string();
     let mut hint = String::new();
     if let (Some(a), Some(b)) = (msg.find("unknown variant `"), msg.find("expected one of")) {

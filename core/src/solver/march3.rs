@@ -27,6 +27,17 @@ pub struct Support3 {
     pub velocity: [f64; 3],
 }
 
+/// One load of a 3D body at level 1, and its level.
+#[derive(Clone, Debug, Default)]
+pub struct Load3 {
+    pub name: String,
+    pub level: f64,
+    pub on_copies: Vec<(u32, [f64; 3])>,
+    pub on_points: Vec<(u32, [f64; 3])>,
+    /// Prescribed velocity: the points, the dof bits and the velocity at level 1.
+    pub velocity: Option<(Vec<u32>, u8, [f64; 3])>,
+}
+
 /// A 3D body marching in time.
 pub struct March3 {
     pub mesh: RawMesh3,
@@ -35,10 +46,15 @@ pub struct March3 {
     pub state: State<3>,
     /// The lumped mass of every copy (a cluster's mass is the sum over its copies).
     pub copy_mass: Vec<f64>,
-    /// Constant external forces at load level 1 (per cluster; a load on a point stays on the
-    /// point's first cluster).
-    pub f_load: Vec<[f64; 3]>,
-    pub level: f64,
+    /// The loads at level 1: each a list of (copy, force) (a pressure's share of a face
+    /// belongs to the copy of the element that owns the face, so it follows the right part
+    /// when the point splits) and of (point, force) (a point load, on the point's first
+    /// cluster).
+    pub loads: Vec<Load3>,
+    /// Body force per unit mass (gravity), not scaled by the levels.
+    pub gravity: [f64; 3],
+    /// The external force in force now, per cluster (`rebuild_forces`).
+    pub f_const: Vec<[f64; 3]>,
     pub dt: f64,
     pub damping: Box<dyn Damping>,
     pub ledger: Ledger,
@@ -91,8 +107,9 @@ impl March3 {
             }
         }
         let mut m = March3 {
-            f_load: vec![[0.0; 3]; nc],
-            level: 1.0,
+            loads: Vec::new(),
+            gravity: [0.0; 3],
+            f_const: vec![[0.0; 3]; nc],
             dt: 0.0,
             damping,
             ledger: Ledger::default(),
@@ -124,33 +141,45 @@ impl March3 {
         rows.iter().zip(&self.state.mass).map(|(r, m)| (r / m).sqrt()).fold(0.0, f64::max)
     }
 
-    /// Adds a force (at load level 1) to a point's first cluster.
-    pub fn add_point_force(&mut self, p: u32, f: [f64; 3]) {
-        for d in 0..3 {
-            self.f_load[p as usize][d] += f[d];
-        }
+    /// A new load (level 0) named `name`; returns its index.
+    pub fn add_load(&mut self, name: &str) -> usize {
+        self.loads.push(Load3 { name: name.to_string(), ..Default::default() });
+        self.loads.len() - 1
     }
 
     /// Adds a uniform pressure `p` (force per area, positive pushing into the body) on the faces
-    /// of a face set, along each face's initial inward normal: consistent nodal forces (a
-    /// triangle's corners a third each; a quadrilateral by 2 x 2 Gauss points on its bilinear
-    /// map). Faces given anticlockwise seen from outside (the mesh convention).
-    pub fn add_face_pressure(&mut self, set: &str, p: f64) -> Result<()> {
+    /// of a face set to load `k`, along each face's initial inward normal: consistent nodal
+    /// forces (a triangle's corners a third each; a quadrilateral by 2 x 2 Gauss points on its
+    /// bilinear map), each on the copy of the element that owns the face. Faces are oriented
+    /// by that element (outward), whatever their order in the file.
+    pub fn add_face_pressure(&mut self, k: usize, set: &str, p: f64) -> Result<()> {
         let Some(faces) = self.mesh.face_sets.get(set) else {
             let names: Vec<&String> = self.mesh.face_sets.keys().collect();
             return Err(FlemError::mesh(&self.mesh.source, format!("no face set \"{set}\" (face sets: {names:?})")));
         };
-        let faces = faces.clone();
+        let mut out = Vec::new();
         for f in faces {
-            let c = f.corners();
+            let Some(fid) = self.topo.face_with(f.corners()) else {
+                return Err(FlemError::mesh(&self.mesh.source, format!("face set \"{set}\": the face of {} is not a face of a cell", self.mesh.points_name(f.corners()))));
+            };
+            let face = self.topo.faces[fid.idx()];
+            if face.sides[1].is_some() {
+                return Err(FlemError::mesh(&self.mesh.source, format!("face set \"{set}\": the face of {} is inside the body (a pressure acts on the boundary)", self.mesh.points_name(f.corners()))));
+            }
+            let e = face.sides[0].unwrap().0;
+            let c: Vec<u32> = face.corners().iter().map(|p| p.0).collect();
             let x: Vec<[f64; 3]> = c.iter().map(|&q| self.mesh.points[q as usize]).collect();
             let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
             let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+            let mut add = |q: u32, w: f64, na: [f64; 3]| {
+                let copy = self.topo.copy_at(e, crate::ids::PointId(q)).unwrap();
+                out.push((copy.0, [-p * w * na[0], -p * w * na[1], -p * w * na[2]]));
+            };
             if c.len() == 3 {
-                // n A = (x1 - x0) x (x2 - x0) / 2, outward; the force is -p n A.
+                // n A = (x1 - x0) x (x2 - x0) / 2, outward; a third on each corner.
                 let na = cross(sub(x[1], x[0]), sub(x[2], x[0]));
-                for &q in c {
-                    self.add_point_force(q, [-p * na[0] / 6.0, -p * na[1] / 6.0, -p * na[2] / 6.0]);
+                for &q in &c {
+                    add(q, 1.0 / 6.0, na);
                 }
             } else {
                 let g = 1.0 / 3f64.sqrt();
@@ -162,28 +191,92 @@ impl March3 {
                     let t2: [f64; 3] = std::array::from_fn(|d| (0..4).map(|a| deta[a] * x[a][d]).sum());
                     let na = cross(t1, t2);
                     for a in 0..4 {
-                        self.add_point_force(c[a], [-p * n[a] * na[0], -p * n[a] * na[1], -p * n[a] * na[2]]);
+                        add(c[a], n[a], na);
                     }
                 }
             }
         }
+        self.loads[k].on_copies.extend(out);
         Ok(())
+    }
+
+    /// Adds the force `f` (at level 1) on every point of a node set to load `k`.
+    pub fn add_point_force(&mut self, k: usize, set: &str, f: [f64; 3]) -> Result<()> {
+        let pts = self.node_set(set)?;
+        self.loads[k].on_points.extend(pts.into_iter().map(|p| (p, f)));
+        Ok(())
+    }
+
+    /// Makes load `k` a prescribed velocity (`v[d]` at level 1 on the dofs of `bits`) of a node
+    /// set.
+    pub fn set_velocity(&mut self, k: usize, set: &str, bits: u8, v: [f64; 3]) -> Result<()> {
+        let pts = self.node_set(set)?;
+        self.loads[k].velocity = Some((pts, bits, v));
+        Ok(())
+    }
+
+    /// The points of a node set of the mesh, or an error that names the sets.
+    pub fn node_set(&self, set: &str) -> Result<Vec<u32>> {
+        self.mesh.node_sets.get(set).cloned().ok_or_else(|| {
+            let names: Vec<&String> = self.mesh.node_sets.keys().collect();
+            FlemError::mesh(&self.mesh.source, format!("no node set \"{set}\" (node sets: {names:?})"))
+        })
+    }
+
+    /// Sets the level of every load by name (absent: unchanged) and rebuilds the forces.
+    pub fn set_levels(&mut self, levels: &std::collections::BTreeMap<String, f64>) {
+        for l in &mut self.loads {
+            if let Some(&v) = levels.get(&l.name) {
+                l.level = v;
+            }
+        }
+        self.rebuild_forces();
+    }
+
+    /// The external force in force (gravity plus every load times its level, on the current
+    /// clusters) and the prescribed velocities.
+    pub fn rebuild_forces(&mut self) {
+        let nc = self.topo.n_clusters();
+        self.f_const.clear();
+        self.f_const.extend(self.state.mass.iter().map(|&m| [m * self.gravity[0], m * self.gravity[1], m * self.gravity[2]]));
+        for l in &self.loads {
+            for &(k, f) in &l.on_copies {
+                let c = self.topo.copy_cluster[k as usize].idx();
+                for d in 0..3 {
+                    self.f_const[c][d] += l.level * f[d];
+                }
+            }
+            for &(p, f) in &l.on_points {
+                let c = self.topo.point_clusters[p as usize][0].idx();
+                for d in 0..3 {
+                    self.f_const[c][d] += l.level * f[d];
+                }
+            }
+            if let Some((pts, bits, v)) = &l.velocity {
+                for &p in pts {
+                    for &c in &self.topo.point_clusters[p as usize] {
+                        self.state.fix[c.idx()] |= bits;
+                        for d in 0..3 {
+                            if bits & (1 << d) != 0 {
+                                self.state.v_pres[c.idx()][d] = l.level * v[d];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        debug_assert_eq!(self.f_const.len(), nc);
     }
 
     /// One step: element forces, the node update (the scene's damping), the ratio.
     pub fn step(&mut self) -> Result<()> {
-        let nc = self.topo.n_clusters();
         for f in &mut self.state.f_int {
             *f = [0.0; 3];
         }
         for b in &self.blocks {
             b.add_internal_forces(&self.state.u, &mut self.state.f_int);
         }
-        for c in 0..nc {
-            for d in 0..3 {
-                self.state.f_ext[c][d] = self.level * self.f_load[c][d];
-            }
-        }
+        self.state.f_ext.copy_from_slice(&self.f_const);
         let co = self.damping.coeffs(&self.stats);
         let dt = self.dt;
         let (a, beta, eta) = (co.viscous, co.local, co.eta);
@@ -270,7 +363,7 @@ impl March3 {
     /// faces the rule proposes, cut if the fan then falls apart. The state follows every split
     /// (new clusters take their parent's displacement, velocity and supports; masses are the
     /// sums over each part's copies) and the blocks are reconnected.
-    pub fn check_failure(&mut self, criterion: &dyn FailureCriterion, rule: &dyn SeparationRule) -> Result<SplitRecord3> {
+    pub fn check_failure(&mut self, criterion: &dyn FailureCriterion, rule: &dyn SeparationRule, max_splits: usize) -> Result<SplitRecord3> {
         let stress = self.nodal_stress();
         let p3: Vec<_> = stress.iter().map(|&s| principal3(s)).collect();
         let ps: Vec<_> = p3.iter().map(|p| p.p).collect();
@@ -281,9 +374,13 @@ impl March3 {
             let c = mesh.cells[e.idx()].corners();
             std::array::from_fn(|d| c.iter().map(|&p| mesh.points[p as usize][d]).sum::<f64>() / c.len() as f64)
         };
-        for c in 0..ps.len() {
-            if !checks[c].failed() {
-                continue;
+        // The most critical first (index, then cluster id), at most `max_splits` splits.
+        let mut failed: Vec<usize> = (0..ps.len()).filter(|&c| checks[c].failed()).collect();
+        failed.sort_by(|&a, &b| checks[b].index.total_cmp(&checks[a].index).then(a.cmp(&b)));
+        let mut n_split = 0;
+        for c in failed {
+            if n_split >= max_splits {
+                break;
             }
             let cl = ClusterId::new(c);
             let fan = self.topo.fan(cl);
@@ -300,10 +397,14 @@ impl March3 {
             };
             let Some(faces) = rule.propose_3d(&view, &checks[c]).map_err(|e| FlemError::config("scene", "cracking.separation", e))? else { continue };
             let r = self.topo.cut(cl, &faces, true);
+            if !r.is_empty() {
+                n_split += 1;
+            }
             self.follow(&r);
             rec.extend(r);
         }
         if !rec.is_empty() {
+            self.rebuild_forces();
             for b in &mut self.blocks {
                 b.reconnect(&self.topo);
             }
@@ -325,7 +426,6 @@ impl March3 {
             st.fix.push(st.fix[p]);
             st.v_pres.push(st.v_pres[p]);
             st.mass.push(0.0);
-            self.f_load.push([0.0; 3]);
         }
         let mut touched: Vec<usize> = r.new_clusters.iter().flat_map(|nc| [nc.parent.idx(), nc.id.idx()]).collect();
         touched.sort_unstable();
@@ -354,4 +454,185 @@ pub fn face_normal(mesh: &RawMesh3, topo: &Topology3, f: FaceId) -> [f64; 3] {
     let n = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
     let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     [n[0] / l, n[1] / l, n[2] / l]
+}
+
+/// What a stage of a 3D scene did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Stage3Result {
+    pub name: String,
+    pub steps: u64,
+    pub ratio: f64,
+    /// The stage ended at its tolerance (not at its step limit or end time).
+    pub at_rest: bool,
+    /// Clusters created by splits in this stage.
+    pub splits: usize,
+    pub fragments: usize,
+    pub time: f64,
+}
+
+/// What a 3D run reports as it goes (the output writer implements it).
+pub trait Observer3 {
+    /// After the body is built (and its pre-separated faces cut), before the first stage.
+    fn start(&mut self, _m: &March3) -> Result<()> {
+        Ok(())
+    }
+    /// Every `every()` steps of a stage (0: never).
+    fn every(&self) -> u64 {
+        0
+    }
+    fn step(&mut self, _m: &March3, _stage: usize) -> Result<()> {
+        Ok(())
+    }
+    /// At the end of every stage.
+    fn stage_done(&mut self, _m: &March3, _stage: usize, _r: &Stage3Result) -> Result<()> {
+        Ok(())
+    }
+}
+
+impl March3 {
+    /// The body of a 3D scene: its mesh (which must be 3D), materials by region, supports,
+    /// loads at level 0, gravity, pre-separated faces, the damping (taken from the scene) and
+    /// the time step.
+    pub fn from_scene(scene: &mut crate::scene3::Scene3) -> Result<March3> {
+        let damping = scene.file.solver.damping.take();
+        let f = &scene.file;
+        let name = scene.path.display().to_string();
+        let mesh = match f.mesh.load_any(&scene.base_dir)? {
+            crate::mesh::AnyMesh::Three(m) => m,
+            crate::mesh::AnyMesh::Two(m) => {
+                return Err(FlemError::config(&name, "model.dim", format!("= 3, but the mesh {} is 2D (it has no volume elements); remove model.dim for a 2D scene", m.source)))
+            }
+        };
+        let material_of = |region: &str| -> Result<([f64; 3], Option<String>)> {
+            let m = f.materials.iter().find(|m| m.region == region).or_else(|| f.materials.iter().find(|m| m.region == "all"));
+            match m {
+                Some(m) => Ok(([m.young_modulus, m.poisson_ratio, m.density], m.element.clone())),
+                None => Err(FlemError::config(&name, "material", format!("no [[material]] for region \"{region}\" of the mesh (and none with region = \"all\")"))),
+            }
+        };
+        let mut supports = Vec::new();
+        for (i, s) in f.supports.iter().enumerate() {
+            let points = mesh.node_sets.get(&s.nodes).cloned().ok_or_else(|| {
+                FlemError::config(&name, format!("support[{i}].nodes"), format!("= \"{}\" names no node set of the mesh (node sets: {:?})", s.nodes, mesh.node_sets.keys().collect::<Vec<_>>()))
+            })?;
+            supports.push(Support3 { points, fix: s.bits().unwrap_or(0), velocity: [0.0; 3] });
+        }
+        let damping = damping.ok_or_else(|| FlemError::config(&name, "solver.damping", "is missing (the scene's damping is taken by the body it builds: build one body per scene)"))?;
+        let mut m = March3::new(mesh, &material_of, &supports, damping, f.solver.dt_safety)?;
+        if let Some(dt) = f.solver.dt {
+            let crit = 2.0 / m.omega_max;
+            if dt > crit && !f.solver.allow_unstable_dt {
+                return Err(FlemError::config(
+                    &name,
+                    "solver.dt",
+                    format!("= {dt} is above the critical step {crit:.6e} of this mesh (a bound: Gershgorin on the lumped system); lower it or set solver.allow_unstable_dt = true"),
+                ));
+            }
+            m.dt = dt;
+        }
+        m.gravity = f.model.gravity;
+        for (i, l) in f.loads.iter().enumerate() {
+            let k = m.add_load(l.name());
+            let key = |s: &str| format!("load[{i}].{s}");
+            match l {
+                crate::scene3::Load3Cfg::Pressure { faces, value, .. } => m.add_face_pressure(k, faces, *value).map_err(|e| FlemError::config(&name, key("faces"), e.to_string()))?,
+                crate::scene3::Load3Cfg::Point { nodes, value, .. } => m.add_point_force(k, nodes, *value).map_err(|e| FlemError::config(&name, key("nodes"), e.to_string()))?,
+                crate::scene3::Load3Cfg::Velocity { nodes, x, y, z, .. } => {
+                    let bits = x.map_or(0, |_| 1) | y.map_or(0, |_| 2) | z.map_or(0, |_| 4);
+                    m.set_velocity(k, nodes, bits, [x.unwrap_or(0.0), y.unwrap_or(0.0), z.unwrap_or(0.0)]).map_err(|e| FlemError::config(&name, key("nodes"), e.to_string()))?
+                }
+            }
+        }
+        for (i, set) in f.model.separated.iter().enumerate() {
+            let Some(faces) = m.mesh.face_sets.get(set) else {
+                return Err(FlemError::config(
+                    &name,
+                    format!("model.separated[{i}]"),
+                    format!("= \"{set}\" names no face set of the mesh (face sets: {:?})", m.mesh.face_sets.keys().collect::<Vec<_>>()),
+                ));
+            };
+            let mut ids = Vec::new();
+            for face in faces {
+                match m.topo.face_with(face.corners()) {
+                    Some(fid) => ids.push(fid),
+                    None => {
+                        return Err(FlemError::config(
+                            &name,
+                            format!("model.separated[{i}]"),
+                            format!("face set \"{set}\": the face of {} is not a face of a cell", m.mesh.points_name(face.corners())),
+                        ))
+                    }
+                }
+            }
+            let rec = m.topo.separate_faces(&ids);
+            m.follow(&rec);
+            for b in &mut m.blocks {
+                b.reconnect(&m.topo);
+            }
+        }
+        m.rebuild_forces();
+        Ok(m)
+    }
+
+    /// Runs every stage of the scene (METHOD 8): each sets its levels and marches to its
+    /// tolerance (checked every `ratio_every` steps) or its step limit; with `[cracking]`,
+    /// failure is checked at rest (after splits the stage relaxes again, until a check splits
+    /// nothing) or every `check_every` steps (`at_equilibrium = false`); a `dynamic` stage runs
+    /// its steps (or to its `end_time`) without the tolerance.
+    pub fn run_scene(&mut self, scene: &crate::scene3::Scene3, obs: &mut dyn Observer3) -> Result<Vec<Stage3Result>> {
+        let f = &scene.file;
+        let levels = scene.stage_levels();
+        obs.start(self)?;
+        let mut out = Vec::new();
+        for (i, st) in f.stages.iter().enumerate() {
+            self.set_levels(&levels[i]);
+            self.damping.reset();
+            let tol = st.tolerance.unwrap_or(f.solver.tolerance);
+            let max_steps = st.max_steps.unwrap_or(f.solver.max_steps);
+            let every = f.solver.ratio_every;
+            let obs_every = obs.every();
+            let clusters0 = self.topo.n_clusters();
+            let (mut steps, mut at_rest) = (0u64, false);
+            while steps < max_steps {
+                self.step()?;
+                steps += 1;
+                if obs_every > 0 && steps % obs_every == 0 {
+                    obs.step(self, i)?;
+                }
+                if let Some(c) = f.cracking.as_ref().filter(|c| !c.at_equilibrium || st.dynamic) {
+                    if steps % c.check_every == 0 {
+                        self.check_failure(c.criterion.as_ref(), c.separation.as_ref(), c.max_splits_per_check)?;
+                    }
+                }
+                if st.dynamic {
+                    if st.end_time.is_some_and(|t| self.state.time >= t - 0.5 * self.dt) {
+                        break;
+                    }
+                    continue;
+                }
+                if steps % every == 0 && self.ratio <= tol {
+                    if let Some(c) = f.cracking.as_ref().filter(|c| c.at_equilibrium) {
+                        if !self.check_failure(c.criterion.as_ref(), c.separation.as_ref(), c.max_splits_per_check)?.is_empty() {
+                            self.damping.reset();
+                            continue;
+                        }
+                    }
+                    at_rest = true;
+                    break;
+                }
+            }
+            let r = Stage3Result {
+                name: if st.name.is_empty() { format!("stage{i}") } else { st.name.clone() },
+                steps,
+                ratio: self.ratio,
+                at_rest,
+                splits: self.topo.n_clusters() - clusters0,
+                fragments: self.fragments(),
+                time: self.state.time,
+            };
+            obs.stage_done(self, i, &r)?;
+            out.push(r);
+        }
+        Ok(out)
+    }
 }
