@@ -19,6 +19,7 @@ pub mod kernel;
 pub mod law;
 pub mod model;
 pub mod registry;
+pub mod shape3;
 pub mod stateful;
 #[cfg(test)]
 pub mod testkinds;
