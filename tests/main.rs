@@ -26,6 +26,7 @@ mod sif;
 mod skip;
 mod slope;
 mod softening;
+mod solid3;
 mod tools;
 mod verification;
 mod zero_free;

@@ -5,6 +5,7 @@ pub mod contact;
 pub mod criteria;
 pub mod damping;
 pub mod elements;
+pub mod elements3d;
 pub mod import;
 pub mod material;
 pub mod separation;

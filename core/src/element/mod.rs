@@ -20,6 +20,7 @@ pub mod law;
 pub mod model;
 pub mod model3;
 pub mod registry;
+pub mod shape3;
 pub mod stateful;
 #[cfg(test)]
 pub mod testkinds;

@@ -74,6 +74,7 @@ pub mod kept;
 pub mod newton;
 pub mod paths;
 pub mod sif;
+pub mod solid3;
 pub mod woodbury;
 
 /// What the solver keeps between calls while the fingerprint is unchanged.
