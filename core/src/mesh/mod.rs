@@ -22,6 +22,7 @@
 //! position: on that failure path only, `plugins/src/import/vtk_locate.rs` scans the file for
 //! the line and the data array, section and piece (a cut file, a bad tag, a non-number, a
 //! wrong count).
+mod box3;
 mod raw;
 mod raw3;
 mod rect;
@@ -29,8 +30,9 @@ mod rects;
 mod select;
 pub mod topology;
 
+pub use box3::Box3;
 pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
-pub use raw3::{tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};
+pub use raw3::{cell_edges, cell_face, tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};
 pub use rect::{Notch, Rectangle};
 pub use rects::{Part, Rectangles};
 pub use select::SetCfg;
