@@ -28,6 +28,7 @@ use flem_core::{FlemError, Result};
 
 mod cursor;
 mod gmsh;
+mod gmsh3;
 mod msh2;
 mod msh4;
 mod vtk;
@@ -36,7 +37,7 @@ mod vtk_locate;
 #[cfg(test)]
 mod tests;
 
-pub use gmsh::{read_msh_bytes, Gmsh};
+pub use gmsh::{read_msh_any, read_msh_bytes, Gmsh};
 pub use vtk::{read_vtk_bytes, Vtk};
 
 /// Resolves `file` against `base_dir` and reads it whole. A file that cannot be read is the
