@@ -179,3 +179,110 @@ fn bad_3d_files_are_refused_by_name() {
     let e = d.validate(ValidationOptions::Reorient).unwrap_err().to_string();
     assert!(e.contains("duplicate_points.msh: duplicate points: node tag 1 and node tag 6 are both at (0, 0, 0)"), "{e}");
 }
+
+/// Flattens a JSON value of nested numbers.
+fn flat(v: &serde_json::Value, out: &mut Vec<f64>) {
+    match v {
+        serde_json::Value::Array(a) => a.iter().for_each(|x| flat(x, out)),
+        x => out.push(x.as_f64().unwrap()),
+    }
+}
+
+fn flat_of(v: &serde_json::Value) -> Vec<f64> {
+    let mut out = Vec::new();
+    flat(v, &mut out);
+    out
+}
+
+/// A 3D VTU of bricks and tetrahedra (a distorted 2x2x2 H8 box and a T4 box beside it, in one
+/// file), written raw and zlib-compressed, with the stress in both layouts, read back by meshio
+/// 5.3.5 and by pyvista 0.49 (VTK's reader): the same points, cell types (VTK 10, 12) and
+/// corners, and every point and cell array value for value. Reference: the arrays handed to the
+/// writer; exact (f64 written in binary).
+#[test]
+fn vtu3_reads_back_in_meshio_and_pyvista() {
+    use flem_core::mesh::{Box3, RawCell3};
+    use flem_core::output::vtu3::{StressLayout, Vtu3};
+    let mut b = Box3::new([1.0, 1.0, 1.0], [2, 2, 2], CellKind3::H8);
+    b.distort = 0.1;
+    let hexes = b.build().unwrap();
+    let mut t = Box3::new([1.0, 0.5, 1.0], [1, 1, 1], CellKind3::T4);
+    t.origin = [1.5, 0.0, 0.0];
+    let tets = t.build().unwrap();
+    let off = hexes.points.len() as u32;
+    let points: Vec<[f64; 3]> = hexes.points.iter().chain(&tets.points).copied().collect();
+    let cells: Vec<RawCell3> = hexes
+        .cells
+        .iter()
+        .copied()
+        .chain(tets.cells.iter().map(|c| {
+            let mut c = *c;
+            c.nodes[..4].iter_mut().for_each(|p| *p += off);
+            c
+        }))
+        .collect();
+    let (np, nc) = (points.len(), cells.len());
+    let u: Vec<[f64; 3]> = points.iter().map(|x| [1e-3 * x[0] * x[1], -2e-3 * x[2], 0.1 + x[0] / 3.0]).collect();
+    let temp: Vec<f64> = points.iter().map(|x| 20.0 + x[0] - x[2] / 7.0).collect();
+    let vel: Vec<[f64; 3]> = points.iter().map(|x| [x[2], x[1] * 1e-9, -x[0]]).collect();
+    let region: Vec<i32> = cells.iter().map(|c| if c.kind == CellKind3::H8 { 1 } else { 2 }).collect();
+    let damage: Vec<f64> = (0..nc).map(|e| e as f64 / 7.0).collect();
+    let stress: Vec<[[f64; 3]; 3]> = (0..nc)
+        .map(|e| {
+            let e = e as f64;
+            let (xy, yz, xz) = (0.1 * e, -0.2 * e, 1.0 / (1.0 + e));
+            [[1.0 + e, xy, xz], [xy, -e / 3.0, yz], [xz, yz, 2.5e6 * e]]
+        })
+        .collect();
+    let dir = std::env::temp_dir().join(format!("flem-vtu3-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (compress, layout) in [(false, StressLayout::Symmetric6), (true, StressLayout::Full9)] {
+        let path = dir.join(format!("snap_{compress}.vtu"));
+        Vtu3::new(&points, &cells)
+            .displacement(&u)
+            .point_scalar("temperature", &temp)
+            .point_vector("velocity", &vel)
+            .region(&region)
+            .stress(&stress, layout)
+            .cell_scalar("damage", &damage)
+            .write(&path, compress)
+            .unwrap();
+        let v = run_py(&[root().join("tests/python/read_vtu3.py").to_str().unwrap(), path.to_str().unwrap()]);
+        let want_stress: Vec<f64> = match layout {
+            StressLayout::Symmetric6 => stress.iter().flat_map(|s| [s[0][0], s[1][1], s[2][2], s[0][1], s[1][2], s[0][2]]).collect(),
+            StressLayout::Full9 => stress.iter().flat_map(|s| s.iter().flatten().copied()).collect(),
+        };
+        let want_point: [(&str, Vec<f64>); 3] = [("displacement", u.iter().flatten().copied().collect()), ("temperature", temp.clone()), ("velocity", vel.iter().flatten().copied().collect())];
+        let want_cell: [(&str, Vec<f64>); 3] = [("region", region.iter().map(|&r| r as f64).collect()), ("stress", want_stress), ("damage", damage.clone())];
+        for reader in ["meshio", "pyvista"] {
+            let r = &v[reader];
+            let what = format!("{reader}, compress {compress}");
+            assert_eq!(flat_of(&r["points"]), points.iter().flatten().copied().collect::<Vec<_>>(), "{what}");
+            let corners: Vec<Vec<u64>> = match reader {
+                "meshio" => {
+                    let cs = r["cells"].as_array().unwrap();
+                    let types: Vec<&str> = cs.iter().map(|c| c[0].as_str().unwrap()).collect();
+                    let want: Vec<&str> = cells.iter().map(|c| if c.kind == CellKind3::H8 { "hexahedron" } else { "tetra" }).collect();
+                    assert_eq!(types, want, "{what}");
+                    cs.iter().map(|c| flat_of(&c[1]).iter().map(|&x| x as u64).collect()).collect()
+                }
+                _ => {
+                    let types: Vec<u64> = r["celltypes"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
+                    assert_eq!(types, cells.iter().map(|c| c.kind.vtk_type() as u64).collect::<Vec<_>>(), "{what}");
+                    r["cells"].as_array().unwrap().iter().map(|c| flat_of(c).iter().map(|&x| x as u64).collect()).collect()
+                }
+            };
+            assert_eq!(corners, cells.iter().map(|c| c.corners().iter().map(|&p| p as u64).collect()).collect::<Vec<Vec<u64>>>(), "{what}");
+            for (name, want) in &want_point {
+                assert_eq!(flat_of(&r["point_data"][name]), *want, "{what}: point array {name}");
+                assert_eq!(want.len() % np, 0);
+            }
+            for (name, want) in &want_cell {
+                assert_eq!(flat_of(&r["cell_data"][name]), *want, "{what}: cell array {name}");
+            }
+            assert_eq!(r["point_data"].as_object().unwrap().len(), 3, "{what}");
+            assert_eq!(r["cell_data"].as_object().unwrap().len(), 3, "{what}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
