@@ -12,6 +12,10 @@
 //! `gmsh` and `vtk` in `plugins/src/import/`. The topology of copies and clusters is built
 //! from a validated mesh in `topology.rs`.
 //!
+//! 3D meshes (issue 38, docs/3d.md) are types of their own beside these: `RawMesh3`
+//! (`raw3.rs`, with its `validate`), the `box` generator (`box3.rs`), given by
+//! `MeshSource::load_any`.
+//!
 //! # File ids in messages
 //! Importers keep the file's ids (`RawMesh::ids`, `FileIds`: gmsh node and element tags, VTK
 //! point and cell indices counting skipped cells), so messages name `"element tag 57"`,

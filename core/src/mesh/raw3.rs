@@ -234,7 +234,7 @@ impl RawMesh3 {
             }
             if sign < 0 {
                 if opt == ValidationOptions::Refuse {
-                    return Err(FlemError::mesh(&src, format!("{} is inverted (negative volume; {}); reorient it or set mesh.orientation = \"reorient\"", name(e), pnames(c.corners()))));
+                    return Err(FlemError::mesh(&src, format!("{} is inverted (negative volume; {}); reorient it or set model.orientation = \"reorient\"", name(e), pnames(c.corners()))));
                 }
                 match c.kind {
                     CellKind3::T4 => c.nodes.swap(1, 2),

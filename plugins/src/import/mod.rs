@@ -7,7 +7,8 @@
 //! How: a format reader gathers candidate points (in a deterministic order), cells and groups
 //! ([`Gathered`]); [`Gathered::finish`] keeps only the points used by 2D cells, renumbers them
 //! densely in that order, remaps the sets (dropping points that are not in the mesh) and refuses
-//! meshes that are not planar.
+//! meshes that are not planar. gmsh files with volume elements are read as 3D meshes by
+//! `gmsh3.rs` (through `MeshSource::load_any`).
 //!
 //! Corrupt input never panics: every count and index is checked, errors name the file and,
 //! where possible, the line or element. Third-party parsers (mshio, vtkio) are called inside
