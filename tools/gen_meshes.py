@@ -3,7 +3,7 @@
 
 Needs the gmsh and meshio Python packages (e.g. a venv with gmsh==4.15.2 meshio==5.3.5 numpy).
 Run from anywhere: python3 tools/gen_meshes.py (or `python3 tools/gen_meshes.py sif`: only the
-stress-intensity meshes; `paths`: the kink-angle meshes)
+stress-intensity meshes; `paths`: the kink-angle meshes; `3d`: the 3D meshes of configs/3d)
 """
 import os
 import sys
@@ -108,7 +108,57 @@ def dynamic():
             write_msh41(text, os.path.join(dyn, "%s_h%s.msh" % (geo[:-4], tag)))
 
 
+THREE_D = os.path.join(HERE, "..", "3d")
+
+
+def mesh3(geo, params, outputs):
+    """Mesh configs/3d/`geo` in 3D with its parameters (`name = value;` lines at the top of the
+    .geo) replaced by `params`, and write each (file name, msh version, binary) in `outputs`
+    beside it. Only first-order tetrahedra and hexahedra are accepted (a prism or pyramid left
+    by the mesher would make FLEM refuse the file)."""
+    import re
+    import tempfile
+    src = open(os.path.join(THREE_D, geo)).read()
+    for k, v in params.items():
+        src, n = re.subn(r"^%s = [^;]*;" % k, "%s = %r;" % (k, v), src, flags=re.M)
+        assert n == 1, (geo, k)
+    with tempfile.NamedTemporaryFile("w", suffix=".geo", delete=False) as f:
+        f.write(src)
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.open(f.name)
+    gmsh.model.mesh.generate(3)
+    types = set(int(t) for t in gmsh.model.mesh.getElementTypes(3))
+    assert types and types <= {4, 5}, (geo, params, types)
+    for name, version, binary in outputs:
+        gmsh.option.setNumber("Mesh.MshFileVersion", version)
+        gmsh.option.setNumber("Mesh.Binary", 1 if binary else 0)
+        gmsh.write(os.path.join(THREE_D, name))
+    gmsh.finalize()
+    os.unlink(f.name)
+
+
+def three_d():
+    """The 3D meshes (issue 38, configs/3d/, tests/mesh3.rs, docs/3d.md): two unit cubes
+    (cube.geo: two regions, side and inner face sets, a curve and a point group) in tetrahedra
+    and bricks, each in msh 2.2 and 4.1, ASCII and binary; the notched bar (notched_bar.geo) in
+    tetrahedra and bricks at h = 0.125 m and the Brazilian cylinder (cylinder.geo) in
+    tetrahedra at h = 0.02 m, msh 4.1 ASCII."""
+    for kind, hexa in (("tet", 0), ("hex", 1)):
+        mesh3("cube.geo", {"hex": hexa, "n": 2}, [
+            ("cube_%s_v22.msh" % kind, 2.2, False),
+            ("cube_%s_v22_bin.msh" % kind, 2.2, True),
+            ("cube_%s_v41.msh" % kind, 4.1, False),
+            ("cube_%s_v41_bin.msh" % kind, 4.1, True),
+        ])
+        mesh3("notched_bar.geo", {"hex": hexa, "h": 0.125}, [("notched_bar_%s_v41.msh" % kind, 4.1, False)])
+    mesh3("cylinder.geo", {"h": 0.02}, [("cylinder_tet_v41.msh", 4.1, False)])
+
+
 def main():
+    if sys.argv[1:] == ["3d"]:
+        three_d()
+        return 0
     if sys.argv[1:] == ["sif"]:
         sif()
         return 0
@@ -118,6 +168,7 @@ def main():
     if sys.argv[1:] == ["dynamic"]:
         dynamic()
         return 0
+    three_d()
     dynamic()
     sif()
     paths()

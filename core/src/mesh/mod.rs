@@ -12,6 +12,10 @@
 //! `gmsh` and `vtk` in `plugins/src/import/`. The topology of copies and clusters is built
 //! from a validated mesh in `topology.rs`.
 //!
+//! 3D meshes (issue 38, docs/3d.md) are types of their own beside these: `RawMesh3`
+//! (`raw3.rs`, with its `validate`), the `box` generator (`box3.rs`), given by
+//! `MeshSource::load_any`.
+//!
 //! # File ids in messages
 //! Importers keep the file's ids (`RawMesh::ids`, `FileIds`: gmsh node and element tags, VTK
 //! point and cell indices counting skipped cells), so messages name `"element tag 57"`,
@@ -22,6 +26,7 @@
 //! position: on that failure path only, `plugins/src/import/vtk_locate.rs` scans the file for
 //! the line and the data array, section and piece (a cut file, a bad tag, a non-number, a
 //! wrong count).
+mod box3;
 mod raw;
 mod raw3;
 mod rect;
@@ -30,8 +35,9 @@ mod select;
 pub mod topology;
 pub mod topology3;
 
+pub use box3::Box3;
 pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
-pub use raw3::{tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};
+pub use raw3::{cell_edges, cell_face, tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};
 pub use rect::{Notch, Rectangle};
 pub use rects::{Part, Rectangles};
 pub use select::SetCfg;

@@ -22,6 +22,7 @@ pub mod lock;
 pub mod run;
 pub mod sweep;
 pub mod tips;
+pub mod vtu3;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

@@ -15,6 +15,10 @@
 //! that ends up empty (no element, or only points outside the 2D mesh) is an error, since a
 //! scene naming it would silently act on nothing.
 //!
+//! A file with volume elements is a 3D mesh: `load_any` reads it (`gmsh3.rs`: tetrahedra and
+//! hexahedra, physical volumes as regions, physical surfaces as face sets) and the 2D `load`
+//! refuses it, saying so.
+//!
 //! ```toml
 //! [mesh]
 //! type = "gmsh"
@@ -23,7 +27,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-use flem_core::mesh::{CellKind, MeshSource, RawCell, RawMesh};
+use flem_core::mesh::{AnyMesh, CellKind, MeshSource, RawCell, RawMesh};
 use flem_core::{FlemError, Result};
 use serde::{Deserialize, Serialize};
 
@@ -42,6 +46,12 @@ impl MeshSource for Gmsh {
     fn load(&self, base_dir: &Path) -> Result<RawMesh> {
         let (shown, _, bytes) = read_input(base_dir, &self.file)?;
         read_msh_bytes(&shown, &bytes)
+    }
+
+    /// The 2D mesh, or the 3D one when the file has volume elements (`gmsh3.rs`).
+    fn load_any(&self, base_dir: &Path) -> Result<AnyMesh> {
+        let (shown, _, bytes) = read_input(base_dir, &self.file)?;
+        read_msh_any(&shown, &bytes)
     }
 }
 
@@ -66,6 +76,17 @@ pub(crate) struct MshContent {
 
 /// Reads a msh file held in memory; `src` names it in errors.
 pub fn read_msh_bytes(src: &str, bytes: &[u8]) -> Result<RawMesh> {
+    to_raw_mesh(src, parse_msh(src, bytes)?)
+}
+
+/// Reads a msh file held in memory in its own dimension: [`AnyMesh::Three`] when it has volume
+/// elements (`gmsh3.rs`), else the mesh of [`read_msh_bytes`].
+pub fn read_msh_any(src: &str, bytes: &[u8]) -> Result<AnyMesh> {
+    super::gmsh3::to_any_mesh(src, parse_msh(src, bytes)?)
+}
+
+/// The format-independent content of a msh file of either version.
+fn parse_msh(src: &str, bytes: &[u8]) -> Result<MshContent> {
     let mut c = Cursor::new(src, bytes);
     let (version, binary) = read_header(&mut c)?;
     let content = if version.starts_with("2.") || version == "2" {
@@ -75,7 +96,7 @@ pub fn read_msh_bytes(src: &str, bytes: &[u8]) -> Result<RawMesh> {
     } else {
         return Err(FlemError::mesh(src, format!("msh format version {version} is not supported; save the mesh as version 4.1 or 2.2 (gmsh -format msh41 / msh22)")));
     };
-    to_raw_mesh(src, content)
+    Ok(content)
 }
 
 /// `$MeshFormat` / `version file-type data-size`: returns the version text and whether binary.
@@ -173,15 +194,21 @@ pub(crate) fn element_type(ty: i32) -> Option<(usize, &'static str)> {
 
 fn unsupported(src: &str, id: u64, ty: i32) -> FlemError {
     let name = element_type(ty).map(|t| t.1).unwrap_or("unknown to FLEM");
+    if super::gmsh3::is_volume_type(ty) {
+        return FlemError::mesh(
+            src,
+            format!("element {id}: element type {ty} ({name}) is not supported in a 2D mesh: this file has volume elements, it is a 3D mesh; a 3D scene reads it (docs/3d.md)"),
+        );
+    }
     FlemError::mesh(src, format!("element {id}: element type {ty} ({name}) is not supported: FLEM uses first-order triangles and quadrilaterals (and 2-node lines and points for groups)"))
 }
 
-fn group_name(names: &BTreeMap<(i32, i32), String>, dim: i32, tag: i32) -> String {
+pub(crate) fn group_name(names: &BTreeMap<(i32, i32), String>, dim: i32, tag: i32) -> String {
     names.get(&(dim, tag)).cloned().unwrap_or_else(|| tag.to_string())
 }
 
 /// Merges elements written once per physical group (msh 2.2 does that) and sorts by tag.
-fn merge_elements(src: &str, elements: Vec<MshElement>) -> Result<Vec<MshElement>> {
+pub(crate) fn merge_elements(src: &str, elements: Vec<MshElement>) -> Result<Vec<MshElement>> {
     let mut by_id: BTreeMap<u64, MshElement> = BTreeMap::new();
     for e in elements {
         match by_id.get_mut(&e.id) {

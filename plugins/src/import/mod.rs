@@ -7,7 +7,8 @@
 //! How: a format reader gathers candidate points (in a deterministic order), cells and groups
 //! ([`Gathered`]); [`Gathered::finish`] keeps only the points used by 2D cells, renumbers them
 //! densely in that order, remaps the sets (dropping points that are not in the mesh) and refuses
-//! meshes that are not planar.
+//! meshes that are not planar. gmsh files with volume elements are read as 3D meshes by
+//! `gmsh3.rs` (through `MeshSource::load_any`).
 //!
 //! Corrupt input never panics: every count and index is checked, errors name the file and,
 //! where possible, the line or element. Third-party parsers (mshio, vtkio) are called inside
@@ -28,6 +29,7 @@ use flem_core::{FlemError, Result};
 
 mod cursor;
 mod gmsh;
+mod gmsh3;
 mod msh2;
 mod msh4;
 mod vtk;
@@ -36,7 +38,7 @@ mod vtk_locate;
 #[cfg(test)]
 mod tests;
 
-pub use gmsh::{read_msh_bytes, Gmsh};
+pub use gmsh::{read_msh_any, read_msh_bytes, Gmsh};
 pub use vtk::{read_vtk_bytes, Vtk};
 
 /// Resolves `file` against `base_dir` and reads it whole. A file that cannot be read is the

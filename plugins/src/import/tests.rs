@@ -244,6 +244,8 @@ mod fuzz {
 
     const FILES: [&str; 5] = ["rect_quad_v22.msh", "rect_quad_v22_bin.msh", "rect_quad_v41.msh", "rect_quad_v41_bin.msh", "rect_tri_v22.msh"];
 
+    const FILES_3D: [&str; 4] = ["cube_tet_v22.msh", "cube_hex_v22_bin.msh", "cube_tet_v41.msh", "cube_hex_v41_bin.msh"];
+
     const VTK_FILES: [(&str, &str); 3] = [("rect_quad.vtu", "vtu"), ("rect_quad_ascii.vtu", "vtu"), ("rect_tri.vtk", "vtk")];
 
     fn cases() -> u32 {
@@ -316,6 +318,25 @@ mod fuzz {
             }
             if let Ok(mut mesh) = read_msh_bytes(FILES[file], &b) {
                 let _ = mesh.validate(ValidationOptions::Reorient);
+            }
+        }
+
+        /// The same for 3D msh files (issue 38: `read_msh_any`, then `RawMesh3::validate`).
+        #[test]
+        fn mutated_3d_msh_files_never_panic(file in 0..FILES_3D.len(), muts in prop::collection::vec(mutation(), 1..4)) {
+            let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/3d");
+            let mut b = std::fs::read(dir.join(FILES_3D[file])).unwrap();
+            for m in &muts {
+                apply(&mut b, m);
+            }
+            match super::super::read_msh_any(FILES_3D[file], &b) {
+                Ok(flem_core::mesh::AnyMesh::Three(mut mesh)) => {
+                    let _ = mesh.validate(ValidationOptions::Reorient);
+                }
+                Ok(flem_core::mesh::AnyMesh::Two(mut mesh)) => {
+                    let _ = mesh.validate(ValidationOptions::Reorient);
+                }
+                Err(_) => {}
             }
         }
 
