@@ -17,6 +17,7 @@ mod fuzz;
 mod implicit_plastic;
 mod interop;
 mod layout;
+mod march3;
 mod mesh3;
 mod nonlocal;
 mod paper;

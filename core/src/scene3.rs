@@ -55,6 +55,9 @@ pub struct Model3Cfg {
     /// Face sets separated from the start.
     #[serde(default)]
     pub separated: Vec<String>,
+    /// "reorient" inverted cells with a warning (default) or "refuse" them.
+    #[serde(default)]
+    pub orientation: crate::mesh::ValidationOptions,
 }
 
 /// `[[support]]` of a 3D scene.

@@ -63,6 +63,8 @@ pub struct March3 {
     partials: Vec<[f64; NSUM]>,
     /// Ratio of the last step.
     pub ratio: f64,
+    /// What building the body warned about (reoriented cells).
+    pub warnings: Vec<String>,
 }
 
 impl March3 {
@@ -117,6 +119,7 @@ impl March3 {
             omega_max: 0.0,
             partials: Vec::new(),
             ratio: f64::INFINITY,
+            warnings: Vec::new(),
             mesh,
             topo,
             blocks,
@@ -497,12 +500,13 @@ impl March3 {
         let damping = scene.file.solver.damping.take();
         let f = &scene.file;
         let name = scene.path.display().to_string();
-        let mesh = match f.mesh.load_any(&scene.base_dir)? {
+        let mut mesh = match f.mesh.load_any(&scene.base_dir)? {
             crate::mesh::AnyMesh::Three(m) => m,
             crate::mesh::AnyMesh::Two(m) => {
                 return Err(FlemError::config(&name, "model.dim", format!("= 3, but the mesh {} is 2D (it has no volume elements); remove model.dim for a 2D scene", m.source)))
             }
         };
+        let warnings = mesh.validate(f.model.orientation)?;
         let material_of = |region: &str| -> Result<([f64; 3], Option<String>)> {
             let m = f.materials.iter().find(|m| m.region == region).or_else(|| f.materials.iter().find(|m| m.region == "all"));
             match m {
@@ -531,6 +535,7 @@ impl March3 {
             m.dt = dt;
         }
         m.gravity = f.model.gravity;
+        m.warnings = warnings;
         for (i, l) in f.loads.iter().enumerate() {
             let k = m.add_load(l.name());
             let key = |s: &str| format!("load[{i}].{s}");

@@ -9,6 +9,7 @@
 //! allocation-free force routines `t4::forces` / `t4::internal_force`, `h8::forces` /
 //! `h8::internal_force`). The 3D implicit solve (`check::solid3`) uses them through the
 //! dispatch functions below.
+mod block;
 pub mod h8;
 pub mod t4;
 
