@@ -79,3 +79,201 @@ levels = {{ p = 1.0 }}
         assert!(err <= 1e-6 * umax, "{kind}: {:.3e} of the largest displacement", err / umax);
     }
 }
+
+/// The 2D notched plate of `notched_plate_cracks_like_its_plane_strain_section` (plane strain,
+/// a notch from the left edge at mid-height, bottom on rollers, traction pulling the top).
+fn plate_2d(element: &str) -> String {
+    format!(
+        r#"
+[mesh]
+type = "rectangle"
+width = 2.0
+height = 2.0
+nx = 8
+ny = 8
+notch = {{ side = "left", y = 1.0, depth = 0.5 }}
+[model]
+plane = "strain"
+separated = ["notch"]
+[[material]]
+young_modulus = 100.0
+poisson_ratio = 0.2
+density = 1.0
+element = "{element}"
+[[support]]
+nodes = "bottom"
+fix = "y"
+[[support]]
+nodes = "bottom_left"
+fix = "xy"
+[[load]]
+name = "pull"
+type = "traction"
+edges = "top"
+value = [0.0, 1.0]
+[cracking.criterion]
+type = "rankine"
+tensile_strength = 1.0
+[cracking.separation]
+type = "sigma1_nearest"
+[[stage]]
+levels = {{ pull = 1.0 }}
+"#
+    )
+}
+
+/// The 2D mesh extruded by `t` along z (one layer of bricks: Q4 `a b c d` -> H8 `a b c d a' b'
+/// c' d'`), its node sets extruded (both layers), edge sets as face sets of the extruded quads,
+/// and the node set `all`.
+fn extrude(m: &flem_core::mesh::RawMesh, t: f64) -> flem_core::mesh::RawMesh3 {
+    use flem_core::mesh::{CellKind3, RawCell3, RawFace, RawMesh3};
+    let np = m.points.len() as u32;
+    let mut points: Vec<[f64; 3]> = m.points.iter().map(|p| [p[0], p[1], 0.0]).collect();
+    points.extend(m.points.iter().map(|p| [p[0], p[1], t]));
+    let cells = m.cells.iter().map(|c| {
+        let n = c.corners();
+        assert_eq!(n.len(), 4, "quadrilaterals only");
+        RawCell3 { kind: CellKind3::H8, nodes: [n[0], n[1], n[2], n[3], n[0] + np, n[1] + np, n[2] + np, n[3] + np] }
+    });
+    let mut node_sets: std::collections::BTreeMap<String, Vec<u32>> = m.node_sets.iter().map(|(k, v)| (k.clone(), v.iter().flat_map(|&p| [p, p + np]).collect())).collect();
+    node_sets.insert("all".into(), (0..2 * np).collect());
+    let face_sets = m.edge_sets.iter().map(|(k, v)| (k.clone(), v.iter().map(|e| RawFace([e[0], e[1], e[1] + np, e[0] + np])).collect())).collect();
+    RawMesh3 { source: "tests/march3.rs extruded plate".into(), points, cells: cells.collect(), cell_region: Vec::new(), node_sets, face_sets, ids: None }
+}
+
+/// The smallest load factor at which the criterion fails at some cluster of the 3D body (its
+/// nodal stress at level 1 scaled: the body is linear before it splits), by bisection to 1e-12.
+fn factor_3d(m: &March3, crit: &dyn flem_core::plugin::traits::FailureCriterion) -> f64 {
+    use flem_core::plugin::traits::principal3;
+    let fails = |s: &[f64; 6], l: f64| crit.check(&principal3(s.map(|x| x * l)).p, 1.0).failed();
+    let mut best = f64::INFINITY;
+    for s in m.nodal_stress() {
+        let (mut lo, mut hi) = (0.0, 1.0);
+        while !fails(&s, hi) {
+            hi *= 2.0;
+            if hi > 1e12 {
+                break;
+            }
+        }
+        if hi > 1e12 {
+            continue;
+        }
+        while hi - lo > 1e-12 * hi {
+            let mid = 0.5 * (lo + hi);
+            if fails(&s, mid) {
+                hi = mid
+            } else {
+                lo = mid
+            }
+        }
+        best = best.min(hi);
+    }
+    best
+}
+
+/// The 2D run's splits, in order.
+struct Splits2(Vec<flem_core::cracking::SplitEvent>);
+impl flem_core::solver::Observer for Splits2 {
+    fn splits(&mut self, _s: &flem_core::solver::Simulation, _r: &flem_core::mesh::topology::SplitRecord, ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+        self.0.extend(ev.iter().cloned());
+        Ok(())
+    }
+}
+
+/// Issue 38 must-show 3 (first half): a notched slab with both faces held in z (plane strain)
+/// starts to crack at the load of the 2D plane-strain model of the same section, and cracks
+/// through the ligament. The slab is the 2D mesh extruded by one layer of bricks: `h8_full`
+/// against `q4` (the same trilinear field with u_z = 0: the same nodal stress to the march's
+/// tolerance) and `h8` against `qm6` (incompatible modes in both). Reference: the 2D model's
+/// exact initiation factor (`cracking::initiation`, from the 2D implicit solve); tolerance 2 %
+/// (the issue's), measured far below it. Then, loaded 5 % above its initiation load with the
+/// 2D scene's protocol (a check when the body is at rest, one split per check; Rankine,
+/// `sigma1_nearest`, read in 3D for the slab), the slab cracks where its section does: each
+/// split of the 2D run is two splits of the slab at the same (x, y), z = 0 and z = t, in the
+/// same order, across the ligament from the notch tip to the last point before the far edge
+/// (where both runs stop: the hinge left there is a mechanism under load control and never
+/// comes to rest); every face that opened lies in the plane y = 1. Reference: the 2D run;
+/// exact positions.
+#[test]
+fn notched_plate_cracks_like_its_plane_strain_section() {
+    use flem_core::cracking::initiation::initiation;
+    use flem_core::scene::Scene;
+    use flem_core::solver::march3::Support3;
+    use flem_core::solver::Simulation;
+    flem_plugins::link();
+    for (k2, k3) in [("q4", "h8_full"), ("qm6", "h8")] {
+        let sc = Scene::from_str(&plate_2d(k2), Path::new("tests/march3.rs plate"), Path::new(".")).unwrap();
+        let mesh2 = sc.file.mesh.load(Path::new(".")).unwrap();
+        let mut sim = Simulation::new(sc).unwrap();
+        sim.set_stage_levels(0);
+        let u1 = flem_plugins::check::static_solve(&sim).unwrap();
+        let crit = &sim.scene.file.cracking.as_ref().unwrap().criterion;
+        let cr = sim.cracking.as_mut().unwrap();
+        let scale = cr.scale.clone();
+        let f2 = initiation(crit.as_ref(), &scale, &sim.model, &u1, cr.nonlocal.as_mut()).unwrap().factor;
+
+        let t = 0.25;
+        let mut mesh3 = extrude(&mesh2, t);
+        mesh3.validate(flem_core::mesh::ValidationOptions::Refuse).unwrap();
+        let damping: Box<dyn flem_core::plugin::damping::Damping> = toml::from_str("type = \"adaptive\"").unwrap();
+        let kind = k3.to_string();
+        let material_of = |_: &str| Ok(([100.0, 0.2, 1.0], Some(kind.clone())));
+        let ns = |s: &str| mesh3.node_sets[s].clone();
+        let supports = [
+            Support3 { points: ns("all"), fix: 4, velocity: [0.0; 3] },
+            Support3 { points: ns("bottom"), fix: 2, velocity: [0.0; 3] },
+            Support3 { points: ns("bottom_left"), fix: 1, velocity: [0.0; 3] },
+        ];
+        let mut m = March3::new(mesh3, &material_of, &supports, damping, 0.9).unwrap();
+        m.separate_face_set("notch").unwrap();
+        let pull = m.add_load("pull");
+        // A traction of 1 on the top edge per unit thickness: a pressure of -1 on the top face.
+        m.add_face_pressure(pull, "top", -1.0).unwrap();
+        m.set_levels(&[("pull".to_string(), 1.0)].into());
+        let steps = m.run_to_rest(1e-10, 10, 400_000).unwrap();
+        assert!(m.ratio <= 1e-10, "{k3}: not at rest after {steps} steps");
+        let rankine: Box<dyn flem_core::plugin::traits::FailureCriterion> = toml::from_str("type = \"rankine\"\ntensile_strength = 1.0").unwrap();
+        let f3 = factor_3d(&m, rankine.as_ref());
+        eprintln!("{k2} / {k3}: initiation factor 2D {f2:.9}, 3D {f3:.9}, relative difference {:.2e}", (f3 - f2).abs() / f2);
+        assert!((f3 - f2).abs() <= 0.02 * f2, "{k3} vs {k2}: {f3} vs {f2}");
+
+        // The crack, 5 % above initiation, with the 2D scene's protocol (check at rest, one
+        // split per check, until a check splits nothing or the stage does not come to rest).
+        let mut sc2 = Scene::from_str(&plate_2d(k2), Path::new("tests/march3.rs plate"), Path::new(".")).unwrap();
+        sc2.file.solver.tolerance = 1e-8;
+        sc2.file.solver.max_steps = 8_000;
+        sc2.file.cracking.as_mut().unwrap().max_splits_per_check = 1;
+        sc2.file.stages[0].levels.insert("pull".into(), 1.05 * f2);
+        let mut sim2 = Simulation::new(sc2).unwrap();
+        let mut log = Splits2(Vec::new());
+        sim2.run(&mut log).unwrap();
+        let path2: Vec<[f64; 2]> = log.0.iter().map(|e| mesh2.points[e.point.idx()]).collect();
+        let rule: Box<dyn flem_core::plugin::traits::SeparationRule> = toml::from_str("type = \"sigma1_nearest\"").unwrap();
+        m.set_levels(&[("pull".to_string(), 1.05 * f3)].into());
+        let mut path3: Vec<[f64; 3]> = Vec::new();
+        loop {
+            m.run_to_rest(1e-8, 10, 8_000).unwrap();
+            if m.ratio > 1e-8 {
+                break;
+            }
+            let rec = m.check_failure(rankine.as_ref(), rule.as_ref(), 1).unwrap();
+            if rec.is_empty() {
+                break;
+            }
+            path3.extend(rec.new_clusters.iter().map(|c| m.mesh.points[c.point.idx()]));
+        }
+        eprintln!("{k2}: 2D splits at {path2:?}");
+        eprintln!("{k3}: 3D splits at {path3:?}");
+        assert!(path2.len() >= 6, "{k2}: the 2D crack crosses the 6 cells of the ligament but the hinge point ({path2:?})");
+        assert_eq!(path3.len(), 2 * path2.len(), "{k3}: each 2D split is two 3D splits (z = 0 and z = t)");
+        for (k, p2) in path2.iter().enumerate() {
+            let pair = &path3[2 * k..2 * k + 2];
+            assert!(pair.iter().all(|p| p[0] == p2[0] && p[1] == p2[1]) && pair[0][2] != pair[1][2], "{k3}: split {k} at {pair:?}, 2D at {p2:?}");
+        }
+        for (f, face) in m.topo.faces.iter().enumerate() {
+            if m.topo.crack_state(flem_core::ids::FaceId::new(f)) > 0 {
+                assert!(face.corners().iter().all(|p| m.mesh.points[p.idx()][1] == 1.0), "{k3}: a face off the ligament opened");
+            }
+        }
+    }
+}

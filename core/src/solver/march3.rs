@@ -443,6 +443,28 @@ impl March3 {
         }
     }
 
+    /// Separates the faces of a face set from the start (a notch, a pre-cut plane): cut at every
+    /// corner, every point split where its fan falls apart.
+    pub fn separate_face_set(&mut self, set: &str) -> Result<()> {
+        let Some(faces) = self.mesh.face_sets.get(set) else {
+            return Err(FlemError::mesh(&self.mesh.source, format!("no face set \"{set}\" (face sets: {:?})", self.mesh.face_sets.keys().collect::<Vec<_>>())));
+        };
+        let mut ids = Vec::new();
+        for face in faces {
+            match self.topo.face_with(face.corners()) {
+                Some(fid) => ids.push(fid),
+                None => return Err(FlemError::mesh(&self.mesh.source, format!("face set \"{set}\": the face of {} is not a face of a cell", self.mesh.points_name(face.corners())))),
+            }
+        }
+        let rec = self.topo.separate_faces(&ids);
+        self.follow(&rec);
+        for b in &mut self.blocks {
+            b.reconnect(&self.topo);
+        }
+        self.rebuild_forces();
+        Ok(())
+    }
+
     /// Connected fragments of the body.
     pub fn fragments(&self) -> usize {
         self.topo.fragments().1
@@ -549,31 +571,7 @@ impl March3 {
             }
         }
         for (i, set) in f.model.separated.iter().enumerate() {
-            let Some(faces) = m.mesh.face_sets.get(set) else {
-                return Err(FlemError::config(
-                    &name,
-                    format!("model.separated[{i}]"),
-                    format!("= \"{set}\" names no face set of the mesh (face sets: {:?})", m.mesh.face_sets.keys().collect::<Vec<_>>()),
-                ));
-            };
-            let mut ids = Vec::new();
-            for face in faces {
-                match m.topo.face_with(face.corners()) {
-                    Some(fid) => ids.push(fid),
-                    None => {
-                        return Err(FlemError::config(
-                            &name,
-                            format!("model.separated[{i}]"),
-                            format!("face set \"{set}\": the face of {} is not a face of a cell", m.mesh.points_name(face.corners())),
-                        ))
-                    }
-                }
-            }
-            let rec = m.topo.separate_faces(&ids);
-            m.follow(&rec);
-            for b in &mut m.blocks {
-                b.reconnect(&m.topo);
-            }
+            m.separate_face_set(set).map_err(|e| FlemError::config(&name, format!("model.separated[{i}]"), e.to_string()))?;
         }
         m.rebuild_forces();
         Ok(m)
