@@ -241,7 +241,7 @@ fn notched_plate_cracks_like_its_plane_strain_section() {
         // split per check, until a check splits nothing or the stage does not come to rest).
         let mut sc2 = Scene::from_str(&plate_2d(k2), Path::new("tests/march3.rs plate"), Path::new(".")).unwrap();
         sc2.file.solver.tolerance = 1e-8;
-        sc2.file.solver.max_steps = 8_000;
+        sc2.file.solver.max_steps = 30_000;
         sc2.file.cracking.as_mut().unwrap().max_splits_per_check = 1;
         sc2.file.stages[0].levels.insert("pull".into(), 1.05 * f2);
         let mut sim2 = Simulation::new(sc2).unwrap();
