@@ -85,7 +85,7 @@ fn core_modules_have_no_cycle_and_folders_keep_their_layers() {
             "element" => 2,
             "plugin" => 3,
             "contact" => 4,
-            "scene" => 5,
+            "scene" | "scene3" => 5,
             "cracking" => 6,
             "solver" => 7,
             "output" => 8,

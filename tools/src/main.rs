@@ -315,8 +315,27 @@ fn main() -> ExitCode {
     flem_plugins::link();
     let cli = Cli::parse();
     flem_core::plugin::dynload::set_scene_plugin_consent(cli.allow_plugins);
+    // 3D scenes (issue 38) go to `flem run` and `flem check`; the other commands are 2D only
+    // for now and say so.
+    let three_d: Option<(&str, PathBuf)> = match &cli.cmd {
+        Some(Cmd::Chart { scene, .. }) => Some(("chart", scene.clone())),
+        Some(Cmd::Compare { scene, .. }) => Some(("compare", scene.clone())),
+        Some(Cmd::SweepTask { scene, .. }) => Some(("sweep-task", scene.clone())),
+        Some(Cmd::Converge(a)) => Some(("converge", a.scene.clone())),
+        Some(Cmd::Fos(a)) => Some(("fos", a.scene.clone())),
+        Some(Cmd::Sif(a)) => Some(("sif", a.scene.clone())),
+        Some(Cmd::ChartCrack { scenes, .. }) => scenes.iter().find(|p| is_3d(p)).map(|p| ("chart-crack", p.clone())),
+        Some(Cmd::Paths(a)) => a.scenes.iter().find(|p| is_3d(p)).map(|p| ("paths", p.clone())),
+        _ => None,
+    }
+    .filter(|(_, p)| is_3d(p));
     let r = match cli.cmd {
+        _ if three_d.is_some() => {
+            let (tool, p) = three_d.unwrap();
+            Err(unsuited(&p, tool, "it is a 3D scene ([model] dim = 3); `flem run` and `flem check` take 3D scenes, the other commands are 2D only for now (docs/3d.md)"))
+        }
         None => run_default(),
+        Some(Cmd::Run { scene, out, quiet: _, resume, plot, max_steps }) if is_3d(&scene) => run3(&scene, out, resume.is_some() || plot, max_steps),
         Some(Cmd::Run { scene, out, quiet, resume, plot, max_steps }) => load(&scene).and_then(|mut s| {
             cap_steps(&mut s, max_steps);
             run(s, out, quiet, resume, plot)
@@ -389,6 +408,43 @@ fn plugins(libs: &[PathBuf], scene: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
+/// Whether the scene file asks for 3D (`[model] dim = 3`; issue 38). An unreadable file is
+/// not: the 2D path then says why it cannot read it.
+fn is_3d(path: &Path) -> bool {
+    std::fs::read_to_string(path).is_ok_and(|t| flem_core::scene3::scene_dim(&t) == 3)
+}
+
+/// `flem run` on a 3D scene (`output::run3`: snapshots, history.csv, splits3.csv,
+/// summary.json); `--resume` and `--plot` are not available in 3D yet.
+fn run3(path: &Path, out: Option<PathBuf>, unsupported: bool, max_steps: Option<u64>) -> Result<()> {
+    anyhow::ensure!(!unsupported, "{}: --resume and --plot are not available for 3D scenes yet (docs/3d.md)", path.display());
+    let mut scene = flem_core::scene3::Scene3::from_file(path)?;
+    if let Some(n) = max_steps {
+        let f = &mut scene.file;
+        let global = f.solver.max_steps;
+        f.solver.max_steps = global.min(n);
+        for s in &mut f.stages {
+            s.max_steps = Some(s.max_steps.unwrap_or(global).min(n));
+        }
+    }
+    let stem = path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
+    let _lock = lock_out(&out)?;
+    flem_core::output::prepare_dir(&out)?;
+    let t0 = std::time::Instant::now();
+    let (m, stages) = flem_core::output::run3::run3_in_folder(&mut scene, &out)?;
+    for w in &m.warnings {
+        eprintln!("warning: {w}");
+    }
+    eprintln!("3D: {} elements, {} points; dt = {:.4e}", m.topo.n_elems(), m.topo.n_points, m.dt);
+    for r in &stages {
+        let how = if r.at_rest { "in equilibrium".to_string() } else { "step limit or end time: NOT in equilibrium".to_string() };
+        eprintln!("{}: {} steps, ratio {:.2e} ({how}), {} splits, {} fragment(s)", r.name, r.steps, r.ratio, r.splits, r.fragments);
+    }
+    eprintln!("wall time {:.2} s; results in {}", t0.elapsed().as_secs_f64(), out.display());
+    Ok(())
+}
+
 fn load(path: &Path) -> Result<Scene> {
     Ok(Scene::from_file(path)?)
 }
@@ -455,6 +511,15 @@ fn resume_command(scene: &Path, out: &Path) -> String {
 fn check(scenes: &[PathBuf]) -> Result<()> {
     anyhow::ensure!(!scenes.is_empty(), "give at least one scene file");
     for p in scenes {
+        if is_3d(p) {
+            let mut scene = flem_core::scene3::Scene3::from_file(p)?;
+            let m = flem_core::solver::march3::March3::from_scene(&mut scene)?;
+            for w in &m.warnings {
+                eprintln!("warning: {w}");
+            }
+            println!("{}: ok (3D: {} elements, {} points, {} stages, dt = {:.3e})", p.display(), m.topo.n_elems(), m.topo.n_points, scene.file.stages.len(), m.dt);
+            continue;
+        }
         let (scene, notes) = load_for_check(p)?;
         let sim = match Simulation::new(scene) {
             Ok(s) => s,
@@ -645,6 +710,12 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
 }
 
 fn plot(dir: &Path) -> Result<()> {
+    let summary = std::fs::read_to_string(dir.join("summary.json")).unwrap_or_default();
+    anyhow::ensure!(
+        !summary.contains("\"dim\": 3"),
+        "{} is the folder of a 3D run: `flem plot` draws 2D runs only for now; open its snapshot_*.vtu in ParaView or pyvista (docs/3d.md)",
+        dir.display()
+    );
     let rep = flem_plot::plot_run(dir).with_context(|| format!("drawing the pictures of {}", dir.display()))?;
     for n in &rep.notes {
         eprintln!("note: {n}");

@@ -20,6 +20,7 @@ pub mod compare;
 pub mod csvlog;
 pub mod lock;
 pub mod run;
+pub mod run3;
 pub mod sweep;
 pub mod tips;
 pub mod vtu3;

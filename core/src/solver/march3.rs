@@ -320,7 +320,7 @@ impl March3 {
         self.stats = StepStats { step: self.state.step, dt, omega_max: self.omega_max, kinetic: keh, u_f_int: ufi, u_m_u: umu };
         if !keh.is_finite() || keh > 1e12 * self.ledger.external_work.abs().max(1e-300) && keh > 1e-200 {
             let why = if keh.is_finite() { "the kinetic energy grew beyond 1e12 times the work done on the body" } else { "velocities became non-finite" };
-            return Err(FlemError::Diverged { step: self.state.step, time: self.state.time, dt, dt_crit: 2.0 / self.omega_max, ratio: self.ratio, why: why.into() });
+            return Err(FlemError::Diverged { step: self.state.step, time: self.state.time, dt, dt_crit: 2.0 / self.omega_max, ratio: dt * self.omega_max / 2.0, why: why.into() });
         }
         Ok(())
     }
