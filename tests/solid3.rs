@@ -357,17 +357,22 @@ fn element3d_doc_snippets_parse() {
 
 /// LE10 on finer meshes (ignored by default for its time; the figures are in docs/3d.md):
 /// `cargo test --release -p flem --test flem-tests -- --ignored nafems_le10_fine --nocapture`.
-/// `h8` at 12 x 24 x 16 bricks within 3 % of -5.38 MPa; `t4` (6 per brick) printed at
-/// 12 x 24 x 16 and 24 x 48 x 16.
+/// `h8` at 12 x 24 x 16 and 18 x 36 x 24 bricks within 3 % of -5.38 MPa; `t4` (6 per brick)
+/// printed at 12 x 24 x 16 and 24 x 48 x 16.
 #[test]
 #[ignore]
 fn nafems_le10_fine() {
-    let (h, n) = le10(12, 24, 16, Kind3::H8);
-    eprintln!("LE10 h8 12x24x16 ({n} dofs): sigma_yy(D) = {h:.4} ({:+.2} %)", 100.0 * (h / -5.38 - 1.0));
+    let mut worst = 0.0f64;
+    for (nr, nt, nz) in [(12, 24, 16), (18, 36, 24)] {
+        let t0 = std::time::Instant::now();
+        let (h, n) = le10(nr, nt, nz, Kind3::H8);
+        eprintln!("LE10 h8 {nr}x{nt}x{nz} ({n} dofs): sigma_yy(D) = {h:.4} ({:+.2} %), {:.1} s", 100.0 * (h / -5.38 - 1.0), t0.elapsed().as_secs_f64());
+        worst = worst.max((h / -5.38 - 1.0).abs());
+    }
     for (nr, nt, nz) in [(12, 24, 16), (24, 48, 16)] {
         let t0 = std::time::Instant::now();
         let (t, n) = le10(nr, nt, nz, Kind3::T4);
         eprintln!("LE10 t4 {nr}x{nt}x{nz} ({n} dofs): sigma_yy(D) = {t:.4} ({:+.2} %), {:.1} s", 100.0 * (t / -5.38 - 1.0), t0.elapsed().as_secs_f64());
     }
-    assert!((h / -5.38 - 1.0).abs() < 0.03);
+    assert!(worst < 0.03, "h8: {worst}");
 }
