@@ -79,9 +79,7 @@ impl Dmat3 {
         let (l, m) = (self.lambda, self.mu);
         let mut d = [[0.0; 6]; 6];
         for i in 0..3 {
-            for j in 0..3 {
-                d[i][j] = l;
-            }
+            d[i][..3].fill(l);
             d[i][i] = l + 2.0 * m;
             d[i + 3][i + 3] = m;
         }

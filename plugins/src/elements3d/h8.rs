@@ -94,24 +94,38 @@ pub fn geometry(x: &[[f64; 3]; 8]) -> H8Geo {
     geo
 }
 
-/// `K_aa` (9 x 9, modes `3 m + dir`) of a geometry.
+/// `B_a^T D B_b` (3 x 3) of two gradients for the isotropic `D` (engineering shear strains):
+/// `lambda a b^T + mu b a^T + mu (a . b) I` (row `i`, column `j`: `lambda a_i b_j + mu a_j b_i
+/// + mu delta_ij a . b`).
+#[inline(always)]
+fn block(a: [f64; 3], b: [f64; 3], d: &Dmat3) -> [[f64; 3]; 3] {
+    let ab = d.mu * (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+    std::array::from_fn(|i| std::array::from_fn(|j| d.lambda * a[i] * b[j] + d.mu * a[j] * b[i] + if i == j { ab } else { 0.0 }))
+}
+
+/// `K_aa` (9 x 9, modes `3 m + dir`) of a geometry: `sum_gp c G^T D G` block by block.
 #[inline(always)]
 fn kaa(geo: &H8Geo, d: &Dmat3) -> SMatrix<f64, 9, 9> {
     let mut k = SMatrix::<f64, 9, 9>::zeros();
     for gp in 0..8 {
         let c = geo.c[gp];
-        for n in 0..3 {
-            for q in 0..3 {
-                // D times the strain of unit mode (n, q).
-                let mut e = [0.0; 6];
-                let gm = geo.gm[gp][n];
-                unit_strain(gm, q, &mut e);
-                let s = d.stress(e);
-                for m in 0..3 {
-                    let f = bt_stress(geo.gm[gp][m], &s);
-                    for p in 0..3 {
-                        k[(3 * m + p, 3 * n + q)] += c * f[p];
+        for m in 0..3 {
+            for n in m..3 {
+                let b = block(geo.gm[gp][m], geo.gm[gp][n], d);
+                for p in 0..3 {
+                    for q in 0..3 {
+                        k[(3 * m + p, 3 * n + q)] += c * b[p][q];
                     }
+                }
+            }
+        }
+    }
+    // The lower blocks by symmetry (K_nm = K_mn^T).
+    for m in 0..3 {
+        for n in 0..m {
+            for p in 0..3 {
+                for q in 0..3 {
+                    k[(3 * m + p, 3 * n + q)] = k[(3 * n + q, 3 * m + p)];
                 }
             }
         }
@@ -149,14 +163,14 @@ fn mode_strain(gm: &[[f64; 3]; 3], alpha: &[[f64; 3]; 3]) -> [f64; 6] {
     strain3(gm, alpha)
 }
 
-/// The 9 internal parameters of the displacement `u` (`alpha[m] = [a_mx, a_my, a_mz]`): the
-/// static condensation `alpha = -K_aa^-1 sum_gp c G^T D B u`. Zero when `K_aa` is not positive
-/// definite (a degenerate cell; the solver refuses those before).
+/// The 9 internal parameters (`alpha[m] = [a_mx, a_my, a_mz]`) of the trilinear strains `eu`
+/// at the Gauss points: the static condensation `alpha = -K_aa^-1 sum_gp c G^T D (B u)`. Zero
+/// when `K_aa` is not positive definite (a degenerate cell; the solver refuses those before).
 #[inline(always)]
-pub fn alpha(geo: &H8Geo, u: &[[f64; 3]; 8], d: &Dmat3) -> [[f64; 3]; 3] {
+fn alpha_of(geo: &H8Geo, eu: &[[f64; 6]; 8], d: &Dmat3) -> [[f64; 3]; 3] {
     let mut r = SVector::<f64, 9>::zeros();
     for gp in 0..8 {
-        let s = d.stress(strain3(&geo.g[gp], u));
+        let s = d.stress(eu[gp]);
         for m in 0..3 {
             let f = bt_stress(geo.gm[gp][m], &s);
             for p in 0..3 {
@@ -173,15 +187,21 @@ pub fn alpha(geo: &H8Geo, u: &[[f64; 3]; 8], d: &Dmat3) -> [[f64; 3]; 3] {
     }
 }
 
+/// The 9 internal parameters of the displacement `u` (see `alpha_of`).
+#[inline(always)]
+pub fn alpha(geo: &H8Geo, u: &[[f64; 3]; 8], d: &Dmat3) -> [[f64; 3]; 3] {
+    alpha_of(geo, &std::array::from_fn(|gp| strain3(&geo.g[gp], u)), d)
+}
+
 /// Internal corner forces of a precomputed geometry (no allocation; the module doc's fast form).
 #[inline(always)]
 pub fn forces(geo: &H8Geo, u: &[[f64; 3]; 8], d: &Dmat3) -> [[f64; 3]; 8] {
-    let al = alpha(geo, u, d);
+    let eu: [[f64; 6]; 8] = std::array::from_fn(|gp| strain3(&geo.g[gp], u));
+    let al = alpha_of(geo, &eu, d);
     let mut f = [[0.0; 3]; 8];
     for gp in 0..8 {
-        let eu = strain3(&geo.g[gp], u);
         let em = mode_strain(&geo.gm[gp], &al);
-        let s = d.stress(std::array::from_fn(|r| eu[r] + em[r]));
+        let s = d.stress(std::array::from_fn(|r| eu[gp][r] + em[r]));
         let c = geo.c[gp];
         for a in 0..8 {
             let b = bt_stress(geo.g[gp][a], &s);
@@ -249,6 +269,52 @@ pub fn matrices(x: &[[f64; 3]; 8], d: &Dmat3) -> ([[f64; 24]; 24], [[f64; 24]; 9
     (k, std::array::from_fn(|m| std::array::from_fn(|j| h[(m, j)])))
 }
 
+/// Index of `K[i][j]` in the 300 stored upper-triangle values of a packed 24 x 24 symmetric
+/// matrix (row-major upper triangle; `packed_k`).
+pub const SYM24: [[u16; 24]; 24] = {
+    let mut m = [[0u16; 24]; 24];
+    let mut k = 0;
+    let mut i = 0;
+    while i < 24 {
+        let mut j = i;
+        while j < 24 {
+            m[i][j] = k;
+            m[j][i] = k;
+            k += 1;
+            j += 1;
+        }
+        i += 1;
+    }
+    m
+};
+
+/// The condensed `K` of [`matrices`] packed as its 300 upper-triangle values (`SYM24`): what an
+/// explicit kernel stores per element (2400 bytes) to compute `f = K u` by [`forces_packed`].
+pub fn packed_k(x: &[[f64; 3]; 8], d: &Dmat3) -> [f64; 300] {
+    let (k, _) = matrices(x, d);
+    let mut p = [0.0; 300];
+    for i in 0..24 {
+        for j in i..24 {
+            p[SYM24[i][j] as usize] = k[i][j];
+        }
+    }
+    p
+}
+
+/// `f = K u` of a packed condensed stiffness (no allocation; 576 multiply-adds on 2400 bytes).
+#[inline(always)]
+pub fn forces_packed(k: &[f64; 300], u: &[[f64; 3]; 8]) -> [[f64; 3]; 8] {
+    let mut f = [[0.0; 3]; 8];
+    for i in 0..24 {
+        let mut acc = 0.0;
+        for j in 0..24 {
+            acc += k[SYM24[i][j] as usize] * u[j / 3][j % 3];
+        }
+        f[i / 3][i % 3] = acc;
+    }
+    f
+}
+
 /// Stress (Voigt) at natural point `xi` with the enhanced field, for the internal parameters
 /// `alpha` of the displacement (`alpha(geometry(x), u, d)`).
 pub fn stress_with(x: &[[f64; 3]; 8], u: &[[f64; 3]; 8], al: &[[f64; 3]; 3], d: &Dmat3, xi: [f64; 3]) -> [f64; 6] {
@@ -289,10 +355,36 @@ mod tests {
             let ku: f64 = (0..24).map(|j| k[i][j] * u[j / 3][j % 3]).sum();
             assert!((ku - f[i / 3][i % 3]).abs() < 1e-12 * scale, "{i}: {ku} vs {}", f[i / 3][i % 3]);
         }
+        let fp = forces_packed(&packed_k(&x, &d), &u);
+        for i in 0..24 {
+            assert!((fp[i / 3][i % 3] - f[i / 3][i % 3]).abs() < 1e-12 * scale);
+        }
         let al = alpha(&geometry(&x), &u, &d);
         for m in 0..9 {
             let hu: f64 = (0..24).map(|j| h[m][j] * u[j / 3][j % 3]).sum();
             assert!((hu - al[m / 3][m % 3]).abs() < 1e-10 * al.iter().flatten().fold(1e-30f64, |a, v| a.max(v.abs())));
+        }
+    }
+
+    /// `K_aa` by the isotropic block formula equals `sum c G^T D G` from the strains of unit
+    /// modes and the full 6 x 6 `D` (to round-off).
+    #[test]
+    fn kaa_blocks_match_the_full_product() {
+        let d = Dmat3::new(1000.0, 0.3);
+        let geo = geometry(&distorted());
+        let k = kaa(&geo, &d);
+        let dm = d.full();
+        for i in 0..9 {
+            for j in 0..9 {
+                let mut v = 0.0;
+                for gp in 0..8 {
+                    let (mut ei, mut ej) = ([0.0; 6], [0.0; 6]);
+                    unit_strain(geo.gm[gp][i / 3], i % 3, &mut ei);
+                    unit_strain(geo.gm[gp][j / 3], j % 3, &mut ej);
+                    v += geo.c[gp] * (0..6).map(|r| ei[r] * (0..6).map(|q| dm[r][q] * ej[q]).sum::<f64>()).sum::<f64>();
+                }
+                assert!((k[(i, j)] - v).abs() < 1e-12 * k[(i, i)].abs().max(1.0), "{i} {j}: {} vs {v}", k[(i, j)]);
+            }
         }
     }
 
