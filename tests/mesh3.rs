@@ -137,13 +137,20 @@ fn each_kind_reads_the_same_in_both_msh_versions() {
     }
 }
 
-/// A 2D mesh read through `load_any` is exactly the mesh of `load` (the 2D path unchanged);
+/// A 2D mesh (gmsh, VTK) read through `load_any` is exactly the mesh of `load` (the 2D path
+/// unchanged);
 /// a 3D file given to the 2D `load` is refused, saying that it is 3D. Reference: the 2D reader.
 #[test]
 fn two_d_files_stay_two_d_and_three_d_files_say_so() {
     let meshes = root().join("configs/meshes");
     for f in ["rect_quad_v41.msh", "rect_quad_v22_bin.msh", "plate_hole_v41.msh"] {
         let src = gmsh_source(f);
+        let two = src.load(&meshes).unwrap();
+        let AnyMesh::Two(any) = src.load_any(&meshes).unwrap() else { panic!("{f}: read as 3D") };
+        assert_eq!(format!("{two:?}"), format!("{any:?}"), "{f}");
+    }
+    for f in ["rect_quad.vtu", "rect_tri.vtk"] {
+        let src: Box<dyn MeshSource> = toml::from_str(&format!("type = \"vtk\"\nfile = {f:?}")).unwrap();
         let two = src.load(&meshes).unwrap();
         let AnyMesh::Two(any) = src.load_any(&meshes).unwrap() else { panic!("{f}: read as 3D") };
         assert_eq!(format!("{two:?}"), format!("{any:?}"), "{f}");

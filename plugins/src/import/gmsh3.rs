@@ -120,61 +120,9 @@ pub(crate) fn to_raw_mesh3(src: &str, content: MshContent) -> Result<RawMesh3> {
     if cells.is_empty() {
         return Err(FlemError::mesh(src, "the file has no tetrahedra or hexahedra (first-order 3D cells)"));
     }
-    // Keep the points of the volume cells, in tag order.
-    let n = all_points.len();
-    let mut new_id = vec![u32::MAX; n];
-    for c in &cells {
-        for &q in c.corners() {
-            new_id[q as usize] = 0;
-        }
-    }
-    let mut points = Vec::new();
-    let mut point_ids = Vec::new();
-    for (i, id) in new_id.iter_mut().enumerate() {
-        if *id == 0 {
-            let x = all_points[i];
-            if !x.iter().all(|v| v.is_finite()) {
-                return Err(FlemError::mesh(src, format!("node tag {} has a non-finite coordinate {x:?}", labels[i])));
-            }
-            *id = points.len() as u32;
-            points.push(x);
-            point_ids.push(labels[i]);
-        }
-    }
-    let map = |q: u32| new_id.get(q as usize).copied().filter(|&r| r != u32::MAX);
-    for c in &mut cells {
-        for q in c.nodes.iter_mut().take(c.kind.nodes()) {
-            *q = new_id[*q as usize];
-        }
-        for q in c.nodes.iter_mut().skip(c.kind.nodes()) {
-            *q = 0;
-        }
-    }
-    let node_sets: BTreeMap<String, Vec<u32>> = node_sets
-        .into_iter()
-        .map(|(name, set)| {
-            let mut v: Vec<u32> = set.into_iter().filter_map(map).collect();
-            v.sort_unstable();
-            v.dedup();
-            (name, v)
-        })
-        .collect();
-    let face_sets: BTreeMap<String, Vec<RawFace>> = face_sets
-        .into_iter()
-        .map(|(name, set)| {
-            let v = set
-                .into_iter()
-                .filter_map(|f| {
-                    let mut g = [NO_CORNER; 4];
-                    for (a, &q) in f.corners().iter().enumerate() {
-                        g[a] = map(q)?;
-                    }
-                    Some(RawFace(g))
-                })
-                .collect();
-            (name, v)
-        })
-        .collect();
+    let g = Gathered3 { points: all_points, labels, words: ("node tag", "element tag"), zero_based: false, cells, cell_labels, cell_region, node_sets, face_sets };
+    let mesh = g.finish(src)?;
+    let (node_sets, face_sets) = (&mesh.node_sets, &mesh.face_sets);
     // Every named or used group must hold something in the 3D mesh.
     let all: BTreeSet<(i32, i32)> = names.keys().copied().chain(used_groups.iter().copied()).collect();
     for &(dim, tag) in &all {
@@ -189,8 +137,88 @@ pub(crate) fn to_raw_mesh3(src: &str, content: MshContent) -> Result<RawMesh3> {
             return Err(FlemError::mesh(src, format!("physical group \"{name}\" (dimension {dim}, tag {tag}) {why}")));
         }
     }
-    let ids = Some(FileIds { point_word: "node tag", cell_word: "element tag", zero_based: false, points: point_ids, cells: cell_labels });
-    Ok(RawMesh3 { source: src.to_string(), points, cells, cell_region, node_sets, face_sets, ids })
+    Ok(mesh)
+}
+
+/// What a 3D reader collects before the points are compacted (the 3D twin of
+/// [`super::Gathered`]): candidate points with their ids in the file, cells, regions and sets
+/// referring to them.
+pub(crate) struct Gathered3 {
+    pub points: Vec<[f64; 3]>,
+    pub labels: Vec<u64>,
+    pub words: (&'static str, &'static str),
+    pub zero_based: bool,
+    pub cells: Vec<RawCell3>,
+    pub cell_labels: Vec<u64>,
+    pub cell_region: Vec<String>,
+    pub node_sets: BTreeMap<String, Vec<u32>>,
+    pub face_sets: BTreeMap<String, Vec<RawFace>>,
+}
+
+impl Gathered3 {
+    /// Keeps the points used by cells (in their order), remaps cells and sets (dropping set
+    /// members outside the mesh), refuses non-finite coordinates.
+    pub fn finish(self, src: &str) -> Result<RawMesh3> {
+        let Gathered3 { points: all_points, labels, words, zero_based, mut cells, cell_labels, cell_region, node_sets, face_sets } = self;
+        let based = if zero_based { " (0-based, as in the file)" } else { "" };
+        // Keep the points of the volume cells, in tag order.
+        let n = all_points.len();
+        let mut new_id = vec![u32::MAX; n];
+        for c in &cells {
+            for &q in c.corners() {
+                new_id[q as usize] = 0;
+            }
+        }
+        let mut points = Vec::new();
+        let mut point_ids = Vec::new();
+        for (i, id) in new_id.iter_mut().enumerate() {
+            if *id == 0 {
+                let x = all_points[i];
+                if !x.iter().all(|v| v.is_finite()) {
+                    return Err(FlemError::mesh(src, format!("{} {}{based} has a non-finite coordinate {x:?}", words.0, labels[i])));
+                }
+                *id = points.len() as u32;
+                points.push(x);
+                point_ids.push(labels[i]);
+            }
+        }
+        let map = |q: u32| new_id.get(q as usize).copied().filter(|&r| r != u32::MAX);
+        for c in &mut cells {
+            for q in c.nodes.iter_mut().take(c.kind.nodes()) {
+                *q = new_id[*q as usize];
+            }
+            for q in c.nodes.iter_mut().skip(c.kind.nodes()) {
+                *q = 0;
+            }
+        }
+        let node_sets: BTreeMap<String, Vec<u32>> = node_sets
+            .into_iter()
+            .map(|(name, set)| {
+                let mut v: Vec<u32> = set.into_iter().filter_map(map).collect();
+                v.sort_unstable();
+                v.dedup();
+                (name, v)
+            })
+            .collect();
+        let face_sets: BTreeMap<String, Vec<RawFace>> = face_sets
+            .into_iter()
+            .map(|(name, set)| {
+                let v = set
+                    .into_iter()
+                    .filter_map(|f| {
+                        let mut g = [NO_CORNER; 4];
+                        for (a, &q) in f.corners().iter().enumerate() {
+                            g[a] = map(q)?;
+                        }
+                        Some(RawFace(g))
+                    })
+                    .collect();
+                (name, v)
+            })
+            .collect();
+        let ids = (cell_labels.len() == cells.len()).then(|| FileIds { point_word: words.0, cell_word: words.1, zero_based, points: point_ids, cells: cell_labels });
+        Ok(RawMesh3 { source: src.to_string(), points, cells, cell_region, node_sets, face_sets, ids })
+    }
 }
 
 /// The mesh of a parsed file in its own dimension.

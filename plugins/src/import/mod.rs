@@ -8,7 +8,7 @@
 //! ([`Gathered`]); [`Gathered::finish`] keeps only the points used by 2D cells, renumbers them
 //! densely in that order, remaps the sets (dropping points that are not in the mesh) and refuses
 //! meshes that are not planar. gmsh files with volume elements are read as 3D meshes by
-//! `gmsh3.rs` (through `MeshSource::load_any`).
+//! `gmsh3.rs`, VTK files with volume cells by `vtk3.rs` (through `MeshSource::load_any`).
 //!
 //! Corrupt input never panics: every count and index is checked, errors name the file and,
 //! where possible, the line or element. Third-party parsers (mshio, vtkio) are called inside
@@ -33,6 +33,7 @@ mod gmsh3;
 mod msh2;
 mod msh4;
 mod vtk;
+mod vtk3;
 mod vtk_locate;
 
 #[cfg(test)]
@@ -40,6 +41,7 @@ mod tests;
 
 pub use gmsh::{read_msh_any, read_msh_bytes, Gmsh};
 pub use vtk::{read_vtk_bytes, Vtk};
+pub use vtk3::read_vtk_any;
 
 /// Resolves `file` against `base_dir` and reads it whole. A file that cannot be read is the
 /// scene's error, key `mesh.file` (the file "mesh (file)" is replaced by the scene's name where

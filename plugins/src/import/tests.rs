@@ -340,6 +340,25 @@ mod fuzz {
             }
         }
 
+        /// The same for a 3D VTU (`read_vtk_any`, then `RawMesh3::validate`).
+        #[test]
+        fn mutated_3d_vtu_never_panics(muts in prop::collection::vec(mutation(), 1..4)) {
+            let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/3d");
+            let mut b = std::fs::read(dir.join("cube_hex.vtu")).unwrap();
+            for m in &muts {
+                apply(&mut b, m);
+            }
+            match super::super::read_vtk_any("cube_hex.vtu", "vtu", &b, None) {
+                Ok(flem_core::mesh::AnyMesh::Three(mut mesh)) => {
+                    let _ = mesh.validate(ValidationOptions::Reorient);
+                }
+                Ok(flem_core::mesh::AnyMesh::Two(mut mesh)) => {
+                    let _ = mesh.validate(ValidationOptions::Reorient);
+                }
+                Err(_) => {}
+            }
+        }
+
         /// The same for VTK files (vtkio inside `catch_unwind`, then our checks).
         #[test]
         fn mutated_vtk_files_never_panic(file in 0..VTK_FILES.len(), muts in prop::collection::vec(mutation(), 1..4)) {

@@ -40,11 +40,35 @@ impl MeshSource for Vtk {
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
         read_vtk_bytes(&src, &ext, &bytes, self.region_array.as_deref())
     }
+
+    /// The 2D mesh, or the 3D one when the file has volume cells (`vtk3.rs`).
+    fn load_any(&self, base_dir: &Path) -> Result<flem_core::mesh::AnyMesh> {
+        let (src, path, bytes) = read_input(base_dir, &self.file)?;
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        super::vtk3::read_vtk_any(&src, &ext, &bytes, self.region_array.as_deref())
+    }
 }
 
 /// Reads a VTK file held in memory: `ext` is "vtu" (XML) or "vtk" (legacy); `src` names it in
 /// errors; `region_array` as in [`Vtk`].
 pub fn read_vtk_bytes(src: &str, ext: &str, bytes: &[u8], region_array: Option<&str>) -> Result<RawMesh> {
+    let src = src.to_string();
+    let pieces = parse_vtk(&src, ext, bytes)?;
+    let mut g = Gathered { words: ("VTK point", "VTK cell"), zero_based: true, ..Default::default() };
+    for piece in pieces {
+        match piece {
+            Piece::Inline(p) => add_piece(&src, *p, region_array, &mut g)?,
+            _ => return Err(FlemError::mesh(&src, "pieces stored in other files (parallel VTK) are not supported")),
+        }
+    }
+    let mut mesh = g.finish(&src)?;
+    mesh.node_sets.retain(|_, s| !s.is_empty());
+    mesh.edge_sets.retain(|_, s| !s.is_empty());
+    Ok(mesh)
+}
+
+/// The pieces of the unstructured grid of a VTK file held in memory (see [`read_vtk_bytes`]).
+pub(crate) fn parse_vtk(src: &str, ext: &str, bytes: &[u8]) -> Result<Vec<Piece<UnstructuredGridPiece>>> {
     let src = src.to_string();
     let parsed = no_panic("the VTK reader (vtkio)", || match ext {
         "vtu" => Some(vtkio::Vtk::parse_xml(std::io::Cursor::new(bytes))),
@@ -66,21 +90,11 @@ pub fn read_vtk_bytes(src: &str, ext: &str, bytes: &[u8], region_array: Option<&
     let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
         return Err(FlemError::mesh(&src, "the VTK file holds no unstructured grid"));
     };
-    let mut g = Gathered { words: ("VTK point", "VTK cell"), zero_based: true, ..Default::default() };
-    for piece in pieces {
-        match piece {
-            Piece::Inline(p) => add_piece(&src, *p, region_array, &mut g)?,
-            _ => return Err(FlemError::mesh(&src, "pieces stored in other files (parallel VTK) are not supported")),
-        }
-    }
-    let mut mesh = g.finish(&src)?;
-    mesh.node_sets.retain(|_, s| !s.is_empty());
-    mesh.edge_sets.retain(|_, s| !s.is_empty());
-    Ok(mesh)
+    Ok(pieces)
 }
 
 /// The cells of a piece as (type, point indices), whatever the connectivity layout.
-fn cell_list(src: &str, p: &UnstructuredGridPiece) -> Result<Vec<(CellType, Vec<u64>)>> {
+pub(crate) fn cell_list(src: &str, p: &UnstructuredGridPiece) -> Result<Vec<(CellType, Vec<u64>)>> {
     let types = &p.cells.types;
     let bad = |m: String| FlemError::mesh(src, format!("bad cell connectivity: {m}"));
     let mut out = Vec::new();
@@ -112,7 +126,7 @@ fn cell_list(src: &str, p: &UnstructuredGridPiece) -> Result<Vec<(CellType, Vec<
 }
 
 /// The region value per cell, from the chosen cell-data array.
-fn regions(src: &str, p: &UnstructuredGridPiece, wanted: Option<&str>, n: usize) -> Result<Option<Vec<String>>> {
+pub(crate) fn regions(src: &str, p: &UnstructuredGridPiece, wanted: Option<&str>, n: usize) -> Result<Option<Vec<String>>> {
     let mut arrays = Vec::new();
     for a in &p.data.cell {
         match a {
@@ -170,6 +184,12 @@ fn add_piece(src: &str, p: UnstructuredGridPiece, wanted: Option<&str>, g: &mut 
             CellType::Quad => (Some(CellKind::Q4), 4),
             CellType::Line => (None, 2),
             CellType::Vertex => (None, 1),
+            other if super::vtk3::is_volume_cell(*other) => {
+                return Err(FlemError::mesh(
+                    src,
+                    format!("cell {c}: VTK cell type {} ({other:?}) is not supported in a 2D mesh: this file has volume cells, it is a 3D mesh; a 3D scene reads it (docs/3d.md)", *other as u8),
+                ));
+            }
             other => {
                 return Err(FlemError::mesh(
                     src,
