@@ -178,7 +178,7 @@ fn tip_mts_checkpoint_resumes_bit_for_bit() {
 #[test]
 fn tip_mts_in_the_explicit_march() {
     let t = text("sen_q4_1", "tip_mts");
-    let solver = "[solver]\ntype = \"events\"\nmax_events = 60\non_loose_fragment = \"stop\"   # the measurement ends when a crack reaches the boundary\n";
+    let solver = "[solver]\ntype = \"events\"\nmax_events = 90\non_loose_fragment = \"stop\"   # the measurement ends when a crack reaches the boundary\n";
     assert!(t.contains(solver), "the scene's [solver] changed: update the test");
     let mut t = t.replace(solver, "[solver]\ntolerance = 1e-4\n").replace("[cracking]\n", "[cracking]\ncheck_every = 10\n");
     t.truncate(t.find("[[stage]]").unwrap());
