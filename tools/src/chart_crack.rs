@@ -201,9 +201,14 @@ pub fn run_paths(scenes: &[PathBuf], out: Option<PathBuf>) -> Result<()> {
             let _ = writeln!(csv, "{},{rule},{},{},{},{},{d},{pct}", r.scene, r.kink.h, r.wall_s, r.events, rows[fine].scene);
             if i != fine {
                 let stem = Path::new(&r.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
-                // The mesh kind and size of a `FAMILY_KIND_N` scene (configs/paths/) as the marker.
-                let mesh = stem.rsplitn(3, '_').take(2).collect::<Vec<_>>().into_iter().rev().collect::<Vec<_>>().join(" ");
-                pts.push(flem_plot::charts::ChartPoint { method: label.into(), element: String::new(), mesh, wall_seconds: r.wall_s, error: pct.max(1e-3), pareto: false });
+                // A `FAMILY_KIND_N` scene (configs/paths/): the mesh kind as the marker shape, the
+                // refinement as its fill (the chart tells at most 5 shapes and 3 fills apart).
+                let parts: Vec<&str> = stem.rsplitn(3, '_').collect();
+                let (mesh, element) = match parts.as_slice() {
+                    [n, kind, _] => (kind.to_string(), format!("size {n}")),
+                    _ => (stem.clone(), String::new()),
+                };
+                pts.push(flem_plot::charts::ChartPoint { method: label.into(), element, mesh, wall_seconds: r.wall_s, error: pct.max(1e-3), pareto: false });
             }
         }
     }
