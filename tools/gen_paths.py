@@ -181,7 +181,7 @@ y = 0.0
 name = "shear"
 levels = { shear = 0.05 }
 """
-    return head + mesh + "\n" + MATERIAL % 60 + loads
+    return head + mesh + "\n" + MATERIAL % 90 + loads
 
 
 def main():

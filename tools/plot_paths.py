@@ -4,7 +4,10 @@ must-show 6; docs/paths.md). Each file holds the rows of one or more runs; every
 (`kink.path`) is drawn, coloured by mesh kind, with line style by refinement; the MTS line from
 the initial tip is dashed black.
 
-    python3 tools/plot_paths.py OUT.png ROWS.json [ROWS.json ...] [--zoom R]
+    python3 tools/plot_paths.py OUT.png ROWS.json [ROWS.json ...] [--zoom R] [--title TEXT]
+
+A path is drawn up to where it first reaches the outer boundary (`kink.boundary_at`, what
+`flem paths` compares by the Hausdorff distance), all of it when it does not.
 
 Needs matplotlib (e.g. the repo's .venv)."""
 import json
@@ -23,6 +26,11 @@ def main(argv):
         i = argv.index("--zoom")
         zoom = float(argv[i + 1])
         argv = argv[:i] + argv[i + 2:]
+    title = "crack paths (tip_mts); dashed: MTS line from the initial tip"
+    if "--title" in argv:
+        i = argv.index("--title")
+        title = argv[i + 1]
+        argv = argv[:i] + argv[i + 2:]
     out, files = argv[0], argv[1:]
     colours = {"t3": "tab:blue", "quad": "tab:orange", "q4": "tab:green"}
     styles = {"1": ":", "2": "--", "3": "-"}
@@ -35,8 +43,10 @@ def main(argv):
             parts = name.split("_")
             kind, ref = parts[-2], parts[-1]
             k = r["kink"]
-            xs = [p[0] for p in k["path"]]
-            ys = [p[1] for p in k["path"]]
+            b = k.get("boundary_at")
+            path = k["path"][: b + 1] if b is not None else k["path"]
+            xs = [p[0] for p in path]
+            ys = [p[1] for p in path]
             label = "%s %s" % (kind, ref) if (kind, ref) not in seen else None
             seen.add((kind, ref))
             ax.plot(xs, ys, styles.get(ref, "-"), color=colours.get(kind, "k"), lw=1.2, label=label)
@@ -51,7 +61,7 @@ def main(argv):
         ax.set_ylim(y - zoom, y + zoom)
     ax.set_aspect("equal")
     ax.legend(fontsize=8, title="mesh kind, refinement")
-    ax.set_title("crack paths (tip_mts); dashed: MTS line from the initial tip")
+    ax.set_title(title, fontsize=10)
     fig.savefig(out, dpi=120, bbox_inches="tight")
 
 

@@ -17,6 +17,14 @@
 //! shape = tolerance). An error that is the same for every run gets `<scene>_<error>.md`, a
 //! table, instead of a chart (issue 40: on the scenes of docs/events.md every run follows the
 //! same path).
+//!
+//! `--paths` (issue 34, must-show 5): over one benchmark's scenes on several meshes (e.g.
+//! configs/paths/sen_*.toml), each scene run with the paper's edge rule (`sigma1_nearest`) and
+//! with `tip_mts` (ours) as `flem paths` runs it. Error: the Hausdorff distance of the path
+//! from the first initial tip up to the outer boundary (`Kink::through`) to the same rule's path
+//! on the finest mesh given (smallest element size at the tip), as a percentage of the
+//! specimen's size; against the run's wall time. The finest run (error 0) is the reference and
+//! is left out of the chart. Output: `path_error.csv`, `path_error.png/svg`.
 use anyhow::{Context, Result};
 use flem_core::cracking::initiation::initiation;
 use flem_core::scene::Scene;
@@ -167,5 +175,54 @@ pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize, quick: bool)
     }
     flem_core::output::atomic_write(&out.join("chart_crack.csv"), csv.as_bytes())?;
     eprintln!("chart_crack.csv and <scene>_initiation/_path .png/.svg (or .md tables) in {}", out.display());
+    Ok(())
+}
+
+/// `flem chart-crack --paths` (see the module doc).
+pub fn run_paths(scenes: &[PathBuf], out: Option<PathBuf>) -> Result<()> {
+    let out = out.unwrap_or_else(|| PathBuf::from("out/chart_crack"));
+    let _lock = crate::lock_out(&out)?;
+    flem_core::output::prepare_dir(&out)?;
+    let mut csv = String::from("scene,rule,h,wall_seconds,events,reference,hausdorff,percent_of_size\n");
+    let mut pts: Vec<flem_plot::charts::ChartPoint> = Vec::new();
+    for (rule, label) in [("sigma1_nearest", "edge rule (paper)"), ("tip_mts", "tip_mts (ours)")] {
+        let mut rows = Vec::new();
+        for s in scenes {
+            let mut r = crate::paths::measure(s, Some(rule), 5.0)?;
+            anyhow::ensure!(!r.is_empty(), "{}: no crack tip to follow", s.display());
+            eprintln!("{}: {rule}: {:.2} s", s.display(), r[0].wall_s);
+            rows.push(r.swap_remove(0));
+        }
+        let fine = rows.iter().enumerate().min_by(|a, b| a.1.kink.h.total_cmp(&b.1.kink.h)).map(|(i, _)| i).context("no scene")?;
+        let size = rows[fine].size;
+        for (i, r) in rows.iter().enumerate() {
+            let d = flem_plugins::check::paths::hausdorff(r.kink.through(), rows[fine].kink.through(), 1e-4 * size);
+            let pct = 100.0 * d / size;
+            let _ = writeln!(csv, "{},{rule},{},{},{},{},{d},{pct}", r.scene, r.kink.h, r.wall_s, r.events, rows[fine].scene);
+            if i != fine {
+                let stem = Path::new(&r.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
+                // A `FAMILY_KIND_N` scene (configs/paths/): the mesh kind as the marker shape, the
+                // refinement as its fill (the chart tells at most 5 shapes and 3 fills apart).
+                let parts: Vec<&str> = stem.rsplitn(3, '_').collect();
+                let (mesh, element) = match parts.as_slice() {
+                    [n, kind, _] => (kind.to_string(), format!("size {n}")),
+                    _ => (stem.clone(), String::new()),
+                };
+                pts.push(flem_plot::charts::ChartPoint { method: label.into(), element, mesh, wall_seconds: r.wall_s, error: pct.max(1e-3), pareto: false });
+            }
+        }
+    }
+    let par = pareto(&pts.iter().map(|p| (p.wall_seconds, p.error)).collect::<Vec<_>>());
+    for (p, q) in pts.iter_mut().zip(par) {
+        p.pareto = q;
+    }
+    flem_core::output::atomic_write(&out.join("path_error.csv"), csv.as_bytes())?;
+    flem_plot::charts::speed_accuracy(
+        &out.join("path_error"),
+        "crack path: Hausdorff distance to the finest mesh's path",
+        "Hausdorff distance to the finest mesh's path (% of the specimen; 1e-3: equal)",
+        &pts,
+    )?;
+    eprintln!("path_error.csv and path_error.png/.svg in {}", out.display());
     Ok(())
 }

@@ -143,6 +143,11 @@ enum Cmd {
         /// then the 2 % run's).
         #[arg(long)]
         quick: bool,
+        /// Instead: the path error (Hausdorff distance to the finest mesh's path, % of the
+        /// specimen) against wall time, the edge rule beside `tip_mts` (issue 34), over the
+        /// scenes given (one benchmark on several meshes, e.g. configs/paths/sen_*.toml).
+        #[arg(long)]
+        paths: bool,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -344,7 +349,13 @@ fn main() -> ExitCode {
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking, elements, max_steps }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking, &elements, max_steps),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
-        Some(Cmd::ChartCrack { scenes, out, splits, quick }) => chart_crack::run(&scenes, out, splits, quick),
+        Some(Cmd::ChartCrack { scenes, out, splits, quick, paths }) => {
+            if paths {
+                chart_crack::run_paths(&scenes, out)
+            } else {
+                chart_crack::run(&scenes, out, splits, quick)
+            }
+        }
         Some(Cmd::Compare { scene, out, max_steps }) => load(&scene).and_then(|mut s| {
             cap_steps(&mut s, max_steps);
             compare(s, out)

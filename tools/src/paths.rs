@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use flem_core::plugin::traits::SeparationRule;
 use flem_core::scene::Scene;
 use flem_core::solver::{NoOutput, Simulation};
-use flem_plugins::check::paths::{crack_faces, fragment_sizes, kinks, Kink};
+use flem_plugins::check::paths::{crack_faces, fragment_sizes, hausdorff, kinks, Kink};
 use flem_plugins::check::sif::{crack_tips, stage_sif, Radii};
 use flem_plugins::separation::tip_mts::kink_angle;
 use serde::Serialize;
@@ -32,6 +32,9 @@ pub struct Args {
     /// Write the rows as JSON to this file.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Write the Hausdorff distances between the paths (see `hausdorff_groups`) as JSON here.
+    #[arg(long)]
+    pub hausdorff_out: Option<PathBuf>,
 }
 
 /// One initial tip of one run.
@@ -52,6 +55,8 @@ pub struct Row {
     pub moves: usize,
     pub refused_moves: u64,
     pub wall_s: f64,
+    /// The specimen's size: the larger side of the mesh's bounding box.
+    pub size: f64,
     /// The run's error, when it stopped early (the path is still measured).
     pub run_error: Option<String>,
 }
@@ -82,6 +87,17 @@ pub fn measure(path: &PathBuf, rule: Option<&str>, sizes: f64) -> Result<Vec<Row
     let mut sim = Simulation::new(load(path, rule)?)?;
     let separation = sim.scene.file.cracking.as_ref().map(|c| format!("{:?}", c.separation)).unwrap_or_default();
     let tips = crack_tips(&sim.model);
+    let size = {
+        let pts = &sim.model.mesh.points;
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in pts {
+            for d in 0..2 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        (hi[0] - lo[0]).max(hi[1] - lo[1])
+    };
     let initial = crack_faces(&sim.model);
     let t0 = Instant::now();
     let run_error = sim.run(&mut NoOutput).err().map(|e| e.to_string());
@@ -116,6 +132,7 @@ pub fn measure(path: &PathBuf, rule: Option<&str>, sizes: f64) -> Result<Vec<Row
                 moves,
                 refused_moves: refused,
                 wall_s,
+                size,
                 run_error: run_error.clone(),
             }
         })
@@ -150,6 +167,95 @@ pub fn table(rows: &[Row]) -> String {
     s
 }
 
+/// The Hausdorff distance between two runs' paths from one tip.
+#[derive(Serialize)]
+pub struct Pair {
+    pub a: String,
+    pub b: String,
+    pub distance: f64,
+    /// `distance` as a percentage of the specimen's size.
+    pub percent: f64,
+}
+
+/// The paths of one benchmark from one initial tip: every pair's Hausdorff distance.
+#[derive(Serialize)]
+pub struct Group {
+    pub family: String,
+    pub tip: [f64; 2],
+    pub size: f64,
+    pub scenes: Vec<String>,
+    pub pairs: Vec<Pair>,
+    /// The largest pair (percent of the size).
+    pub max_percent: f64,
+}
+
+/// The benchmark a scene belongs to: its file stem without the last two `_` parts (the scenes
+/// of configs/paths/ are named `FAMILY_KIND_N`: `sen_quad_2` is of `sen`).
+pub fn family(scene: &str) -> String {
+    let stem = std::path::Path::new(scene).file_stem().map_or(scene.to_string(), |s| s.to_string_lossy().into_owned());
+    let parts: Vec<&str> = stem.split('_').collect();
+    if parts.len() > 2 {
+        parts[..parts.len() - 2].join("_")
+    } else {
+        stem
+    }
+}
+
+/// Must-show 3 (issue 34): the rows grouped by benchmark ([`family`]) and initial tip (within
+/// 1e-3 of the size), and in each group the Hausdorff distance between every two runs' whole
+/// paths up to the outer boundary (`Kink::through`) (`check::paths::hausdorff`, sampled at 1e-4 of the size), as a percentage of the
+/// specimen's size. Groups of one run are left out.
+pub fn hausdorff_groups(rows: &[Row]) -> Vec<Group> {
+    let mut groups: Vec<(String, [f64; 2], Vec<usize>)> = Vec::new();
+    for (i, r) in rows.iter().enumerate() {
+        let fam = family(&r.scene);
+        let t = r.kink.tip;
+        match groups.iter_mut().find(|(f, x, _)| *f == fam && (x[0] - t[0]).hypot(x[1] - t[1]) <= 1e-3 * r.size) {
+            Some(g) => g.2.push(i),
+            None => groups.push((fam, t, vec![i])),
+        }
+    }
+    groups
+        .into_iter()
+        .filter(|g| g.2.len() > 1)
+        .map(|(family, tip, ix)| {
+            let size = ix.iter().map(|&i| rows[i].size).fold(0.0, f64::max);
+            let mut pairs = Vec::new();
+            for (n, &i) in ix.iter().enumerate() {
+                for &j in &ix[n + 1..] {
+                    let d = hausdorff(rows[i].kink.through(), rows[j].kink.through(), 1e-4 * size);
+                    pairs.push(Pair { a: rows[i].scene.clone(), b: rows[j].scene.clone(), distance: d, percent: 100.0 * d / size });
+                }
+            }
+            let max_percent = pairs.iter().map(|p| p.percent).fold(0.0, f64::max);
+            Group { family, tip, size, scenes: ix.iter().map(|&i| rows[i].scene.clone()).collect(), pairs, max_percent }
+        })
+        .collect()
+}
+
+/// The Hausdorff table: per group, the matrix of percentages (runs in the order given).
+pub fn hausdorff_table(groups: &[Group]) -> String {
+    let mut s = String::new();
+    for g in groups {
+        let _ = writeln!(s, "Hausdorff distance between paths, % of the size {:.4}: {} tip ({:.4}, {:.4}); largest {:.2} %", g.size, g.family, g.tip[0], g.tip[1], g.max_percent);
+        let short = |n: &str| std::path::Path::new(n).file_stem().map_or(n.to_string(), |s| s.to_string_lossy().into_owned());
+        let _ = write!(s, "{:<20}", "");
+        for n in &g.scenes {
+            let _ = write!(s, " {:>9}", short(n).chars().rev().take(9).collect::<Vec<_>>().into_iter().rev().collect::<String>());
+        }
+        let _ = writeln!(s);
+        for a in &g.scenes {
+            let _ = write!(s, "{:<20}", short(a));
+            for b in &g.scenes {
+                let v = if a == b { 0.0 } else { g.pairs.iter().find(|p| (&p.a == a && &p.b == b) || (&p.a == b && &p.b == a)).map_or(f64::NAN, |p| p.percent) };
+                let _ = write!(s, " {:>9.2}", v);
+            }
+            let _ = writeln!(s);
+        }
+    }
+    s
+}
+
 pub fn run(a: Args) -> Result<()> {
     anyhow::ensure!(a.sizes.is_finite() && a.sizes > 0.0, "--sizes must be finite and > 0");
     if let Some(r) = &a.separation {
@@ -165,6 +271,13 @@ pub fn run(a: Args) -> Result<()> {
         let text = serde_json::to_string_pretty(&rows)?;
         flem_core::output::atomic_write(out, text.as_bytes()).with_context(|| format!("writing {}", out.display()))?;
         println!("rows in {}", out.display());
+    }
+    let groups = hausdorff_groups(&rows);
+    print!("{}", hausdorff_table(&groups));
+    if let Some(out) = &a.hausdorff_out {
+        let text = serde_json::to_string_pretty(&groups)?;
+        flem_core::output::atomic_write(out, text.as_bytes()).with_context(|| format!("writing {}", out.display()))?;
+        println!("Hausdorff distances in {}", out.display());
     }
     Ok(())
 }

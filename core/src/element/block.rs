@@ -99,6 +99,14 @@ pub trait Block: Send + Sync {
     fn strain_energy(&self, _u: &[[f64; 2]]) -> Option<f64> {
         None
     }
+    /// Gives local element `i` the corner coordinates `x` in place (a node moved by the path
+    /// method, `Model::move_point`): its kernel pack, its cached gradients and recovery data
+    /// are recomputed, nothing else (the connectivity and so the schedule are unchanged). The
+    /// block is then bit for bit the one a rebuild from the mesh would give. False: the block
+    /// cannot (the caller rebuilds it).
+    fn move_elem(&mut self, _i: usize, _x: &[[f64; 2]]) -> bool {
+        false
+    }
     /// Registered name of the element kind (`element::registry`; default: the cell type's
     /// default kind).
     fn element(&self) -> &'static str {
@@ -284,6 +292,9 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     gauss_g: std::sync::OnceLock<Vec<[[f64; 2]; N]>>,
     /// `max_omega_bound` (asked again at every new stable-step estimate, after splits).
     omega_bound: std::sync::OnceLock<f64>,
+    /// Each element's largest Gershgorin row sum (`omega_bound` is the square root of their
+    /// maximum): kept so that a moved element (`move_elem`) costs one element, not the block.
+    omega_elem: std::sync::OnceLock<Vec<f64>>,
     /// `Blocked::recovery` of every element (`S::RECOVERY_LEN` f64 each; empty for an
     /// isoparametric kind), built at the first stress request.
     recovery: std::sync::OnceLock<Vec<f64>>,
@@ -310,6 +321,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             corner_g: std::sync::OnceLock::new(),
             gauss_g: std::sync::OnceLock::new(),
             omega_bound: std::sync::OnceLock::new(),
+            omega_elem: std::sync::OnceLock::new(),
             recovery: std::sync::OnceLock::new(),
             _s: PhantomData,
         }
@@ -486,6 +498,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         self.corner_g = std::sync::OnceLock::new();
         self.gauss_g = std::sync::OnceLock::new();
         self.omega_bound = std::sync::OnceLock::new();
+        self.omega_elem = std::sync::OnceLock::new();
         self.recovery = std::sync::OnceLock::new();
         self.conn.push(conn);
     }
@@ -567,6 +580,62 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
     }
     fn zero_free(&self) -> bool {
         self.fw.on
+    }
+    fn move_elem(&mut self, i: usize, x: &[[f64; 2]]) -> bool {
+        if x.len() != N || i >= self.len() {
+            return false;
+        }
+        let xi: [[f64; 2]; N] = std::array::from_fn(|a| x[a]);
+        self.x[i] = xi;
+        let (d, t) = (self.d, self.mat.thickness);
+        if !self.packs.is_empty() {
+            // The pack of the element's chunk, as `prepare` builds it.
+            let k = i / LANES;
+            let chunk = &self.x[k * LANES..((k + 1) * LANES).min(self.x.len())];
+            self.packs[k] = S::pack(chunk, &d, t);
+            match (S::extra(chunk, &d, t), self.extra_of[k]) {
+                (Some(e), j) if j != u32::MAX => self.extra[j as usize] = e,
+                (None, u32::MAX) => {}
+                _ => {
+                    // The chunk gains or loses its extra data: the lists as `prepare` builds them.
+                    (self.extra, self.extra_of) = (Vec::new(), Vec::with_capacity(self.packs.len()));
+                    for x in self.x.chunks(LANES) {
+                        match S::extra(x, &d, t) {
+                            Some(e) => {
+                                self.extra_of.push(self.extra.len() as u32);
+                                self.extra.push(e);
+                            }
+                            None => self.extra_of.push(u32::MAX),
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(cg) = self.corner_g.get_mut() {
+            cg[i] = std::array::from_fn(|a| element::gradients::<S, N>(&xi, element::corner_xi::<S, N>(a)).0);
+        }
+        if let Some(gg) = self.gauss_g.get_mut() {
+            let ng = S::GAUSS.len();
+            for (k, &(g, _)) in S::GAUSS.iter().enumerate() {
+                gg[i * ng + k] = element::gradients::<S, N>(&xi, g).0;
+            }
+        }
+        let r = S::RECOVERY_LEN;
+        if r > 0 {
+            if let Some(all) = self.recovery.get_mut() {
+                S::recovery(&xi, &d, t, &mut all[i * r..(i + 1) * r]);
+            }
+        }
+        // The bound is a maximum over the block: this element's row sum again, the maximum
+        // when next asked.
+        if self.omega_elem.get().is_some() {
+            let wi = self.elem_omega_rows(i);
+            if let Some(w) = self.omega_elem.get_mut() {
+                w[i] = wi;
+            }
+        }
+        self.omega_bound = std::sync::OnceLock::new();
+        true
     }
     fn prepare(&mut self, n_clusters: usize) {
         let (d, t) = (self.d, self.mat.thickness);
@@ -746,17 +815,28 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
 
 impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     fn compute_omega_bound(&self) -> f64 {
-        let mut kbuf = vec![0.0; 4 * N * N];
+        let w = self.omega_elem.get_or_init(|| (0..self.len()).map(|i| self.elem_omega_rows(i)).collect());
+        w.iter().fold(0.0f64, |a, &b| a.max(b)).sqrt()
+    }
+    /// The largest Gershgorin row sum of element `i`'s `M^-1/2 K M^-1/2`.
+    fn elem_omega_rows(&self, i: usize) -> f64 {
+        // (The stack buffer holds elements of up to 8 corners; larger ones allocate.)
+        let mut stack = [0.0; 256];
+        let mut heap = Vec::new();
+        let kbuf: &mut [f64] = if 4 * N * N <= stack.len() {
+            &mut stack[..4 * N * N]
+        } else {
+            heap.resize(4 * N * N, 0.0);
+            &mut heap
+        };
+        S::stiffness(&self.x[i], &self.d, self.mat.thickness, kbuf);
+        let m = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);
+        let n2 = 2 * N;
         let mut best: f64 = 0.0;
-        for i in 0..self.len() {
-            S::stiffness(&self.x[i], &self.d, self.mat.thickness, &mut kbuf);
-            let m = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);
-            let n2 = 2 * N;
-            for r in 0..n2 {
-                let row: f64 = (0..n2).map(|c| kbuf[r * n2 + c].abs() / (m[r / 2] * m[c / 2]).sqrt()).sum();
-                best = best.max(row);
-            }
+        for r in 0..n2 {
+            let row: f64 = (0..n2).map(|c| kbuf[r * n2 + c].abs() / (m[r / 2] * m[c / 2]).sqrt()).sum();
+            best = best.max(row);
         }
-        best.sqrt()
+        best
     }
 }

@@ -300,7 +300,19 @@ impl Model {
         }
         self.mesh.points[p.idx()] = x;
         let n = self.topo.n_clusters();
-        for &b in &touched {
+        // Each element at the point in place (`Block::move_elem`: the tip's neighbourhood only,
+        // bit for bit a rebuild); a block that cannot is rebuilt from the mesh.
+        let mut rebuild: Vec<usize> = Vec::new();
+        for &k in self.topo.point_copies.row(p.idx()) {
+            let e = self.topo.copy_elem[k.idx()];
+            let (b, i) = self.elem_slot[e.idx()];
+            let xs: Vec<[f64; 2]> = self.mesh.cells[e.idx()].corners().iter().map(|&q| self.mesh.points[q as usize]).collect();
+            if !rebuild.contains(&(b as usize)) && !self.blocks[b as usize].move_elem(i as usize, &xs) {
+                rebuild.push(b as usize);
+            }
+        }
+        rebuild.sort_unstable();
+        for &b in &rebuild {
             let blk = &self.blocks[b];
             let kind = registry::find(blk.element()).expect("checked above");
             let mut nb = kind.builder(blk.region().to_string(), *blk.material());
@@ -321,7 +333,9 @@ impl Model {
             }
         }
         if let [blk] = self.blocks.as_mut_slice() {
-            blk.enable_zero_free(n);
+            if !blk.zero_free() {
+                blk.enable_zero_free(n);
+            }
         }
         Ok(())
     }

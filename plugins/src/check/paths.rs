@@ -47,6 +47,17 @@ pub struct Kink {
     pub lsq_deg: Option<f64>,
     /// The path's points (reference coordinates), from the tip.
     pub path: Vec<[f64; 2]>,
+    /// Index in `path` of its first point on the outer boundary (the crack has run through
+    /// there); `None`: it has not reached the boundary.
+    pub boundary_at: Option<usize>,
+}
+
+impl Kink {
+    /// The path up to where it first reaches the outer boundary (all of it when it does not):
+    /// what two runs' paths are compared on (`hausdorff`), whatever a run cut after that.
+    pub fn through(&self) -> &[[f64; 2]] {
+        &self.path[..self.boundary_at.map_or(self.path.len(), |i| i + 1)]
+    }
 }
 
 /// Which edges are crack faces (separated at one end at least).
@@ -124,13 +135,16 @@ pub fn kinks(model: &Model, tips: &[CrackTip], initial: &[bool], n: f64) -> Vec<
             }
             let d = |p: PointId| (x[p.idx()][0] - t.x[0]).hypot(x[p.idx()][1] - t.x[1]);
             let far = order.iter().copied().max_by(|a, b| d(*a).total_cmp(&d(*b)).then(b.cmp(a))).unwrap_or(p0);
-            let mut path = vec![x[far.idx()]];
+            let mut ids = vec![far];
             let mut p = far;
             while parent[p.idx()] != u32::MAX {
                 p = PointId(parent[p.idx()]);
-                path.push(x[p.idx()]);
+                ids.push(p);
             }
-            path.reverse();
+            ids.reverse();
+            let path: Vec<[f64; 2]> = ids.iter().map(|p| x[p.idx()]).collect();
+            let on_boundary = |p: PointId| topo.point_edges.row(p.idx()).iter().any(|&e| topo.edges[e.idx()].sides[1].is_none());
+            let boundary_at = ids.iter().skip(1).position(|&p| on_boundary(p)).map(|i| i + 1);
             let radius = n * t.h;
             let length: f64 = path.windows(2).map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])).sum();
             let crack = t.dir[1].atan2(t.dir[0]);
@@ -167,7 +181,21 @@ pub fn kinks(model: &Model, tips: &[CrackTip], initial: &[bool], n: f64) -> Vec<
                 let dir = if dir[0] * e[0] + dir[1] * e[1] < 0.0 { [-dir[0], -dir[1]] } else { dir };
                 rel(dir)
             });
-            Kink { tip_point: t.point, tip: t.x, crack_deg: crack.to_degrees(), h: t.h, radius, reached, length, segments: path.len().saturating_sub(1), branches, chord_deg, lsq_deg, path }
+            Kink {
+                tip_point: t.point,
+                tip: t.x,
+                crack_deg: crack.to_degrees(),
+                h: t.h,
+                radius,
+                reached,
+                length,
+                segments: path.len().saturating_sub(1),
+                branches,
+                chord_deg,
+                lsq_deg,
+                path,
+                boundary_at,
+            }
         })
         .collect()
 }
@@ -205,4 +233,67 @@ pub fn fragment_sizes(model: &Model) -> Vec<usize> {
     let mut out: Vec<usize> = size.into_iter().filter(|&s| s > 0).collect();
     out.sort_unstable();
     out
+}
+
+/// Distance from `p` to the segment `a`-`b`.
+fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let l2 = dx * dx + dy * dy;
+    let s = if l2 > 0.0 { (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    (p[0] - a[0] - s * dx).hypot(p[1] - a[1] - s * dy)
+}
+
+/// Distance from `p` to the polyline `b` (a single point when it has one vertex).
+fn poly_dist(p: [f64; 2], b: &[[f64; 2]]) -> f64 {
+    match b {
+        [] => f64::INFINITY,
+        [q] => (p[0] - q[0]).hypot(p[1] - q[1]),
+        _ => b.windows(2).map(|w| seg_dist(p, w[0], w[1])).fold(f64::INFINITY, f64::min),
+    }
+}
+
+/// Directed Hausdorff distance `sup_{x in a} dist(x, b)` of two polylines, with the points of
+/// `a` sampled along each segment at spacing at most `step` (the vertices included): the
+/// result is below the exact value by at most `step / 2` (distance to `b` is 1-Lipschitz).
+pub fn directed_hausdorff(a: &[[f64; 2]], b: &[[f64; 2]], step: f64) -> f64 {
+    let mut d: f64 = a.first().map_or(0.0, |&p| poly_dist(p, b));
+    for w in a.windows(2) {
+        let len = (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+        let n = ((len / step).ceil() as usize).max(1);
+        for i in 1..=n {
+            let s = i as f64 / n as f64;
+            d = d.max(poly_dist([w[0][0] + s * (w[1][0] - w[0][0]), w[0][1] + s * (w[1][1] - w[0][1])], b));
+        }
+    }
+    d
+}
+
+/// Hausdorff distance between two polylines (issue 34, must-show 3: two meshes' crack paths),
+/// `max(h(a, b), h(b, a))` by [`directed_hausdorff`] at spacing `step` (accurate to `step / 2`).
+pub fn hausdorff(a: &[[f64; 2]], b: &[[f64; 2]], step: f64) -> f64 {
+    directed_hausdorff(a, b, step).max(directed_hausdorff(b, a, step))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reference: distances by hand. A horizontal unit segment against the same segment lifted
+    /// by 0.1: 0.1 both ways. Against a V with its apex at (0.5, 0.3): the apex is 0.3 from the
+    /// segment; the farthest point of the segment from the V is its middle, at
+    /// 0.3 / sqrt(1 + 0.6^2) from each leg (an interior point of the segment, which vertex
+    /// sampling alone would miss). A path longer by 0.2 is 0.2 away.
+    #[test]
+    fn hausdorff_of_simple_polylines() {
+        let a = [[0.0, 0.0], [1.0, 0.0]];
+        let b = [[0.0, 0.1], [1.0, 0.1]];
+        assert!((hausdorff(&a, &b, 1e-3) - 0.1).abs() < 1e-12);
+        let v = [[0.0, 0.0], [0.5, 0.3], [1.0, 0.0]];
+        assert!((hausdorff(&a, &v, 1e-4) - 0.3).abs() < 1e-12);
+        let mid = 0.3 / (1.0f64 + 0.36).sqrt();
+        assert!((directed_hausdorff(&a, &v, 1e-5) - mid).abs() < 1e-5, "{}", directed_hausdorff(&a, &v, 1e-5));
+        let c = [[0.0, 0.0], [1.2, 0.0]];
+        assert!((hausdorff(&a, &c, 1e-3) - 0.2).abs() < 1e-12);
+        assert_eq!(hausdorff(&a, &a, 1e-3), 0.0);
+    }
 }

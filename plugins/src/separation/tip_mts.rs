@@ -22,8 +22,12 @@
 //!    measured from the crack's direction at the tip; the crack is to follow the line through
 //!    the tip at that angle. A closed tip (`K_I < 0`) is not cut. A tip grown along such a
 //!    line keeps to it (aiming one element size ahead on it) until the crack behind it is
-//!    straight over twice the domain's radius; then the factors are evaluated again and a new
-//!    line starts there (a curved path as a chain of straight pieces). Where the integral is
+//!    straight over `every` domain radii (default 2); then the factors are evaluated again (on
+//!    `reradius` times the domain) and a new line starts there (a curved path as a chain of
+//!    straight pieces). A tip at most `staircase h` off its line (partial moves: quads, a
+//!    structured grid) counts as on it, and is evaluated in the line's frame with the faces
+//!    allowed `2 staircase h` off its axis (`check::sif::domain_sif_tol`; ours, session 15:
+//!    without it a staircase path never turned after its first kink). Where the integral is
 //!    refused (another tip or the boundary inside the domain) the tip keeps to its line, or
 //!    goes straight on.
 //! 2. *Link.* Among the edges joined at the tip, the one whose direction is nearest the aim
@@ -45,7 +49,9 @@
 //!
 //! Parameters: `radius` (element sizes, default 4), `max_move` (fraction of the link length,
 //! default 0.5), `route` (element sizes, default 3), `relocate` (default true; false: the
-//! direction only, cut along the nearest link), `cap_unsplit_boundary` (as `sigma1_nearest`).
+//! direction only, cut along the nearest link), `cap_unsplit_boundary` (as `sigma1_nearest`),
+//! `staircase` (element sizes, default 0.5; 0: a tip must be on its line to 1e-6 h), `every`
+//! (domain radii, default 2), `reradius` (fraction of `radius`, default 1). All ours.
 //!
 //! ```toml
 //! [cracking.separation]
@@ -53,13 +59,16 @@
 //! radius = 4.0
 //! max_move = 0.5
 //! route = 3.0
+//! staircase = 0.5
+//! every = 2.0
+//! reradius = 1.0
 //! ```
 use serde::{Deserialize, Serialize};
 
 use flem_core::plugin::traits::{FailureCheck, FanView, ParamError, Proposal, SeparationRule, TipContext, TipPlan};
 
 use super::sigma1_nearest::propose_along;
-use crate::check::sif::{domain_sif, mts_angle, CrackTip};
+use crate::check::sif::{domain_sif, domain_sif_tol, mts_angle, CrackTip};
 
 fn four() -> f64 {
     4.0
@@ -69,6 +78,12 @@ fn half() -> f64 {
 }
 fn three() -> f64 {
     3.0
+}
+fn one() -> f64 {
+    1.0
+}
+fn two() -> f64 {
+    2.0
 }
 fn yes() -> bool {
     true
@@ -88,11 +103,22 @@ pub struct TipMts {
     pub relocate: bool,
     #[serde(default)]
     pub cap_unsplit_boundary: bool,
+    /// A tip at most this many element sizes off its line is evaluated again in the line's
+    /// frame (ours; 0: only a tip on its line to 1e-6 h, the first version).
+    #[serde(default = "half")]
+    pub staircase: f64,
+    /// A tip grown along a line is evaluated again once the crack behind it is straight over
+    /// this many domain radii (ours).
+    #[serde(default = "two")]
+    pub every: f64,
+    /// The domain of a re-evaluation along a line, as a fraction of `radius` (ours).
+    #[serde(default = "one")]
+    pub reradius: f64,
 }
 
 impl Default for TipMts {
     fn default() -> Self {
-        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false }
+        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 2.0, reradius: 1.0 }
     }
 }
 
@@ -124,11 +150,16 @@ impl TipMts {
         let (dx, dy) = (xq[0] - xp[0], xq[1] - xp[1]);
         let len = dx.hypot(dy);
         let e1 = [dx / len, dy / len];
-        let tip = CrackTip { point: q.idx(), x: xq, dir: e1, edge: ctx.face.idx(), h: ctx.h, faces: 1 };
         // A tip grown along a line is evaluated again only once the crack is straight over
         // twice the domain's radius behind it (nearer a kink the integral of a small domain
         // misreads the kinked field: measured, it turned the beta = 30 deg T3 paths by 12 deg
         // after 2.5 element sizes).
+        // A staircase tip (ours, `staircase`): a tip off its line by at most `staircase h` (a
+        // partial move: quads, a structured grid) is evaluated in the line's frame, the faces
+        // behind it allowed `2 staircase h` off that frame's axis (`domain_sif_tol`). A tip on
+        // its line to 1e-6 h is evaluated as before (its own face's direction, faces straight
+        // to 1e-6 r_out).
+        let mut frame: Option<[f64; 2]> = None;
         let straight = match ctx.planned {
             None => f64::INFINITY,
             Some((o, dir)) => {
@@ -136,15 +167,25 @@ impl TipMts {
                 let off = (ox * dir.sin() - oy * dir.cos()).abs();
                 if off <= 1e-6 * ctx.h {
                     ox.hypot(oy)
+                } else if off <= self.staircase * ctx.h {
+                    frame = Some([dir.cos(), dir.sin()]);
+                    ox * dir.cos() + oy * dir.sin()
                 } else {
                     0.0
                 }
             }
         };
-        let radii: &[f64] = if ctx.planned.is_none() { &[1.0, 0.5] } else { &[1.0] };
-        for f in radii.iter().map(|f| f * self.radius).filter(|f| 2.0 * f * ctx.h <= straight) {
+        let e1 = frame.unwrap_or(e1);
+        let tip = CrackTip { point: q.idx(), x: xq, dir: e1, edge: ctx.face.idx(), h: ctx.h, faces: 1 };
+        let re = [self.reradius];
+        let radii: &[f64] = if ctx.planned.is_none() { &[1.0, 0.5] } else { &re };
+        for f in radii.iter().map(|f| f * self.radius).filter(|f| self.every * f * ctx.h <= straight) {
             let r_out = f * ctx.h;
-            if let Ok(d) = domain_sif(m, ctx.u, &[], &[], &tip, 0.5 * r_out, r_out) {
+            let d = match frame {
+                None => domain_sif(m, ctx.u, &[], &[], &tip, 0.5 * r_out, r_out),
+                Some(_) => domain_sif_tol(m, ctx.u, &[], &[], &tip, 0.5 * r_out, r_out, 2.0 * self.staircase * ctx.h),
+            };
+            if let Ok(d) = d {
                 let th = kink_angle(d.k1, d.k2)?;
                 let dir = angle_of(e1) + th;
                 return Some((xq, dir, dir));
@@ -172,6 +213,15 @@ impl SeparationRule for TipMts {
         }
         if !(self.route.is_finite() && (0.0..=10.0).contains(&self.route)) {
             return Err(ParamError::new("route", format!("= {} is incorrect; it must be in [0, 10] (element sizes)", self.route)));
+        }
+        if !(self.staircase.is_finite() && (0.0..=1.0).contains(&self.staircase)) {
+            return Err(ParamError::new("staircase", format!("= {} is incorrect; it must be in [0, 1] (element sizes)", self.staircase)));
+        }
+        if !(self.reradius.is_finite() && (0.25..=1.0).contains(&self.reradius) && self.reradius * self.radius >= 1.0) {
+            return Err(ParamError::new("reradius", format!("= {} is incorrect; it must be in [0.25, 1], with reradius * radius >= 1", self.reradius)));
+        }
+        if !(self.every.is_finite() && (1.0..=10.0).contains(&self.every)) {
+            return Err(ParamError::new("every", format!("= {} is incorrect; it must be in [1, 10] (domain radii)", self.every)));
         }
         Ok(())
     }
