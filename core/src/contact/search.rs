@@ -81,11 +81,15 @@ pub struct CohesionAccount {
     /// meet at one node): `G_f x` half the edge's area each (an upper bound: the slave's own
     /// pair may cover the face when it faces the same master).
     pub unpaired: f64,
+    /// Cut edge ends whose slave kept a pair without cohesion (contact only: a face pair that
+    /// opened past `delta_f` and closed again, or a pair of faces that were never cohesive):
+    /// `G_f x` half the edge's area each; the new face gets no cohesion.
+    pub unpaired_contact: f64,
 }
 
 impl CohesionAccount {
     pub fn total(&self) -> f64 {
-        self.lost_geometry + self.lost_master + self.lost_merged + self.lost_shrunk + self.unpaired
+        self.lost_geometry + self.lost_master + self.lost_merged + self.lost_shrunk + self.unpaired + self.unpaired_contact
     }
 }
 
@@ -369,11 +373,15 @@ impl Contact {
         // The slave's one pair (the old one, else the first added) carries the faces that face
         // its master (`facing_area`); a cut end whose face does not gets no cohesion.
         for &(s, sf, a) in &cand {
-            let keep = match old.binary_search_by_key(&s, |p| p.slave) {
-                Ok(i) => old[i].master,
-                Err(_) => added[added.binary_search_by_key(&s, |p| p.slave).unwrap_or(0)].master,
+            let (keep, cohesive) = match old.binary_search_by_key(&s, |p| p.slave) {
+                Ok(i) => (old[i].master, law.unreleased(&old[i].state) > 0.0),
+                Err(_) => (added[added.binary_search_by_key(&s, |p| p.slave).unwrap_or(0)].master, true),
             };
-            if !self.faces_face(model, sf, keep) {
+            if !cohesive {
+                // The slave's pair is contact only (its cohesion spent, or never had one): it
+                // is kept, and the new face gets no cohesion.
+                self.cohesion.unpaired_contact += a;
+            } else if !self.faces_face(model, sf, keep) {
                 self.cohesion.unpaired += a;
             }
         }
