@@ -125,8 +125,49 @@ fn tip_tracker_follows_a_prescribed_crack_and_its_branch() {
 #[test]
 fn fracture_energy_is_gc_times_the_separated_length() {
     let (gf, b) = (0.01, 1.0);
+    let mut s = pulled_strip(gf, 0.35);
+    let l = &s.ledger;
+    eprintln!("fracture {} against G_f b = {}, residual {:e}", l.fracture, gf * b, l.relative_residual());
+    assert!(rel(l.fracture, gf * b) < 0.01, "fracture energy {} against G_f b = {}", l.fracture, gf * b);
+    let (one, two) = s.model.topo.crack_counts();
+    assert_eq!((one, two), (0, 16), "the mid-height line is cracked through");
+    assert!(l.relative_residual() < 1e-3, "residual {:e}", l.relative_residual());
+    // The fracture account (summary.json `fracture_account`): the faces made are the line
+    // (b x thickness 1), all traction-free, no cohesive zone left.
+    let c = s.contact.as_mut().expect("contact");
+    assert!(rel(c.fresh_face_area(&s.model), b) < 1e-12, "face area {}", c.fresh_face_area(&s.model));
+    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+    assert_eq!(c.zones(law), [0.0; 3], "every pair opened past delta_f");
+}
+
+/// The fracture account in a half-open cohesive zone (issue 36 must-show 3, docs/dynamic.md
+/// "Energy"): the strip of the test above pulled only until its faces opened into the
+/// softening branch (delta_0 < delta < delta_f). Reference: the linear-softening law's energy
+/// per area (Hillerborg et al. 1976): released so far R(delta_max) = W - 1/2 T delta, still to
+/// release G_f - R; so fracture energy + the zone's pending energy = G_f x the zone's area,
+/// and the zone's area is the face area b. Tolerances: 1e-9 (sums of the same terms); a pair
+/// area off by a face end, or a pending energy that ignored the released part, fails by 3 % or
+/// more.
+#[test]
+fn fracture_account_of_a_half_open_cohesive_zone() {
+    let (gf, b) = (0.01, 1.0);
+    let mut s = pulled_strip(gf, 0.12);
+    let fracture = s.ledger.fracture;
+    let c = s.contact.as_mut().expect("contact");
+    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+    let [intact, soft, pending] = c.zones(law);
+    eprintln!("half open: fracture {fracture}, intact {intact}, softening {soft}, pending {pending}");
+    assert_eq!(intact, 0.0, "every pair passed the peak");
+    assert!(rel(soft, b) < 1e-12, "softening area {soft} against b = {b}");
+    assert!(fracture > 0.05 * gf * b && pending > 0.05 * gf * b, "the zone is part-way: fracture {fracture}, pending {pending}");
+    assert!(rel(fracture + pending, gf * soft) < 1e-9, "fracture {fracture} + pending {pending} against G_f A = {}", gf * soft);
+}
+
+/// A 1 x 0.5 strip cut along y = 0.25 at the start, top and bottom pulled apart at 0.05 each,
+/// cohesive faces (sigma_t = 1, G_f = `gf`), run to `end`.
+fn pulled_strip(gf: f64, end: f64) -> Simulation {
     let text = format!(
-        "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 0.5\nnx = 16\nny = 8\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ndt_safety = 0.5\ndamping = {{ type = \"none\" }}\n[[load]]\nname = \"up\"\ntype = \"velocity\"\nnodes = \"top\"\ny = 0.05\n[[load]]\nname = \"down\"\ntype = \"velocity\"\nnodes = \"bottom\"\ny = -0.05\n[contact]\nlaw = {{ type = \"cohesive\", normal_stiffness = 16000.0, shear_stiffness = 16000.0, tensile_strength = 1.0, fracture_energy = {gf}, friction = 0.0 }}\n[[stage]]\nlevels = {{ up = 1.0, down = 1.0 }}\ndynamic = true\nend_time = 0.35\nmax_steps = 200000\n"
+        "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 0.5\nnx = 16\nny = 8\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ndt_safety = 0.5\ndamping = {{ type = \"none\" }}\n[[load]]\nname = \"up\"\ntype = \"velocity\"\nnodes = \"top\"\ny = 0.05\n[[load]]\nname = \"down\"\ntype = \"velocity\"\nnodes = \"bottom\"\ny = -0.05\n[contact]\nlaw = {{ type = \"cohesive\", normal_stiffness = 16000.0, shear_stiffness = 16000.0, tensile_strength = 1.0, fracture_energy = {gf}, friction = 0.0 }}\n[[stage]]\nlevels = {{ up = 1.0, down = 1.0 }}\ndynamic = true\nend_time = {end}\nmax_steps = 200000\n"
     );
     let mut s = sim(&text);
     let on_line: Vec<flem_core::ids::EdgeId> = (0..s.model.topo.edges.len())
@@ -142,10 +183,5 @@ fn fracture_energy_is_gc_times_the_separated_length() {
     s.model.apply_record(&rec);
     s.apply_split_record(&rec);
     s.run(&mut NoOutput).unwrap_or_else(|e| panic!("{e}"));
-    let l = &s.ledger;
-    eprintln!("fracture {} against G_f b = {}, residual {:e}", l.fracture, gf * b, l.relative_residual());
-    assert!(rel(l.fracture, gf * b) < 0.01, "fracture energy {} against G_f b = {}", l.fracture, gf * b);
-    let (one, two) = s.model.topo.crack_counts();
-    assert_eq!((one, two), (0, 16), "the mid-height line is cracked through");
-    assert!(l.relative_residual() < 1e-3, "residual {:e}", l.relative_residual());
+    s
 }

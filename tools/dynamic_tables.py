@@ -45,6 +45,12 @@ def common(d, tip0, gc, cr):
             s_ = (v[0] - vj[0]) / (t - tj)
             vfront = s_ if math.isnan(vfront) else max(vfront, s_)
     last = fr[-1][1] if fr else (0, 0, 0, 0, 0)
+    # Mean front speed: the front's distance from the notch tip from 10 to 40 mm over the time
+    # it took (robust against the jumps of a window).
+    def when(dd):
+        return next(((t, v[0]) for t, v in fr if v[0] >= dd), None)
+    a, b = when(0.010), when(0.040)
+    vmean = (b[1] - a[1]) / (b[0] - a[0]) if a and b and b[0] > a[0] else float("nan")
     en = s["energy"]
     face = f(tips[-1]["crack_length"])
     res = dict(steps=s["steps"], splits=s["splits"], wall=s["stages"][0]["wall_seconds"], dt=s["dt"],
@@ -52,7 +58,12 @@ def common(d, tip0, gc, cr):
                frac=en["fracture"], frac_gc_chord=en["fracture"] / (gc * last[0]) if last[0] else float("nan"),
                frac_gc_arc=en["fracture"] / (gc * last[3]) if last[3] else float("nan"),
                frac_gc_face=en["fracture"] / (gc * face) if face else float("nan"),
-               resid=en["relative_residual"], isolated=len({r["time"] for r in tips if r["branch"] == ""}) and sum(1 for r in tips if r["branch"] == "" and r["time"] == tips[-1]["time"]))
+               vmean_10_40mm=vmean, resid=en["relative_residual"], isolated=len({r["time"] for r in tips if r["branch"] == ""}) and sum(1 for r in tips if r["branch"] == "" and r["time"] == tips[-1]["time"]))
+    # The fracture account of summary.json (docs/dynamic.md "Energy"; absent in older runs).
+    acc = s.get("fracture_account") or {}
+    if acc:
+        res.update(free_mm=1e3 * acc["free_area"], softening_mm=1e3 * acc["softening_area"], intact_mm=1e3 * acc["intact_area"],
+                   frac_gc_free=acc["fracture_over_g_f_free"], identity_error=acc["identity_error"])
     return tips, splits, fr, res
 
 def kalthoff(d):
@@ -86,6 +97,10 @@ def branching(d):
         dists.append(best)
     dists.sort()
     longf = sorted(f(r["fork_x"]) for r in final if r["parent"] != "" and math.hypot(f(r["x"]) - f(r["fork_x"]), f(r["y"]) - f(r["fork_y"])) >= 0.005)
+    sys.path.insert(0, __file__.rsplit("/", 1)[0] + "/peers")
+    from crack_metrics import branch_point
+    bp = branch_point(pts)
+    res.update(branch_point_mm=1e3 * bp if bp else float("nan"))
     res.update(first_fork_x_of_branch_ge_5mm=longf[0] if longf else float("nan"), tips_final=len(final), tips_at_right=len(reach), fork_x_of_branches_past_80mm=forks,
                sym_median_mm=1e3 * dists[len(dists) // 2], sym_p90_mm=1e3 * dists[int(0.9 * len(dists))],
                ymin_mm=1e3 * min(p[1] for p in pts), ymax_mm=1e3 * max(p[1] for p in pts))

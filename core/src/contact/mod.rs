@@ -275,6 +275,13 @@ pub trait ContactLaw: Debug + Send + Sync {
     fn stiffness(&self) -> f64;
     /// Updates the history and returns the force of every pair (same order, same length).
     fn evaluate(&self, kin: &[PairKinematics], hist: &mut [PairState], out: &mut [PairForce]);
+    /// Fracture energy per unit area that a pair in state `st` has still to release before
+    /// its faces are free of traction (issue 36: a cohesive pair short of `delta_f` holds
+    /// `G_f - R(delta_max)`); 0 for laws without cohesion (the default). Used only to account
+    /// for the fracture energy ([`search::CohesionAccount`]), never in the march.
+    fn unreleased(&self, _st: &PairState) -> f64 {
+        0.0
+    }
     /// An error the law met in `evaluate` (a dynamic law that failed or returned a non-finite
     /// force; it then returned NaN forces, which the divergence guard stops on).
     fn fault(&self) -> Option<String> {

@@ -60,6 +60,39 @@ struct Geo {
     t: [f64; 2],
 }
 
+/// Where the cohesion of crack faces went without its law opening them (issue 36: the
+/// fracture-energy account of docs/dynamic.md). Each term is the energy the pairs concerned
+/// had still to release (`A x ContactLaw::unreleased`) when their cohesion left, cumulative
+/// over the run; it was never dissipated (the faces came free without paying it). Not
+/// checkpointed (a resumed run counts from the resume). Zero for laws without cohesion.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct CohesionAccount {
+    /// Cohesive pairs lost by geometry (the slave slid off its face, no neighbour took it).
+    pub lost_geometry: f64,
+    /// Cohesive pairs whose slave passed to another master (they go on as contact only:
+    /// cohesion belongs to the faces of the split edge).
+    pub lost_master: f64,
+    /// Pairs of a split slave merged into one (one pair per slave): the dropped ones.
+    pub lost_merged: f64,
+    /// A cohesive pair's area that shrank (a split gave part of the slave's faces to another
+    /// node): the part given away (`(A_old - A) x unreleased`).
+    pub lost_shrunk: f64,
+    /// Cut edge ends that got no fresh pair (their slave had a pair already, or the faces
+    /// meet at one node): `G_f x` half the edge's area each (an upper bound: the slave's own
+    /// pair may cover the face when it faces the same master).
+    pub unpaired: f64,
+    /// Cut edge ends whose slave kept a pair without cohesion (contact only: a face pair that
+    /// opened past `delta_f` and closed again, or a pair of faces that were never cohesive):
+    /// `G_f x` half the edge's area each; the new face gets no cohesion.
+    pub unpaired_contact: f64,
+}
+
+impl CohesionAccount {
+    pub fn total(&self) -> f64 {
+        self.lost_geometry + self.lost_master + self.lost_merged + self.lost_shrunk + self.unpaired + self.unpaired_contact
+    }
+}
+
 /// Contact state of a simulation: surfaces, Verlet list, pair history and scratch buffers.
 #[derive(Debug)]
 pub struct Contact {
@@ -108,6 +141,8 @@ pub struct Contact {
     pub n_active: usize,
     /// Fracture energy dissipated in the last step (the laws' [`PairForce::fracture`]).
     pub fracture_step: f64,
+    /// Cohesion that left crack faces without dissipation (issue 36; [`CohesionAccount`]).
+    pub cohesion: CohesionAccount,
 }
 
 /// The force of one pair after a step, for tests and output.
@@ -174,6 +209,7 @@ impl Contact {
             rebuilds: 0,
             n_active: 0,
             fracture_step: 0.0,
+            cohesion: CohesionAccount::default(),
         };
         c.rebuild_surfaces(model);
         Ok(c)
@@ -281,7 +317,7 @@ impl Contact {
     ///   edge cut earlier has opened already: a pair born there with an empty history would
     ///   count the whole opening as if the law had acted over it (stored and released energy
     ///   out of nothing) and pull again across a gap that opened free of traction.
-    pub fn on_split(&mut self, model: &Model, rec: &SplitRecord) {
+    pub fn on_split(&mut self, law: &dyn ContactLaw, model: &Model, rec: &SplitRecord) {
         for &(e, _) in &rec.cut_edges {
             if !self.fresh_edge[e.idx()] {
                 self.fresh_edge[e.idx()] = true;
@@ -299,8 +335,19 @@ impl Contact {
             }
         }
         old.sort_by_key(|p| (p.slave, p.master));
+        for w in old.windows(2) {
+            if w[0].slave == w[1].slave {
+                self.cohesion.lost_merged += w[1].state.area * law.unreleased(&w[1].state);
+            }
+        }
         old.dedup_by_key(|p| p.slave);
+        let g_f = law.unreleased(&PairState { fresh: true, ..Default::default() });
+        let half_area = |e: &crate::mesh::topology::Edge, se: ElemId| {
+            let (a, b) = (model.mesh.points[e.points[0].idx()], model.mesh.points[e.points[1].idx()]);
+            0.5 * ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt() * model.material_of(se).thickness
+        };
         let mut added: Vec<Pair> = Vec::new();
+        let mut cand: Vec<(u32, u32, f64)> = Vec::new();
         for &(e, end) in &rec.cut_edges {
             let ed = &topo.edges[e.idx()];
             let [Some((ea, ka)), Some((eb, kb))] = ed.sides else { continue };
@@ -314,13 +361,30 @@ impl Contact {
             let (Some(cs), Some(cm)) = (topo.copy_at(se, pt), topo.copy_at(me, pt)) else { continue };
             let (s, m) = (topo.copy_cluster[cs.idx()].0, topo.copy_cluster[cm.idx()].0);
             if s == m {
+                self.cohesion.unpaired += g_f * half_area(ed, se);
                 continue;
             }
-            let mf = if fa < fb { fb } else { fa };
+            let (sf, mf) = if fa < fb { (fa, fb) } else { (fb, fa) };
             added.push(Pair { slave: s, master: Master::Face(mf), state: PairState { fresh: true, ..Default::default() } });
+            cand.push((s, sf, g_f * half_area(ed, se)));
         }
         added.sort_by_key(|p| (p.slave, p.master));
         added.dedup_by_key(|p| p.slave);
+        // The slave's one pair (the old one, else the first added) carries the faces that face
+        // its master (`facing_area`); a cut end whose face does not gets no cohesion.
+        for &(s, sf, a) in &cand {
+            let (keep, cohesive) = match old.binary_search_by_key(&s, |p| p.slave) {
+                Ok(i) => (old[i].master, law.unreleased(&old[i].state) > 0.0),
+                Err(_) => (added[added.binary_search_by_key(&s, |p| p.slave).unwrap_or(0)].master, true),
+            };
+            if !cohesive {
+                // The slave's pair is contact only (its cohesion spent, or never had one): it
+                // is kept, and the new face gets no cohesion.
+                self.cohesion.unpaired_contact += a;
+            } else if !self.faces_face(model, sf, keep) {
+                self.cohesion.unpaired += a;
+            }
+        }
         let history = &mut self.history;
         let (mut i, mut j) = (0, 0);
         while i < old.len() || j < added.len() {
@@ -546,7 +610,7 @@ impl Contact {
         if self.needs_rebuild(u) {
             self.build_verlet(x0, u);
         }
-        self.narrow(x0, u, v, dt, first);
+        self.narrow(law, x0, u, v, dt, first);
         let n = self.geo.len();
         self.out.clear();
         self.out.resize(n, PairForce::default());
@@ -582,7 +646,7 @@ impl Contact {
     }
 
     /// Builds `geo`, `kin`, `st` for this step from the history and the Verlet list.
-    fn narrow(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64, first: bool) {
+    fn narrow(&mut self, law: &dyn ContactLaw, x0: &[[f64; 2]], u: &[[f64; 2]], v: &[[f64; 2]], dt: f64, first: bool) {
         self.geo.clear();
         self.kin.clear();
         self.st.clear();
@@ -670,6 +734,7 @@ impl Contact {
                 // energy leaves the model, and the ledger counts it as dissipated.
                 if let Some(o) = old {
                     self.released += o.state.stored;
+                    self.cohesion.lost_geometry += o.state.area * law.unreleased(&o.state);
                 }
                 continue;
             };
@@ -685,6 +750,7 @@ impl Contact {
                     // neither an incremental nor a total-gap law sees its springs jump (the
                     // energy of a spring reset to the new face's overlap was made from
                     // nothing, or lost). Cohesion stays with the faces of the split edge.
+                    self.cohesion.lost_master += o.state.area * law.unreleased(&o.state);
                     state = PairState { fresh: false, offset: gap - ga, ..o.state };
                     new = false;
                 } else if !first {
@@ -704,6 +770,9 @@ impl Contact {
                 Master::Face(_) => self.facing_area(si, x0[g.i as usize], x0[g.j as usize]),
                 Master::Node(_) => self.area[si],
             };
+            if state.area > area {
+                self.cohesion.lost_shrunk += (state.area - area) * law.unreleased(&state);
+            }
             if state.area > 0.0 && area != state.area {
                 // A split gave part of the slave's faces to another node, or the master
                 // changed: the springs keep their energy e^2 / (2 k A), not their force (a
@@ -761,6 +830,59 @@ impl Contact {
         } else {
             self.area[si]
         }
+    }
+
+    /// The open pairs that hold cohesion (issue 36): `[intact area, softening area, energy
+    /// the softening ones have still to release]`. Intact: no energy released yet (the
+    /// opening never passed the peak, `delta_0`: an elastic bond, the faces are not a crack
+    /// yet); softening: past the peak, short of `delta_f` (the cohesive zone). Laws without
+    /// cohesion: zeros. `G_f` is `law.unreleased` of a fresh state.
+    pub fn zones(&self, law: &dyn ContactLaw) -> [f64; 3] {
+        let g_f = law.unreleased(&PairState { fresh: true, ..Default::default() });
+        let mut z = [0.0; 3];
+        for p in &self.history.pairs {
+            let w = law.unreleased(&p.state);
+            if w <= 0.0 {
+                continue;
+            }
+            if w >= g_f {
+                z[0] += p.state.area;
+            } else {
+                z[1] += p.state.area;
+                z[2] += p.state.area * w;
+            }
+        }
+        z
+    }
+
+    /// Whether slave face `sf` faces master `m` in the reference geometry (as `facing_area`:
+    /// outward normals within 60 degrees of opposite); a node master: never.
+    fn faces_face(&self, model: &Model, sf: u32, m: Master) -> bool {
+        let Master::Face(mf) = m else { return false };
+        let (Some(a), Some(b)) = (self.face(sf), self.face(mf)) else { return false };
+        let n = |f: Face| {
+            let (p, q) = (model.mesh.points[f.pts[0] as usize], model.mesh.points[f.pts[1] as usize]);
+            let l = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt().max(f64::MIN_POSITIVE);
+            [(q[1] - p[1]) / l, -(q[0] - p[0]) / l]
+        };
+        let (na, nb) = (n(a), n(b));
+        na[0] * nb[0] + na[1] * nb[1] < -0.5
+    }
+
+    /// The area of the crack faces made during the run (edges split in the run, not the
+    /// notch: whole when separated at both ends, half at one; length x thickness), as the
+    /// tip tracker's `crack_length` (issue 36).
+    pub fn fresh_face_area(&self, model: &Model) -> f64 {
+        let topo = &model.topo;
+        let mut a = 0.0;
+        for &e in &self.history.fresh_edges {
+            let ed = &topo.edges[e as usize];
+            let (p, q) = (model.mesh.points[ed.points[0].idx()], model.mesh.points[ed.points[1].idx()]);
+            let len = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt();
+            let th = ed.sides[0].map_or(1.0, |(el, _)| model.material_of(el).thickness);
+            a += 0.5 * topo.crack_state(EdgeId(e)) as f64 * len * th;
+        }
+        a
     }
 
     /// The force of every active pair in the last step, in slave order.

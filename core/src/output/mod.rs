@@ -367,12 +367,49 @@ impl OutputWriter {
             "splits": sim.cracking.as_ref().map(|c| c.n_splits).unwrap_or(0),
             "beyond_criterion": sim.cracking.as_ref().map(|c| c.beyond_criterion()).unwrap_or(0),
             "crack_faces": {"separated_one_end": one, "separated_both_ends": two},
+            // Issue 36: the fracture-energy account (docs/dynamic.md, "Energy").
+            "fracture_account": fracture_account(sim),
             "warnings": sim.warnings,
             // The events solver's hand-over of a loose fragment to the explicit march (issue 35).
             "hand_over": sim.hand_over,
         });
         atomic_write(&self.dir.join("summary.json"), serde_json::to_string_pretty(&v).unwrap_or_default().as_bytes())
     }
+}
+
+/// The fracture energy's account for `summary.json` (issue 36, docs/dynamic.md "Energy").
+/// Areas are length x thickness. `face_area`: the crack faces made during the run (an edge
+/// separated at both ends whole, at one end half, the notch excluded; the tip tracker's
+/// `crack_length`); of it, `intact_area` still bonded by cohesive pairs that never passed the
+/// peak (split, not opened: no crack yet), `softening_area` in the cohesive zone (past the
+/// peak, short of `delta_f`), holding `softening_pending` of energy still to release, and
+/// `free_area` the rest (traction-free: cohesion fully released). Every face releases `G_f`
+/// per area once: `fracture = G_f (free + softening) - softening_pending` when the cohesion
+/// of no face was lost or counted twice (`identity_error`, relative to the fracture energy).
+/// `lost`: [`crate::contact::search::CohesionAccount`], the pairs whose cohesion left without
+/// dissipation (a part given to a new fresh pair is counted there too). `null` without contact.
+fn fracture_account(sim: &Simulation) -> serde_json::Value {
+    let (Some(c), Some(cfg)) = (sim.contact.as_ref(), sim.scene.file.contact.as_ref()) else { return serde_json::Value::Null };
+    let law = cfg.law.as_ref();
+    let g_f = law.unreleased(&crate::contact::PairState { fresh: true, ..Default::default() });
+    let [intact, soft, pending] = c.zones(law);
+    let area = c.fresh_face_area(&sim.model);
+    let free = area - intact - soft;
+    let frac = sim.ledger.fracture;
+    let expect = g_f * (free + soft) - pending;
+    serde_json::json!({
+        "g_f": g_f,
+        "face_area": area,
+        "intact_area": intact,
+        "softening_area": soft,
+        "softening_pending": pending,
+        "free_area": free,
+        "fracture": frac,
+        "fracture_over_g_f_free": if free > 0.0 { frac / (g_f * free) } else { f64::NAN },
+        "fracture_over_g_f_free_and_softening": if free + soft > 0.0 { frac / (g_f * (free + soft)) } else { f64::NAN },
+        "identity_error": if frac > 0.0 { (frac - expect) / frac } else { f64::NAN },
+        "lost": c.cohesion,
+    })
 }
 
 impl Observer for OutputWriter {

@@ -1439,8 +1439,8 @@ impl Simulation {
         st.fix = fix;
         st.v_pres = vpres;
         self.refresh_constant_force();
-        if let Some(c) = self.contact.as_mut() {
-            c.on_split(&self.model, rec);
+        if let (Some(c), Some(cfg)) = (self.contact.as_mut(), self.scene.file.contact.as_ref()) {
+            c.on_split(cfg.law.as_ref(), &self.model, rec);
         }
     }
 }

@@ -186,6 +186,13 @@ impl ContactLaw for Cohesive {
     fn stiffness(&self) -> f64 {
         self.normal_stiffness.max(self.shear_stiffness)
     }
+    fn unreleased(&self, st: &PairState) -> f64 {
+        if st.fresh && st.max_open < self.df() {
+            self.fracture_energy - self.released(st.max_open)
+        } else {
+            0.0
+        }
+    }
     fn evaluate(&self, kin: &[PairKinematics], hist: &mut [PairState], out: &mut [PairForce]) {
         let df = self.df();
         for ((k, h), o) in kin.iter().zip(hist.iter_mut()).zip(out.iter_mut()) {
