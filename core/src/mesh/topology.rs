@@ -128,22 +128,7 @@ impl Topology {
     /// Builds the topology of a validated mesh: one cluster per point.
     pub fn new(mesh: &RawMesh) -> Self {
         let np = mesh.points.len();
-        let mut elem_nodes = Vec::with_capacity(mesh.cells.len());
-        let mut elem_first_copy = Vec::with_capacity(mesh.cells.len() + 1);
-        let mut copy_point = Vec::new();
-        let mut copy_elem = Vec::new();
-        for (e, c) in mesh.cells.iter().enumerate() {
-            elem_nodes.push(c.kind.nodes() as u8);
-            elem_first_copy.push(copy_point.len() as u32);
-            for &p in c.corners() {
-                copy_point.push(PointId(p));
-                copy_elem.push(ElemId::new(e));
-            }
-        }
-        elem_first_copy.push(copy_point.len() as u32);
-        let copy_cluster: Vec<ClusterId> = copy_point.iter().map(|p| ClusterId(p.0)).collect();
-        let pairs: Vec<(u32, CopyId)> = copy_point.iter().enumerate().map(|(c, p)| (p.0, CopyId::new(c))).collect();
-        let point_copies = Csr::from_pairs(np, &pairs);
+        let Copies { elem_nodes, elem_first_copy, copy_point, copy_elem, copy_cluster, point_copies } = Copies::new(np, mesh.cells.iter().map(|c| c.corners()));
         // Edges: sort (min, max, elem, local) and pair up.
         let mut half: Vec<(u32, u32, u32, u8)> = Vec::new();
         for (e, c) in mesh.cells.iter().enumerate() {
@@ -389,6 +374,40 @@ impl Topology {
     /// index of every element and the number of fragments (deterministic: by smallest element).
     pub fn fragments(&self) -> (Vec<u32>, usize) {
         fragments_of(self.n_elems(), self.n_clusters(), &self.copy_cluster, &self.copy_elem)
+    }
+}
+
+/// Every element's own copy of each corner, one cluster per point (2D [`Topology::new`] and 3D
+/// `Topology3::new`).
+pub(crate) struct Copies {
+    pub elem_nodes: Vec<u8>,
+    pub elem_first_copy: Vec<u32>,
+    pub copy_point: Vec<PointId>,
+    pub copy_elem: Vec<ElemId>,
+    pub copy_cluster: Vec<ClusterId>,
+    pub point_copies: Csr<CopyId>,
+}
+
+impl Copies {
+    /// The copies of `np` points' elements, given as their corner lists in element order.
+    pub(crate) fn new<'a>(np: usize, cells: impl ExactSizeIterator<Item = &'a [u32]>) -> Copies {
+        let mut elem_nodes = Vec::with_capacity(cells.len());
+        let mut elem_first_copy = Vec::with_capacity(cells.len() + 1);
+        let mut copy_point = Vec::new();
+        let mut copy_elem = Vec::new();
+        for (e, c) in cells.enumerate() {
+            elem_nodes.push(c.len() as u8);
+            elem_first_copy.push(copy_point.len() as u32);
+            for &p in c {
+                copy_point.push(PointId(p));
+                copy_elem.push(ElemId::new(e));
+            }
+        }
+        elem_first_copy.push(copy_point.len() as u32);
+        let copy_cluster: Vec<ClusterId> = copy_point.iter().map(|p| ClusterId(p.0)).collect();
+        let pairs: Vec<(u32, CopyId)> = copy_point.iter().enumerate().map(|(c, p)| (p.0, CopyId::new(c))).collect();
+        let point_copies = Csr::from_pairs(np, &pairs);
+        Copies { elem_nodes, elem_first_copy, copy_point, copy_elem, copy_cluster, point_copies }
     }
 }
 

@@ -16,7 +16,7 @@
 //! through a point that divide its fan into the elements on either side of a plane through the
 //! point (the plane normal to the direction of failure): the element faces closest to that
 //! plane.
-use super::topology::{fragments_of, root, Csr, NewCluster};
+use super::topology::{fragments_of, root, Copies, Csr, NewCluster};
 use super::{CellKind3, RawCell3, RawMesh3, NO_CORNER};
 use crate::ids::{ClusterId, CopyId, ElemId, FaceId, PointId};
 
@@ -106,22 +106,7 @@ impl Topology3 {
     /// cluster per point.
     pub fn new(mesh: &RawMesh3) -> Self {
         let np = mesh.points.len();
-        let mut elem_nodes = Vec::with_capacity(mesh.cells.len());
-        let mut elem_first_copy = Vec::with_capacity(mesh.cells.len() + 1);
-        let mut copy_point = Vec::new();
-        let mut copy_elem = Vec::new();
-        for (e, c) in mesh.cells.iter().enumerate() {
-            elem_nodes.push(c.kind.nodes() as u8);
-            elem_first_copy.push(copy_point.len() as u32);
-            for &p in c.corners() {
-                copy_point.push(PointId(p));
-                copy_elem.push(ElemId::new(e));
-            }
-        }
-        elem_first_copy.push(copy_point.len() as u32);
-        let copy_cluster: Vec<ClusterId> = copy_point.iter().map(|p| ClusterId(p.0)).collect();
-        let pairs: Vec<(u32, CopyId)> = copy_point.iter().enumerate().map(|(c, p)| (p.0, CopyId::new(c))).collect();
-        let point_copies = Csr::from_pairs(np, &pairs);
+        let Copies { elem_nodes, elem_first_copy, copy_point, copy_elem, copy_cluster, point_copies } = Copies::new(np, mesh.cells.iter().map(|c| c.corners()));
         // Faces: sort (sorted corners, elem, local face) and pair equal keys.
         let mut half: Vec<([u32; 4], u32, u8)> = Vec::new();
         for (e, c) in mesh.cells.iter().enumerate() {
