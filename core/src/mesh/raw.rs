@@ -242,7 +242,7 @@ impl RawMesh {
             }
             if area < 0.0 {
                 if opt == ValidationOptions::Refuse {
-                    return Err(FlemError::mesh(&src, format!("{} is clockwise ({}); reorient it or set mesh.orientation = \"reorient\"", name(e), pnames(c.corners()))));
+                    return Err(FlemError::mesh(&src, format!("{} is clockwise ({}); reorient it or set model.orientation = \"reorient\"", name(e), pnames(c.corners()))));
                 }
                 c.nodes[..k].reverse();
                 flipped += 1;
