@@ -37,7 +37,7 @@ pub mod topology3;
 
 pub use box3::Box3;
 pub use raw::{CellKind, FileIds, RawCell, RawMesh, ValidationOptions, MAX_COORD};
-pub use raw3::{cell_edges, cell_face, tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};
+pub use raw3::{cell_edges, cell_face, face_integration, tet_volume6, AnyMesh, CellKind3, RawCell3, RawFace, RawMesh3, NO_CORNER};
 pub use rect::{Notch, Rectangle};
 pub use rects::{Part, Rectangles};
 pub use select::SetCfg;

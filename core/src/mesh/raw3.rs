@@ -392,6 +392,35 @@ pub fn tet_volume6(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]) -> f64 {
     u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) + u[2] * (v[0] * w[1] - v[1] * w[0])
 }
 
+/// The integration of a load over a flat or bilinear face with corners `x` (3 or 4, anticlockwise
+/// seen from outside): `at(weights, area)` at each integration point, `weights[a]` the shape
+/// function of corner `a` there and `area` the outward area vector the point stands for (a
+/// triangle: one point, weights 1/3, area `(x1 - x0) x (x2 - x0) / 2`; a quadrilateral: 2 x 2
+/// Gauss points on its bilinear map, area `dx/ds x dx/dt`). A uniform pressure `p` gives the
+/// consistent corner forces `-p sum weights[a] area`. Shared by the 3D march's face loads and
+/// the 3D implicit solve's.
+pub fn face_integration(x: &[[f64; 3]], mut at: impl FnMut(&[f64], [f64; 3])) {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    if x.len() == 3 {
+        at(&[1.0 / 3.0; 3], cross(sub(x[1], x[0]), sub(x[2], x[0])).map(|v| 0.5 * v));
+        return;
+    }
+    const G: f64 = 0.577_350_269_189_625_8;
+    const S: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+    for &(s, t) in &[(-G, -G), (G, -G), (G, G), (-G, G)] {
+        let n: [f64; 4] = std::array::from_fn(|a| 0.25 * (1.0 + S[a][0] * s) * (1.0 + S[a][1] * t));
+        let (mut xs, mut xt) = ([0.0; 3], [0.0; 3]);
+        for a in 0..4 {
+            for d in 0..3 {
+                xs[d] += 0.25 * S[a][0] * (1.0 + S[a][1] * t) * x[a][d];
+                xt[d] += 0.25 * S[a][1] * (1.0 + S[a][0] * s) * x[a][d];
+            }
+        }
+        at(&n, cross(xs, xt));
+    }
+}
+
 /// A mesh of either dimension, as a [`MeshSource`](super::MeshSource) gives it
 /// ([`MeshSource::load_any`](super::MeshSource::load_any)).
 #[derive(Clone, Debug)]

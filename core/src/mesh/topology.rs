@@ -273,40 +273,7 @@ impl Topology {
     /// Connected parts of the fan's copies once the given edges are removed from its links;
     /// each part sorted, parts ordered by their smallest copy.
     pub fn fan_parts(fan: &Fan, removed: &[EdgeId]) -> Vec<Vec<CopyId>> {
-        let n = fan.copies.len();
-        let pos = |c: CopyId| fan.copies.iter().position(|&k| k == c).unwrap();
-        let mut parent: Vec<usize> = (0..n).collect();
-        fn root(p: &mut [usize], mut i: usize) -> usize {
-            while p[i] != i {
-                p[i] = p[p[i]];
-                i = p[i];
-            }
-            i
-        }
-        for l in &fan.links {
-            if removed.contains(&l.edge) {
-                continue;
-            }
-            let (ra, rb) = (root(&mut parent, pos(l.a)), root(&mut parent, pos(l.b)));
-            if ra != rb {
-                parent[ra.max(rb)] = ra.min(rb);
-            }
-        }
-        let mut parts: Vec<Vec<CopyId>> = Vec::new();
-        let mut part_of_root = vec![usize::MAX; n];
-        for i in 0..n {
-            let r = root(&mut parent, i);
-            if part_of_root[r] == usize::MAX {
-                part_of_root[r] = parts.len();
-                parts.push(Vec::new());
-            }
-            parts[part_of_root[r]].push(fan.copies[i]);
-        }
-        for p in &mut parts {
-            p.sort_unstable();
-        }
-        parts.sort_by_key(|p| p[0]);
-        parts
+        parts_of(&fan.copies, fan.links.iter().filter(|l| !removed.contains(&l.edge)).map(|l| (l.a, l.b)))
     }
 
     /// Cuts `edges` at the point of cluster `c` and splits the cluster into its connected parts.
@@ -409,6 +376,36 @@ impl Copies {
         let point_copies = Csr::from_pairs(np, &pairs);
         Copies { elem_nodes, elem_first_copy, copy_point, copy_elem, copy_cluster, point_copies }
     }
+}
+
+/// Connected parts of `copies` joined by `links` (pairs of copies among them): each part sorted,
+/// parts ordered by their smallest copy, so the answer depends on the links, not their order
+/// (2D and 3D fans: [`Topology::fan_parts`], `Topology3::fan_parts`).
+pub(crate) fn parts_of(copies: &[CopyId], links: impl Iterator<Item = (CopyId, CopyId)>) -> Vec<Vec<CopyId>> {
+    let n = copies.len();
+    let pos = |c: CopyId| copies.iter().position(|&k| k == c).unwrap() as u32;
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    for (a, b) in links {
+        let (ra, rb) = (root(&mut parent, pos(a)), root(&mut parent, pos(b)));
+        if ra != rb {
+            parent[ra.max(rb) as usize] = ra.min(rb);
+        }
+    }
+    let mut parts: Vec<Vec<CopyId>> = Vec::new();
+    let mut part_of_root = vec![usize::MAX; n];
+    for i in 0..n {
+        let r = root(&mut parent, i as u32) as usize;
+        if part_of_root[r] == usize::MAX {
+            part_of_root[r] = parts.len();
+            parts.push(Vec::new());
+        }
+        parts[part_of_root[r]].push(copies[i]);
+    }
+    for p in &mut parts {
+        p.sort_unstable();
+    }
+    parts.sort_by_key(|p| p[0]);
+    parts
 }
 
 /// Union-find root with path halving (the fans' and fragments' components, 2D and 3D).

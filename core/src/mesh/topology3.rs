@@ -16,7 +16,7 @@
 //! through a point that divide its fan into the elements on either side of a plane through the
 //! point (the plane normal to the direction of failure): the element faces closest to that
 //! plane.
-use super::topology::{fragments_of, root, Copies, Csr, NewCluster};
+use super::topology::{fragments_of, parts_of, root, Copies, Csr, NewCluster};
 use super::{CellKind3, RawCell3, RawMesh3, NO_CORNER};
 use crate::ids::{ClusterId, CopyId, ElemId, FaceId, PointId};
 
@@ -233,33 +233,7 @@ impl Topology3 {
     /// Connected parts of the fan's copies once the given faces are removed from its links;
     /// each part sorted, parts ordered by their smallest copy.
     pub fn fan_parts(fan: &Fan3, removed: &[FaceId]) -> Vec<Vec<CopyId>> {
-        let n = fan.copies.len();
-        let pos = |c: CopyId| fan.copies.iter().position(|&k| k == c).unwrap() as u32;
-        let mut parent: Vec<u32> = (0..n as u32).collect();
-        for l in &fan.links {
-            if removed.contains(&l.face) {
-                continue;
-            }
-            let (ra, rb) = (root(&mut parent, pos(l.a)), root(&mut parent, pos(l.b)));
-            if ra != rb {
-                parent[ra.max(rb) as usize] = ra.min(rb);
-            }
-        }
-        let mut parts: Vec<Vec<CopyId>> = Vec::new();
-        let mut part_of_root = vec![usize::MAX; n];
-        for i in 0..n {
-            let r = root(&mut parent, i as u32) as usize;
-            if part_of_root[r] == usize::MAX {
-                part_of_root[r] = parts.len();
-                parts.push(Vec::new());
-            }
-            parts[part_of_root[r]].push(fan.copies[i]);
-        }
-        for p in &mut parts {
-            p.sort_unstable();
-        }
-        parts.sort_by_key(|p| p[0]);
-        parts
+        parts_of(&fan.copies, fan.links.iter().filter(|l| !removed.contains(&l.face)).map(|l| (l.a, l.b)))
     }
 
     /// The faces of the fan to cut so that it falls into the copies on either side of a plane

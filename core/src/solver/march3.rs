@@ -152,8 +152,8 @@ impl March3 {
 
     /// Adds a uniform pressure `p` (force per area, positive pushing into the body) on the faces
     /// of a face set to load `k`, along each face's initial inward normal: consistent nodal
-    /// forces (a triangle's corners a third each; a quadrilateral by 2 x 2 Gauss points on its
-    /// bilinear map), each on the copy of the element that owns the face. Faces are oriented
+    /// forces (`mesh::face_integration`, as the 3D implicit solve's), each on the copy of the
+    /// element that owns the face. Faces are oriented
     /// by that element (outward), whatever their order in the file.
     pub fn add_face_pressure(&mut self, k: usize, set: &str, p: f64) -> Result<()> {
         let Some(faces) = self.mesh.face_sets.get(set) else {
@@ -172,32 +172,12 @@ impl March3 {
             let e = face.sides[0].unwrap().0;
             let c: Vec<u32> = face.corners().iter().map(|p| p.0).collect();
             let x: Vec<[f64; 3]> = c.iter().map(|&q| self.mesh.points[q as usize]).collect();
-            let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-            let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-            let mut add = |q: u32, w: f64, na: [f64; 3]| {
-                let copy = self.topo.copy_at(e, crate::ids::PointId(q)).unwrap();
-                out.push((copy.0, [-p * w * na[0], -p * w * na[1], -p * w * na[2]]));
-            };
-            if c.len() == 3 {
-                // n A = (x1 - x0) x (x2 - x0) / 2, outward; a third on each corner.
-                let na = cross(sub(x[1], x[0]), sub(x[2], x[0]));
-                for &q in &c {
-                    add(q, 1.0 / 6.0, na);
+            crate::mesh::face_integration(&x, |nw, area| {
+                for (a, &q) in c.iter().enumerate() {
+                    let copy = self.topo.copy_at(e, crate::ids::PointId(q)).unwrap();
+                    out.push((copy.0, [-p * nw[a] * area[0], -p * nw[a] * area[1], -p * nw[a] * area[2]]));
                 }
-            } else {
-                let g = 1.0 / 3f64.sqrt();
-                for (xi, eta) in [(-g, -g), (g, -g), (g, g), (-g, g)] {
-                    let n = [0.25 * (1.0 - xi) * (1.0 - eta), 0.25 * (1.0 + xi) * (1.0 - eta), 0.25 * (1.0 + xi) * (1.0 + eta), 0.25 * (1.0 - xi) * (1.0 + eta)];
-                    let dxi = [-0.25 * (1.0 - eta), 0.25 * (1.0 - eta), 0.25 * (1.0 + eta), -0.25 * (1.0 + eta)];
-                    let deta = [-0.25 * (1.0 - xi), -0.25 * (1.0 + xi), 0.25 * (1.0 + xi), 0.25 * (1.0 - xi)];
-                    let t1: [f64; 3] = std::array::from_fn(|d| (0..4).map(|a| dxi[a] * x[a][d]).sum());
-                    let t2: [f64; 3] = std::array::from_fn(|d| (0..4).map(|a| deta[a] * x[a][d]).sum());
-                    let na = cross(t1, t2);
-                    for a in 0..4 {
-                        add(c[a], n[a], na);
-                    }
-                }
-            }
+            });
         }
         self.loads[k].on_copies.extend(out);
         Ok(())

@@ -38,7 +38,7 @@ use std::collections::BTreeMap;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use flem_core::element::shape3::{min_det3, Dmat3, Hex8, Tet4};
-use flem_core::mesh::{CellKind3, RawFace, RawMesh3, NO_CORNER};
+use flem_core::mesh::{face_integration, CellKind3, RawFace, RawMesh3, NO_CORNER};
 use flem_core::FlemError;
 
 use super::{factor, refined_solve_with};
@@ -190,7 +190,7 @@ pub fn face_forces(mesh: &RawMesh3, loads: &[FaceLoad], f: &mut [[f64; 3]]) -> R
             let c = of.corners();
             let x: Vec<[f64; 3]> = c.iter().map(|&p| mesh.points[p as usize]).collect();
             // (weight per corner, area vector) at the face's integration points.
-            let mut add = |nw: &[f64], area: [f64; 3]| {
+            let add = |nw: &[f64], area: [f64; 3]| {
                 let t = match l.load {
                     FaceLoadKind::Pressure(p) => area.map(|a| -p * a),
                     FaceLoadKind::Traction(t) => {
@@ -204,35 +204,10 @@ pub fn face_forces(mesh: &RawMesh3, loads: &[FaceLoad], f: &mut [[f64; 3]]) -> R
                     }
                 }
             };
-            if c.len() == 3 {
-                let area = cross(sub(x[1], x[0]), sub(x[2], x[0])).map(|v| 0.5 * v);
-                add(&[1.0 / 3.0; 3], area);
-            } else {
-                const G: f64 = 0.577_350_269_189_625_8;
-                const S: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-                for &(s, t) in &[(-G, -G), (G, -G), (G, G), (-G, G)] {
-                    let n: [f64; 4] = std::array::from_fn(|a| 0.25 * (1.0 + S[a][0] * s) * (1.0 + S[a][1] * t));
-                    let (mut xs, mut xt) = ([0.0; 3], [0.0; 3]);
-                    for a in 0..4 {
-                        for d in 0..3 {
-                            xs[d] += 0.25 * S[a][0] * (1.0 + S[a][1] * t) * x[a][d];
-                            xt[d] += 0.25 * S[a][1] * (1.0 + S[a][0] * s) * x[a][d];
-                        }
-                    }
-                    add(&n, cross(xs, xt));
-                }
-            }
+            face_integration(&x, add);
         }
     }
     Ok(())
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 /// Equation numbers: `eq[3 p + d]` the free dof's index or `usize::MAX`; and their count.
