@@ -2,7 +2,7 @@
 //! the sections that 3D has today (`[mesh]`, `[[set]]`-free node and face sets of the mesh,
 //! `[[material]]`, `[solver]`, `[[support]]`, `[[load]]`, `[[stage]]`, `[cracking]`,
 //! `[output]`); the 2D sections and keys that have no 3D form yet are refused by name
-//! (`[contact]`, `[check]`, material laws, co-rotation, the events solver, nonlocal stress,
+//! (`[contact]`, material laws, co-rotation, the events solver, nonlocal stress,
 //! Weibull scatter, probes), so that a 3D scene never runs something else than it says.
 //!
 //! 3D keys: `[[support]] fix` takes any of `x`, `y`, `z` (`"xyz"`, `"z"`, `"xz"`...);
@@ -155,6 +155,9 @@ pub struct Scene3File {
     pub output: Output3Cfg,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cracking: Option<CrackingCfg>,
+    /// `[check]`: every stage compared with the implicit solve (`output::compare3`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check: Option<crate::plugin::check::CheckCfg>,
 }
 
 /// A validated 3D scene.
@@ -173,9 +176,8 @@ pub fn scene_dim(text: &str) -> u8 {
 }
 
 /// Sections and keys of the 2D scene language with no 3D form yet: named in the refusal.
-const NOT_IN_3D: [(&str, &str); 4] = [
+const NOT_IN_3D: [(&str, &str); 3] = [
     ("contact", "contact in 3D (node-to-face) is not built yet"),
-    ("check", "the implicit check of a 3D run is not wired to scenes yet"),
     ("set", "[[set]] selections by geometry are 2D; name the mesh's physical groups"),
     ("plugins", "dynamic plugin libraries have no 3D ABI yet"),
 ];
@@ -196,6 +198,9 @@ impl Scene3 {
             let d = toml::from_str("type = \"adaptive\"")
                 .map_err(|e| FlemError::config(&name, "solver.damping", format!("is not given and the default \"adaptive\" is not registered in this program ({e})")))?;
             file.solver.damping = Some(d);
+        }
+        if let Some(c) = file.check.as_mut() {
+            c.fill_default(&name)?;
         }
         let scene = Scene3 { file, path: path.to_path_buf(), base_dir: base_dir.to_path_buf() };
         scene.validate()?;
@@ -300,6 +305,9 @@ impl Scene3 {
                 range(&format!("stage[{i}].levels.{load}"), lv, -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
             }
         }
+        if let Some(c) = &f.check {
+            c.validate(&n)?;
+        }
         if let Some(c) = &f.cracking {
             if c.nonlocal.is_some() || c.weibull.is_some() {
                 return Err(FlemError::config(&n, if c.nonlocal.is_some() { "cracking.nonlocal" } else { "cracking.weibull" }, "is not available in 3D yet"));
@@ -311,6 +319,12 @@ impl Scene3 {
             }
         }
         Ok(())
+    }
+
+    /// The `[[material]]` of a region of the mesh (or the one with `region = "all"`).
+    pub fn material_for(&self, region: &str) -> Option<&MaterialCfg> {
+        let ms = &self.file.materials;
+        ms.iter().find(|m| m.region == region).or_else(|| ms.iter().find(|m| m.region == "all"))
     }
 
     /// The levels in force at each stage (a stage's level keeps its value until a later stage

@@ -324,7 +324,6 @@ fn main() -> ExitCode {
     // for now and say so.
     let three_d: Option<(&str, PathBuf)> = match &cli.cmd {
         Some(Cmd::Chart { scene, .. }) => Some(("chart", scene.clone())),
-        Some(Cmd::Compare { scene, .. }) => Some(("compare", scene.clone())),
         Some(Cmd::SweepTask { scene, .. }) => Some(("sweep-task", scene.clone())),
         Some(Cmd::Converge(a)) => Some(("converge", a.scene.clone())),
         Some(Cmd::Fos(a)) => Some(("fos", a.scene.clone())),
@@ -337,7 +336,7 @@ fn main() -> ExitCode {
     let r = match cli.cmd {
         _ if three_d.is_some() => {
             let (tool, p) = three_d.unwrap();
-            Err(unsuited(&p, tool, "it is a 3D scene ([model] dim = 3); `flem run` and `flem check` take 3D scenes, the other commands are 2D only for now (docs/3d.md)"))
+            Err(unsuited(&p, tool, "it is a 3D scene ([model] dim = 3); `flem run`, `flem check` and `flem compare` take 3D scenes, the other commands are 2D only for now (docs/3d.md)"))
         }
         None => run_default(),
         Some(Cmd::Run { scene, out, quiet: _, resume, plot, max_steps }) if is_3d(&scene) => run3(&scene, out, resume.is_some() || plot, max_steps),
@@ -356,6 +355,7 @@ fn main() -> ExitCode {
                 chart_crack::run(&scenes, out, splits, quick)
             }
         }
+        Some(Cmd::Compare { scene, out, max_steps }) if is_3d(&scene) => compare3(&scene, out, max_steps),
         Some(Cmd::Compare { scene, out, max_steps }) => load(&scene).and_then(|mut s| {
             cap_steps(&mut s, max_steps);
             compare(s, out)
@@ -429,15 +429,7 @@ fn is_3d(path: &Path) -> bool {
 /// summary.json); `--resume` and `--plot` are not available in 3D yet.
 fn run3(path: &Path, out: Option<PathBuf>, unsupported: bool, max_steps: Option<u64>) -> Result<()> {
     anyhow::ensure!(!unsupported, "{}: --resume and --plot are not available for 3D scenes yet (docs/3d.md)", path.display());
-    let mut scene = flem_core::scene3::Scene3::from_file(path)?;
-    if let Some(n) = max_steps {
-        let f = &mut scene.file;
-        let global = f.solver.max_steps;
-        f.solver.max_steps = global.min(n);
-        for s in &mut f.stages {
-            s.max_steps = Some(s.max_steps.unwrap_or(global).min(n));
-        }
-    }
+    let mut scene = load3(path, max_steps)?;
     let stem = path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
     let _lock = lock_out(&out)?;
@@ -453,6 +445,55 @@ fn run3(path: &Path, out: Option<PathBuf>, unsupported: bool, max_steps: Option<
         eprintln!("{}: {} steps, ratio {:.2e} ({how}), {} splits, {} fragment(s)", r.name, r.steps, r.ratio, r.splits, r.fragments);
     }
     eprintln!("wall time {:.2} s; results in {}", t0.elapsed().as_secs_f64(), out.display());
+    Ok(())
+}
+
+/// A 3D scene, every stage's step limit capped at `max_steps`.
+fn load3(path: &Path, max_steps: Option<u64>) -> Result<flem_core::scene3::Scene3> {
+    let mut scene = flem_core::scene3::Scene3::from_file(path)?;
+    if let Some(n) = max_steps {
+        let f = &mut scene.file;
+        let global = f.solver.max_steps;
+        f.solver.max_steps = global.min(n);
+        for s in &mut f.stages {
+            s.max_steps = Some(s.max_steps.unwrap_or(global).min(n));
+        }
+    }
+    Ok(scene)
+}
+
+/// `flem compare` on a 3D scene: the run with the implicit check after every stage
+/// (`output::compare3`), the scene's `[check]` or the defaults with 2D's tolerance rule.
+fn compare3(path: &Path, out: Option<PathBuf>, max_steps: Option<u64>) -> Result<()> {
+    let mut scene = load3(path, max_steps)?;
+    if scene.file.check.is_none() {
+        let f = &scene.file;
+        let loosest = f.stages.iter().map(|s| s.tolerance.unwrap_or(f.solver.tolerance)).fold(f.solver.tolerance, f64::max);
+        let tol = (1000.0 * loosest).clamp(1e-6, 0.1);
+        eprintln!("the scene has no [check]: the comparison tolerance is {tol:e} (1000 x its loosest equilibrium tolerance, within [1e-6, 0.1]; ours)");
+        let mut c = flem_core::plugin::check::CheckCfg::with_defaults(&path.display().to_string())?;
+        c.tolerance = tol;
+        scene.file.check = Some(c);
+    }
+    let tol = scene.file.check.as_ref().map_or(0.0, |c| c.tolerance);
+    let stem = path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{stem}_compare")));
+    let _lock = lock_out(&out)?;
+    flem_core::output::prepare_dir(&out)?;
+    flem_core::output::run3::run3_in_folder(&mut scene, &out)?;
+    let json = out.join("compare.json");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+    let rows: Vec<flem_core::output::compare::StageComparison> = serde_json::from_value(v["stages"].clone())?;
+    print!("{}", flem_core::output::compare::table(&rows));
+    println!("results in {}", json.display());
+    let failed: Vec<&str> = rows.iter().filter(|r| r.comparable && r.implicit_error.is_some()).map(|r| r.name.as_str()).collect();
+    anyhow::ensure!(failed.is_empty(), "the implicit solve failed at comparable stage(s) {failed:?} (see above and compare.json)");
+    let off: Vec<&str> = rows.iter().filter(|r| r.comparable && !r.within_tolerance).map(|r| r.name.as_str()).collect();
+    anyhow::ensure!(off.is_empty(), "FLEM and the implicit solve disagree beyond check.tolerance = {tol:e} at comparable stage(s) {off:?} (see above and compare.json)");
+    let nc = rows.iter().filter(|r| !r.comparable).count();
+    if nc > 0 {
+        println!("{nc} of {} stage(s) not comparable (the reasons above; compare.json: comparable = false, reason)", rows.len());
+    }
     Ok(())
 }
 

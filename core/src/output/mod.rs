@@ -17,6 +17,7 @@
 pub mod arrays;
 pub mod checkpoint;
 pub mod compare;
+pub mod compare3;
 pub mod csvlog;
 pub mod lock;
 pub mod run;

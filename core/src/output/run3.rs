@@ -123,8 +123,14 @@ pub fn run3_in_folder(scene: &mut Scene3, dir: &Path) -> Result<(March3, Vec<Sta
     let mut m = March3::from_scene(scene)?;
     // The pre-separated faces' splits are in the first stage's rows of splits3.csv.
     let mut w = Writer3 { dir, snapshots: 0, splits_seen: 0 };
-    let stages = m.run_scene(scene, &mut w)?;
-    let summary = serde_json::json!({
+    let (stages, compare) = if scene.file.check.is_some() {
+        let mut c = crate::output::compare3::Comparer3::new(&mut w, scene, dir)?;
+        let stages = m.run_scene(scene, &mut c)?;
+        (stages, Some(c.rows))
+    } else {
+        (m.run_scene(scene, &mut w)?, None)
+    };
+    let mut summary = serde_json::json!({
         "scene": scene.path.display().to_string(),
         "dim": 3,
         "elements": m.topo.n_elems(),
@@ -136,6 +142,13 @@ pub fn run3_in_folder(scene: &mut Scene3, dir: &Path) -> Result<(March3, Vec<Sta
         "energy": { "external_work": m.ledger.external_work, "kinetic": m.ledger.kinetic, "strain": m.ledger.strain, "damping": m.ledger.damping },
         "wall_seconds": t0.elapsed().as_secs_f64(),
     });
+    if let Some(rows) = compare {
+        // The implicit check's verdict per stage (the figures are in compare.json).
+        summary["compare"] = rows
+            .iter()
+            .map(|r| serde_json::json!({"stage": r.stage, "comparable": r.comparable, "within_tolerance": r.within_tolerance, "rel_l2_displacement": r.rel_l2_displacement, "rel_l2_nodal_stress": r.rel_l2_nodal_stress}))
+            .collect();
+    }
     let text = serde_json::to_string_pretty(&summary).map_err(|e| FlemError::Output { path: dir.join("summary.json").display().to_string(), msg: e.to_string() })?;
     crate::output::atomic_write(&dir.join("summary.json"), text.as_bytes())?;
     Ok((m, stages))

@@ -50,6 +50,40 @@ pub trait CheckSolver: Debug + Send + Sync {
     fn plastic(&self) -> Option<Box<dyn PlasticCheck>> {
         None
     }
+    /// The linear static problem of a 3D model (issue 38, docs/3d.md "Implicit check"): the
+    /// displacement and nodal stress of every cluster. The default refuses: a check solver
+    /// without a 3D form is named in a 3D scene's error.
+    fn solve_3d(&self, _problem: &Linear3) -> Result<Linear3Solution> {
+        Err(FlemError::Solve("this check solver has no 3D form (the built-in \"faer_cholesky\" has one)".into()))
+    }
+}
+
+/// The linear static problem of a 3D body as the implicit check sees it (issue 38): `mesh`
+/// has one point per *cluster* (at its point's reference position; the cells name clusters,
+/// so a separated face is open), and per cell its material and element kind.
+#[derive(Clone, Debug)]
+pub struct Linear3<'a> {
+    pub mesh: &'a crate::mesh::RawMesh3,
+    /// Per cell: Young's modulus, Poisson's ratio and the element kind's name (`t4`, `h8`,
+    /// `h8_full`).
+    pub cells: Vec<(f64, f64, &'static str)>,
+    /// Prescribed dofs per cluster: bit 1 = x, 2 = y, 4 = z.
+    pub fix: &'a [u8],
+    /// Values of the prescribed dofs (others ignored).
+    pub u_prescribed: &'a [[f64; 3]],
+    /// External force per cluster.
+    pub f_ext: &'a [[f64; 3]],
+}
+
+/// The solution of a [`Linear3`].
+#[derive(Clone, Debug)]
+pub struct Linear3Solution {
+    pub u: Vec<[f64; 3]>,
+    /// Voigt `xx, yy, zz, xy, yz, zx`, tension positive: the 0.9999 corner stresses averaged
+    /// over the cells of each cluster.
+    pub nodal_stress: Vec<[f64; 6]>,
+    /// Free dofs.
+    pub n_dofs: usize,
 }
 
 /// One Newton iteration of the implicit plastic check: the residual norm, relative to the

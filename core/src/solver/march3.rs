@@ -510,8 +510,7 @@ impl March3 {
         };
         let warnings = mesh.validate(f.model.orientation)?;
         let material_of = |region: &str| -> Result<([f64; 3], Option<String>)> {
-            let m = f.materials.iter().find(|m| m.region == region).or_else(|| f.materials.iter().find(|m| m.region == "all"));
-            match m {
+            match scene.material_for(region) {
                 Some(m) => Ok(([m.young_modulus, m.poisson_ratio, m.density], m.element.clone())),
                 None => Err(FlemError::config(&name, "material", format!("no [[material]] for region \"{region}\" of the mesh (and none with region = \"all\")"))),
             }

@@ -128,6 +128,26 @@ impl CheckSolver for ImplicitSolver {
     fn plastic(&self) -> Option<Box<dyn flem_core::plugin::check::PlasticCheck>> {
         Some(Box::new(newton::NewtonCheck::new()))
     }
+
+    /// The 3D check (issue 38): `solid3::solve` on the cluster mesh with each cell's material
+    /// and kind (no cache: a 3D check is one solve per stage).
+    fn solve_3d(&self, q: &flem_core::plugin::check::Linear3) -> Result<flem_core::plugin::check::Linear3Solution, FlemError> {
+        let mut cells = Vec::with_capacity(q.cells.len());
+        for (e, &(young, poisson, kind)) in q.cells.iter().enumerate() {
+            let k = crate::elements3d::Kind3::from_name(kind).ok_or_else(|| {
+                FlemError::Solve(format!("3D implicit solve of {}: {} has element kind \"{kind}\", which the 3D check does not know (t4, h8, h8_full)", q.mesh.source, q.mesh.cell_name(e)))
+            })?;
+            cells.push((young, poisson, k));
+        }
+        let (young, poisson) = cells.first().map_or((1.0, 0.0), |c| (c.0, c.1));
+        let mut p = solid3::Problem3::new(q.mesh, young, poisson);
+        p.cells = cells;
+        p.fix = q.fix.to_vec();
+        p.u_prescribed = q.u_prescribed.to_vec();
+        p.f_ext = q.f_ext.to_vec();
+        let s = solid3::solve(&p)?;
+        Ok(flem_core::plugin::check::Linear3Solution { u: s.u, nodal_stress: s.nodal_stress, n_dofs: s.n_dofs })
+    }
 }
 
 /// Wall time of each phase of one solve, seconds.

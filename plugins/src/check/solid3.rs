@@ -78,20 +78,34 @@ pub struct Problem3<'a> {
     /// Point forces.
     pub f_ext: Vec<[f64; 3]>,
     pub face_loads: Vec<FaceLoad>,
+    /// Per cell: its own Young's modulus, Poisson's ratio and kind (a scene of several regions,
+    /// the 3D check of a scene); empty: `young`, `poisson` and `hex` for every cell.
+    pub cells: Vec<(f64, f64, Kind3)>,
 }
 
 impl<'a> Problem3<'a> {
     /// A problem with no support and no load, `h8` for hexahedra.
     pub fn new(mesh: &'a RawMesh3, young: f64, poisson: f64) -> Self {
         let n = mesh.points.len();
-        Problem3 { mesh, young, poisson, hex: Kind3::H8, fix: vec![0; n], u_prescribed: vec![[0.0; 3]; n], f_ext: vec![[0.0; 3]; n], face_loads: Vec::new() }
+        Problem3 { mesh, young, poisson, hex: Kind3::H8, fix: vec![0; n], u_prescribed: vec![[0.0; 3]; n], f_ext: vec![[0.0; 3]; n], face_loads: Vec::new(), cells: Vec::new() }
     }
 
     /// The kind of cell `e`.
     pub fn kind_of(&self, e: usize) -> Kind3 {
+        if let Some(c) = self.cells.get(e) {
+            return c.2;
+        }
         match self.mesh.cells[e].kind {
             CellKind3::T4 => Kind3::T4,
             CellKind3::H8 => self.hex,
+        }
+    }
+
+    /// The elasticity matrix of cell `e`.
+    pub fn dmat_of(&self, e: usize) -> Dmat3 {
+        match self.cells.get(e) {
+            Some(c) => Dmat3::new(c.0, c.1),
+            None => Dmat3::new(self.young, self.poisson),
         }
     }
 }
@@ -135,6 +149,19 @@ fn validate(p: &Problem3) -> Result<(), FlemError> {
     }
     if p.hex.cell() != CellKind3::H8 {
         return Err(err(m, format!("element \"{}\" is not a hexahedron kind (h8, h8_full)", p.hex.name())));
+    }
+    if !p.cells.is_empty() {
+        if p.cells.len() != m.cells.len() {
+            return Err(err(m, format!("the mesh has {} cells but {} per-cell materials are given", m.cells.len(), p.cells.len())));
+        }
+        for (e, &(young, poisson, kind)) in p.cells.iter().enumerate() {
+            if !(young.is_finite() && young > 0.0) || !(poisson > -1.0 && poisson < 0.5) {
+                return Err(err(m, format!("{}: the material needs young_modulus > 0 and -1 < poisson_ratio < 0.5 (got {young} and {poisson})", m.cell_name(e))));
+            }
+            if kind.cell() != m.cells[e].kind {
+                return Err(err(m, format!("{}: element \"{}\" does not fit a {:?} cell", m.cell_name(e), kind.name(), m.cells[e].kind)));
+            }
+        }
     }
     if let Some(i) = (0..np).find(|&i| !m.points[i].iter().chain(&p.u_prescribed[i]).chain(&p.f_ext[i]).all(|v| v.is_finite())) {
         return Err(err(m, format!("point {} has a non-finite coordinate, prescribed displacement or force", m.point_name(i))));
@@ -267,7 +294,6 @@ fn pattern(mesh: &RawMesh3, eq: &[usize], n: usize) -> SymbolicSparseColMat<usiz
 /// `K_ff` (lower triangle on `pat`) and the right-hand side `f_f - K_fp u_p`.
 fn assemble(p: &Problem3, eq: &[usize], pat: &SymbolicSparseColMat<usize>, f: &[[f64; 3]]) -> (SparseColMat<usize, f64>, Vec<f64>) {
     let m = p.mesh;
-    let d = Dmat3::new(p.young, p.poisson);
     let n = pat.nrows();
     let (cp, ri) = (pat.col_ptr(), pat.row_idx());
     let mut vals = vec![0.0; ri.len()];
@@ -285,7 +311,7 @@ fn assemble(p: &Problem3, eq: &[usize], pat: &SymbolicSparseColMat<usize>, f: &[
         let (c, x) = cell_x(m, e);
         let kind = p.kind_of(e);
         let nn = 3 * c.len();
-        elements3d::stiffness(kind, &x[..c.len()], &d, &mut ke);
+        elements3d::stiffness(kind, &x[..c.len()], &p.dmat_of(e), &mut ke);
         let gdof: Vec<usize> = (0..nn).map(|i| eq[3 * c[i / 3] as usize + i % 3]).collect();
         for jl in 0..nn {
             let gj = gdof[jl];
@@ -336,7 +362,13 @@ pub fn solve(p: &Problem3) -> Result<Solution3, FlemError> {
     let mut u: Vec<[f64; 3]> = (0..np).map(|i| std::array::from_fn(|d| if p.fix[i] & (1 << d) != 0 { p.u_prescribed[i][d] } else { 0.0 })).collect();
     let mut factor_nnz = 0;
     if n > 0 {
-        if let Some(i) = (0..np).find(|&i| p.fix[i] & 7 != 7 && !m.cells.iter().any(|c| c.corners().contains(&(i as u32)))) {
+        let mut in_cell = vec![false; np];
+        for c in &m.cells {
+            for &q in c.corners() {
+                in_cell[q as usize] = true;
+            }
+        }
+        if let Some(i) = (0..np).find(|&i| p.fix[i] & 7 != 7 && !in_cell[i]) {
             return Err(err(m, format!("point {} belongs to no cell and is not fixed: its stiffness is singular", m.point_name(i))));
         }
         let pat = pattern(m, &eq, n);
@@ -367,13 +399,12 @@ pub fn solve(p: &Problem3) -> Result<Solution3, FlemError> {
 
 /// The stress of every corner of every cell (0.9999 corners; `corner[e][a]`).
 pub fn corner_stresses(p: &Problem3, u: &[[f64; 3]]) -> Vec<[[f64; 6]; 8]> {
-    let d = Dmat3::new(p.young, p.poisson);
     (0..p.mesh.cells.len())
         .map(|e| {
             let (c, x) = cell_x(p.mesh, e);
             let ue: [[f64; 3]; 8] = std::array::from_fn(|a| if a < c.len() { u[c[a] as usize] } else { [0.0; 3] });
             let mut s = [[0.0; 6]; 8];
-            elements3d::corner_stresses(p.kind_of(e), &x[..c.len()], &ue[..c.len()], &d, &mut s);
+            elements3d::corner_stresses(p.kind_of(e), &x[..c.len()], &ue[..c.len()], &p.dmat_of(e), &mut s);
             s
         })
         .collect()
@@ -404,13 +435,12 @@ pub fn nodal_stress(p: &Problem3, u: &[[f64; 3]]) -> Vec<[f64; 6]> {
 /// Internal forces `K u` of every point (the element force routines, no matrix), e.g. for
 /// checking an equilibrium: at a solution they equal the external forces on free dofs.
 pub fn internal_forces(p: &Problem3, u: &[[f64; 3]]) -> Vec<[f64; 3]> {
-    let d = Dmat3::new(p.young, p.poisson);
     let mut out = vec![[0.0; 3]; p.mesh.points.len()];
     let mut fe = [[0.0; 3]; 8];
     for e in 0..p.mesh.cells.len() {
         let (c, x) = cell_x(p.mesh, e);
         let ue: [[f64; 3]; 8] = std::array::from_fn(|a| if a < c.len() { u[c[a] as usize] } else { [0.0; 3] });
-        elements3d::internal_force(p.kind_of(e), &x[..c.len()], &ue[..c.len()], &d, &mut fe);
+        elements3d::internal_force(p.kind_of(e), &x[..c.len()], &ue[..c.len()], &p.dmat_of(e), &mut fe);
         for (a, &q) in c.iter().enumerate() {
             for k in 0..3 {
                 out[q as usize][k] += fe[a][k];
