@@ -364,3 +364,101 @@ max_steps = 50
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Every file of a run folder except checkpoints, with the wall times of summary.json and
+/// compare.json and the warnings (a resumed run says so) left out.
+fn run_files(dir: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        if name.starts_with("checkpoint_") || name.starts_with('.') {
+            continue;
+        }
+        let mut bytes = std::fs::read(e.path()).unwrap();
+        if name == "summary.json" || name == "compare.json" {
+            let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+            v.as_object_mut().unwrap().remove("wall_seconds");
+            v.as_object_mut().unwrap().remove("warnings");
+            for r in v.get_mut("stages").and_then(|s| s.as_array_mut()).into_iter().flatten() {
+                r.as_object_mut().unwrap().remove("wall_seconds_flem");
+                r.as_object_mut().unwrap().remove("wall_seconds_implicit");
+            }
+            bytes = serde_json::to_vec(&v).unwrap();
+        }
+        out.insert(name, bytes);
+    }
+    out
+}
+
+/// 3D checkpoints (`output::checkpoint3`, issue 38 must-show 3): the cracking notched bar run
+/// whole, then resumed from a checkpoint taken in the middle of its cracking stage (after some
+/// splits, with later rows and a cut row in the logs that the resume must drop), and a run
+/// interrupted at its first step (the stop flag of SIGINT) then resumed, end with every file
+/// (VTU, history.csv, splits3.csv, compare.json, summary.json but its wall time) byte for byte
+/// as the uninterrupted run's. Reference: the uninterrupted run; tolerance: none (bits).
+#[test]
+fn checkpoints_3d_resume_bit_identically() {
+    flem_plugins::link();
+    let root = std::env::temp_dir().join(format!("flem_ck3_{}", std::process::id()));
+    let text = std::fs::read_to_string("configs/3d/notched_bar.toml")
+        .unwrap()
+        .replace("file = \"notched_bar_hex_v41.msh\"", "file = \"configs/3d/notched_bar_hex_v41.msh\"")
+        .replace("max_steps = 20000", "max_steps = 9000")
+        .replace("[cracking]\n", "[output]\ncheckpoint_every = 2000\ncheckpoint_keep = 100\n\n[check]\ntolerance = 1e-3\n\n[cracking]\n");
+    let scene = || Scene3::from_str(&text, Path::new("notched bar"), Path::new(".")).unwrap();
+    let run = |dir: &Path, resume: bool, stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>| {
+        flem_core::output::prepare_dir(dir).unwrap();
+        flem_core::output::run3::run3_with(&mut scene(), dir, resume, stop)
+    };
+    let a = root.join("whole");
+    let (m, stages) = run(&a, false, None).unwrap();
+    let splits = stages[1].splits;
+    assert!(splits >= 2, "the bar cracks in its second stage ({splits} splits)");
+    let whole = run_files(&a);
+    // The checkpoints of the cracking stage: one after the first split and before the last.
+    let cks = flem_core::output::checkpoint::list(&a).unwrap();
+    let hash_of = |p: &Path| flem_core::output::checkpoint3::peek3(p).unwrap();
+    let mid = cks
+        .iter()
+        .map(|(_, p)| (p.clone(), hash_of(p)))
+        .find(|(_, ck)| ck.pos.stage == 1 && ck.pos.steps > 0 && !ck.cuts.is_empty() && ck.cuts.len() < m.cuts.len())
+        .expect("a checkpoint inside the cracking stage between two splits");
+    eprintln!("resuming from {} (stage {} step {}, {} of {} cuts)", mid.0.display(), mid.1.pos.stage, mid.1.pos.steps, mid.1.cuts.len(), m.cuts.len());
+    // A folder as a killed run leaves it: later checkpoints gone, later rows and a cut row in
+    // the logs, a later snapshot.
+    let b = root.join("resumed");
+    std::fs::create_dir_all(&b).unwrap();
+    for e in std::fs::read_dir(&a).unwrap().flatten() {
+        std::fs::copy(e.path(), b.join(e.file_name())).unwrap();
+    }
+    for (seq, p) in &cks {
+        if *seq > mid.1.seq {
+            std::fs::remove_file(b.join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    let mut h = std::fs::OpenOptions::new().append(true).open(b.join("history.csv")).unwrap();
+    std::io::Write::write_all(&mut h, b"9,late,1,1e0,false,1e0,0,1\n9,cu").unwrap();
+    run(&b, true, None).unwrap();
+    let same = |a: &std::collections::BTreeMap<String, Vec<u8>>, what: &str| {
+        let names = |m: &std::collections::BTreeMap<String, Vec<u8>>| m.keys().cloned().collect::<Vec<_>>();
+        assert_eq!(names(a), names(&whole), "{what}: the same files");
+        let differ: Vec<&String> = a.iter().filter(|(k, v)| whole[*k] != **v).map(|(k, _)| k).collect();
+        assert!(differ.is_empty(), "{what}: {differ:?} differ from the uninterrupted run's");
+    };
+    same(&run_files(&b), "resumed mid-stage");
+    // Interrupted at once, then resumed.
+    let c = root.join("interrupted");
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    match run(&c, false, Some(stop)) {
+        Err(flem_core::FlemError::Interrupted { step, .. }) => assert_eq!(step, 0),
+        other => panic!("expected an interruption, got {:?}", other.map(|r| r.1)),
+    }
+    run(&c, true, None).unwrap();
+    same(&run_files(&c), "interrupted and resumed");
+    // A checkpoint of another scene is refused by name.
+    let other = text.replace("tensile_strength = 1.0", "tensile_strength = 1.1");
+    let mut sc = Scene3::from_str(&other, Path::new("edited"), Path::new(".")).unwrap();
+    let e = flem_core::output::run3::run3_with(&mut sc, &c, true, None).err().expect("an edited scene is refused").to_string();
+    assert!(e.contains("another scene"), "{e}");
+    let _ = std::fs::remove_dir_all(&root);
+}

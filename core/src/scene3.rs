@@ -125,11 +125,28 @@ pub struct Output3Cfg {
     /// Steps between rows of history.csv (0: one row per stage).
     #[serde(default)]
     pub history_every: u64,
+    /// Steps (global count) between checkpoints (0: none by step count); one is also written
+    /// at the end of every stage and when the run is interrupted (`output::checkpoint3`).
+    #[serde(default)]
+    pub checkpoint_every: u64,
+    /// Wall-clock seconds between checkpoints (0: none by time).
+    #[serde(default = "default_ck_seconds")]
+    pub checkpoint_seconds: f64,
+    /// Checkpoint files kept (the newest).
+    #[serde(default = "default_ck_keep")]
+    pub checkpoint_keep: usize,
+}
+
+fn default_ck_seconds() -> f64 {
+    600.0
+}
+fn default_ck_keep() -> usize {
+    2
 }
 
 impl Default for Output3Cfg {
     fn default() -> Self {
-        Output3Cfg { history_every: 0 }
+        Output3Cfg { history_every: 0, checkpoint_every: 0, checkpoint_seconds: default_ck_seconds(), checkpoint_keep: default_ck_keep() }
     }
 }
 
@@ -307,6 +324,10 @@ impl Scene3 {
         }
         if let Some(c) = &f.check {
             c.validate(&n)?;
+        }
+        range("output.checkpoint_seconds", f.output.checkpoint_seconds, 0.0, true, f64::INFINITY, false)?;
+        if f.output.checkpoint_keep == 0 {
+            return Err(FlemError::config(&n, "output.checkpoint_keep", "= 0 is incorrect; it must be >= 1"));
         }
         if let Some(c) = &f.cracking {
             if c.nonlocal.is_some() || c.weibull.is_some() {

@@ -339,7 +339,7 @@ fn main() -> ExitCode {
             Err(unsuited(&p, tool, "it is a 3D scene ([model] dim = 3); `flem run`, `flem check` and `flem compare` take 3D scenes, the other commands are 2D only for now (docs/3d.md)"))
         }
         None => run_default(),
-        Some(Cmd::Run { scene, out, quiet: _, resume, plot, max_steps }) if is_3d(&scene) => run3(&scene, out, resume.is_some() || plot, max_steps),
+        Some(Cmd::Run { scene, out, quiet: _, resume, plot, max_steps }) if is_3d(&scene) => run3(&scene, out, resume, plot, max_steps),
         Some(Cmd::Run { scene, out, quiet, resume, plot, max_steps }) => load(&scene).and_then(|mut s| {
             cap_steps(&mut s, max_steps);
             run(s, out, quiet, resume, plot)
@@ -426,16 +426,35 @@ fn is_3d(path: &Path) -> bool {
 }
 
 /// `flem run` on a 3D scene (`output::run3`: snapshots, history.csv, splits3.csv,
-/// summary.json); `--resume` and `--plot` are not available in 3D yet.
-fn run3(path: &Path, out: Option<PathBuf>, unsupported: bool, max_steps: Option<u64>) -> Result<()> {
-    anyhow::ensure!(!unsupported, "{}: --resume and --plot are not available for 3D scenes yet (docs/3d.md)", path.display());
+/// summary.json, checkpoints); `--resume` continues in the folder of its checkpoints; `--plot`
+/// is not available in 3D yet.
+fn run3(path: &Path, out: Option<PathBuf>, resume: Option<PathBuf>, plot: bool, max_steps: Option<u64>) -> Result<()> {
+    anyhow::ensure!(!plot, "{}: --plot is not available for 3D scenes yet (ParaView or pyvista read the VTU; docs/3d.md)", path.display());
     let mut scene = load3(path, max_steps)?;
     let stem = path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "run".into());
-    let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
+    let out = out.or_else(|| resume.clone()).unwrap_or_else(|| PathBuf::from("out").join(stem));
+    if let Some(r) = &resume {
+        anyhow::ensure!(
+            r.canonicalize().ok() == out.canonicalize().ok(),
+            "{}: a 3D run resumes in the folder of its checkpoints ({}); leave out --out or give the same folder",
+            path.display(),
+            r.display()
+        );
+    }
     let _lock = lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register_conditional_shutdown(sig, 130, Arc::clone(&stop)).context("installing the signal handler")?;
+        signal_hook::flag::register(sig, Arc::clone(&stop)).context("installing the signal handler")?;
+    }
     let t0 = std::time::Instant::now();
-    let (m, stages) = flem_core::output::run3::run3_in_folder(&mut scene, &out)?;
+    let (m, stages) = match flem_core::output::run3::run3_with(&mut scene, &out, resume.is_some(), Some(stop)) {
+        Err(e @ FlemError::Interrupted { .. }) => {
+            return Err(Stopped(format!("flem: {e}: a checkpoint is in {}\nresume with: {}", out.display(), resume_command(path, &out))).into());
+        }
+        r => r?,
+    };
     for w in &m.warnings {
         eprintln!("warning: {w}");
     }

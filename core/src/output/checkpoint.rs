@@ -137,7 +137,7 @@ pub struct Checkpoint {
 /// FNV-1a, 64 bit. Hand-written (6 lines) because the scene hash must be stable across Rust
 /// releases (std's `DefaultHasher` is not) and a cryptographic hash would add a dependency
 /// for no gain: it guards against resuming with another scene, not against an adversary.
-fn fnv1a(h: &mut u64, bytes: &[u8]) {
+pub(crate) fn fnv1a(h: &mut u64, bytes: &[u8]) {
     for &b in bytes {
         *h ^= b as u64;
         *h = h.wrapping_mul(0x0100_0000_01b3);
@@ -370,56 +370,70 @@ impl Checkpoint {
     /// The file bytes (header, checksum, payload) for a run of the scene with hash `scene_hash`.
     pub fn encode(&self, scene_hash: u64) -> Result<Vec<u8>> {
         let payload = postcard::to_stdvec(self).map_err(|e| FlemError::Other(format!("checkpoint cannot be encoded: {e}")))?;
-        let ver = crate::VERSION.as_bytes();
-        let mut out = Vec::with_capacity(34 + ver.len() + payload.len());
-        out.extend_from_slice(MAGIC);
-        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-        out.extend_from_slice(&[0; 4]);
-        out.extend_from_slice(&((10 + ver.len() + payload.len()) as u64).to_le_bytes());
-        out.extend_from_slice(&scene_hash.to_le_bytes());
-        out.extend_from_slice(&(ver.len() as u16).to_le_bytes());
-        out.extend_from_slice(ver);
-        out.extend_from_slice(&payload);
-        let crc = crc32fast::hash(&out[16..]);
-        out[12..16].copy_from_slice(&crc.to_le_bytes());
-        Ok(out)
+        Ok(frame(&payload, scene_hash))
     }
 
     /// Reads and checks a checkpoint file; the error names the file and the reason.
     pub fn decode(path: &Path, bytes: &[u8], scene_hash: u64) -> Result<Checkpoint> {
-        let refuse = |msg: String| FlemError::Checkpoint { path: path.display().to_string(), msg };
-        if bytes.len() < 8 || &bytes[..8] != MAGIC {
-            return Err(refuse("not a FLEM checkpoint (bad magic)".into()));
-        }
-        if bytes.len() < 34 {
-            return Err(refuse(format!("truncated ({} bytes)", bytes.len())));
-        }
-        let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
-        let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().unwrap());
-        let fv = u32_at(8);
-        if fv != FORMAT_VERSION {
-            let hint = if fv < FORMAT_VERSION { "an older FLEM wrote it: resume with that FLEM, or start the run again without --resume" } else { "a newer FLEM wrote it" };
-            return Err(refuse(format!("format version {fv}, this program reads version {FORMAT_VERSION} ({hint})")));
-        }
-        let len = u64_at(16);
-        if len != (bytes.len() - 24) as u64 {
-            return Err(refuse(format!("truncated or padded: the header announces {} bytes, the file has {}", len + 24, bytes.len())));
-        }
-        let (stored, actual) = (u32_at(12), crc32fast::hash(&bytes[16..]));
-        if stored != actual {
-            return Err(refuse(format!("bad checksum (stored {stored:08x}, computed {actual:08x}): the file is corrupt")));
-        }
-        let n = u16::from_le_bytes([bytes[32], bytes[33]]) as usize;
-        let ver = bytes.get(34..34 + n).map(String::from_utf8_lossy).unwrap_or_default();
-        if ver != crate::VERSION {
-            return Err(refuse(format!("written by FLEM {ver}, this is FLEM {}", crate::VERSION)));
-        }
-        let h = u64_at(24);
-        if h != scene_hash {
-            return Err(refuse(format!("written for another scene (scene hash {h:016x}, this scene {scene_hash:016x}); resume with the scene file the run started with")));
-        }
-        postcard::from_bytes(&bytes[34 + n..]).map_err(|e| refuse(format!("payload cannot be decoded: {e}")))
+        let payload = unframe(path, bytes, scene_hash)?;
+        postcard::from_bytes(payload).map_err(|e| FlemError::Checkpoint { path: path.display().to_string(), msg: format!("payload cannot be decoded: {e}") })
     }
+}
+
+/// The file layout around a payload (module doc): magic, format version, CRC-32, length, scene
+/// hash, FLEM version. Shared by the 2D and the 3D checkpoints (`checkpoint3.rs`), whose scene
+/// hashes differ, so that neither reads the other's file.
+pub fn frame(payload: &[u8], scene_hash: u64) -> Vec<u8> {
+    let ver = crate::VERSION.as_bytes();
+    let mut out = Vec::with_capacity(34 + ver.len() + payload.len());
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&[0; 4]);
+    out.extend_from_slice(&((10 + ver.len() + payload.len()) as u64).to_le_bytes());
+    out.extend_from_slice(&scene_hash.to_le_bytes());
+    out.extend_from_slice(&(ver.len() as u16).to_le_bytes());
+    out.extend_from_slice(ver);
+    out.extend_from_slice(payload);
+    let crc = crc32fast::hash(&out[16..]);
+    out[12..16].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// Checks a checkpoint file's layout (magic, version, length, checksum, FLEM version, scene
+/// hash) and returns its payload; the error names the file and the reason.
+pub fn unframe<'a>(path: &Path, bytes: &'a [u8], scene_hash: u64) -> Result<&'a [u8]> {
+    let refuse = |msg: String| FlemError::Checkpoint { path: path.display().to_string(), msg };
+    if bytes.len() < 8 || &bytes[..8] != MAGIC {
+        return Err(refuse("not a FLEM checkpoint (bad magic)".into()));
+    }
+    if bytes.len() < 34 {
+        return Err(refuse(format!("truncated ({} bytes)", bytes.len())));
+    }
+    let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
+    let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().unwrap());
+    let fv = u32_at(8);
+    if fv != FORMAT_VERSION {
+        let hint = if fv < FORMAT_VERSION { "an older FLEM wrote it: resume with that FLEM, or start the run again without --resume" } else { "a newer FLEM wrote it" };
+        return Err(refuse(format!("format version {fv}, this program reads version {FORMAT_VERSION} ({hint})")));
+    }
+    let len = u64_at(16);
+    if len != (bytes.len() - 24) as u64 {
+        return Err(refuse(format!("truncated or padded: the header announces {} bytes, the file has {}", len + 24, bytes.len())));
+    }
+    let (stored, actual) = (u32_at(12), crc32fast::hash(&bytes[16..]));
+    if stored != actual {
+        return Err(refuse(format!("bad checksum (stored {stored:08x}, computed {actual:08x}): the file is corrupt")));
+    }
+    let n = u16::from_le_bytes([bytes[32], bytes[33]]) as usize;
+    let ver = bytes.get(34..34 + n).map(String::from_utf8_lossy).unwrap_or_default();
+    if ver != crate::VERSION {
+        return Err(refuse(format!("written by FLEM {ver}, this is FLEM {}", crate::VERSION)));
+    }
+    let h = u64_at(24);
+    if h != scene_hash {
+        return Err(refuse(format!("written for another scene (scene hash {h:016x}, this scene {scene_hash:016x}); resume with the scene file the run started with")));
+    }
+    Ok(&bytes[34 + n..])
 }
 
 /// The file name of checkpoint number `seq`.

@@ -153,6 +153,17 @@ impl<'a> Comparer3<'a> {
         Ok(Comparer3 { inner, scene, dir: dir.to_path_buf(), rows: Vec::new(), t_stage: Instant::now() })
     }
 
+    /// A resumed run (`run3::run3_with`): the rows of the stages before `stage` from the
+    /// folder's `compare.json` (none when it cannot be read).
+    pub fn keep_rows_before(&mut self, stage: usize) {
+        let rows = std::fs::read_to_string(self.dir.join("compare.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| serde_json::from_value::<Vec<StageComparison>>(v["stages"].clone()).ok())
+            .unwrap_or_default();
+        self.rows = rows.into_iter().filter(|r| r.stage < stage).collect();
+    }
+
     fn write_json(&self) -> Result<()> {
         let cfg = self.scene.file.check.as_ref();
         let v = serde_json::json!({
@@ -179,6 +190,15 @@ impl Observer3 for Comparer3<'_> {
     }
     fn step(&mut self, m: &March3, stage: usize) -> Result<()> {
         self.inner.step(m, stage)
+    }
+    fn checkpoint_due(&mut self, m: &March3) -> bool {
+        self.inner.checkpoint_due(m)
+    }
+    fn checkpoint(&mut self, m: &March3, pos: &crate::solver::march3::Pos3) -> Result<()> {
+        self.inner.checkpoint(m, pos)
+    }
+    fn should_stop(&mut self) -> bool {
+        self.inner.should_stop()
     }
     fn stage_done(&mut self, m: &March3, stage: usize, r: &Stage3Result) -> Result<()> {
         self.inner.stage_done(m, stage, r)?;

@@ -16,6 +16,7 @@
 //! FLEM-vs-implicit comparison). Both the writer and the comparer are `crate::solver::Observer`s.
 pub mod arrays;
 pub mod checkpoint;
+pub mod checkpoint3;
 pub mod compare;
 pub mod compare3;
 pub mod csvlog;

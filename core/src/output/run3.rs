@@ -4,37 +4,70 @@
 //! cluster's point id as point arrays; the region, the mean corner stress and the fragment as
 //! cell arrays), `history.csv` (one row per stage), `splits3.csv` (every split: stage, point,
 //! its coordinates, the new cluster) and `summary.json`, all written atomically or appended by
-//! whole rows. What the 2D writer has and this one has not yet: probes, reactions, plots,
-//! checkpoints (docs/3d.md).
-use std::io::Write;
+//! whole rows (`csvlog::CsvLog`). Checkpoints (`checkpoint3.rs`): every
+//! `output.checkpoint_every` steps or `checkpoint_seconds`, after every stage and when the run
+//! is interrupted; `resume3_in_folder` continues the newest valid one bit for bit. What the 2D
+//! writer has and this one has not yet: probes, reactions, plots (docs/3d.md).
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
 
 use crate::error::{FlemError, Result};
 use crate::mesh::RawCell3;
+use crate::output::checkpoint::{file_name, prune};
+use crate::output::checkpoint3::{load_newest3, scene_hash3, Checkpoint3};
+use crate::output::csvlog::{CsvLog, LogMark};
 use crate::output::vtu3::{StressLayout, Vtu3};
 use crate::scene3::Scene3;
-use crate::solver::march3::{March3, Observer3, Stage3Result};
+use crate::solver::march3::{March3, Observer3, Pos3, Stage3Result};
 
 struct Writer3<'a> {
     dir: &'a Path,
     snapshots: usize,
     splits_seen: usize,
+    history: CsvLog,
+    splits: CsvLog,
+    /// Checkpoints: steps and seconds between them, files kept, the last one's number and
+    /// time, the scene hash.
+    ck_every: u64,
+    ck_seconds: f64,
+    ck_keep: usize,
+    seq: u64,
+    last_ck: Instant,
+    hash: u64,
+    stop: Option<Arc<AtomicBool>>,
 }
 
-fn io(path: &Path, e: std::io::Error) -> FlemError {
-    FlemError::Output { path: path.display().to_string(), msg: e.to_string() }
+/// What the writer keeps in a checkpoint (section "output3", version 1).
+#[derive(Serialize, Deserialize)]
+struct Writer3State {
+    snapshots: usize,
+    splits_seen: usize,
+    history: Option<LogMark>,
+    splits: Option<LogMark>,
 }
 
-fn append(path: &Path, header: &str, rows: &str) -> Result<()> {
-    let new = !path.exists();
-    let mut f = std::fs::OpenOptions::new().create(true).append(true).open(path).map_err(|e| io(path, e))?;
-    let mut s = String::new();
-    if new {
-        s.push_str(header);
-        s.push('\n');
+impl<'a> Writer3<'a> {
+    fn new(dir: &'a Path, scene: &Scene3, hash: u64, stop: Option<Arc<AtomicBool>>) -> Self {
+        let o = &scene.file.output;
+        Writer3 {
+            dir,
+            snapshots: 0,
+            splits_seen: 0,
+            history: CsvLog::new(dir.join("history.csv"), "stage,name,steps,ratio,at_rest,time,splits,fragments\n".into()),
+            splits: CsvLog::new(dir.join("splits3.csv"), "stage,point,x,y,z,new_cluster\n".into()),
+            ck_every: o.checkpoint_every,
+            ck_seconds: o.checkpoint_seconds,
+            ck_keep: o.checkpoint_keep,
+            seq: 0,
+            last_ck: Instant::now(),
+            hash,
+            stop,
+        }
     }
-    s.push_str(rows);
-    f.write_all(s.as_bytes()).map_err(|e| io(path, e))
 }
 
 /// The body as VTU: one point per cluster at its point's reference position.
@@ -99,7 +132,7 @@ impl Observer3 for Writer3<'_> {
         snapshot3(m).write(&path, true)?;
         self.snapshots += 1;
         let row = format!("{stage},{},{},{:e},{},{:e},{},{}\n", r.name, r.steps, r.ratio, r.at_rest, r.time, r.splits, r.fragments);
-        append(&self.dir.join("history.csv"), "stage,name,steps,ratio,at_rest,time,splits,fragments", &row)?;
+        self.history.append(row.as_bytes())?;
         // New clusters since the last stage: the split log.
         let t = &m.topo;
         let mut rows = String::new();
@@ -110,26 +143,75 @@ impl Observer3 for Writer3<'_> {
         }
         self.splits_seen = t.n_clusters() - t.n_points;
         if !rows.is_empty() {
-            append(&self.dir.join("splits3.csv"), "stage,point,x,y,z,new_cluster", &rows)?;
+            self.splits.append(rows.as_bytes())?;
         }
         Ok(())
     }
+    fn checkpoint_due(&mut self, m: &March3) -> bool {
+        (self.ck_every > 0 && m.state.step % self.ck_every == 0) || (self.ck_seconds > 0.0 && self.last_ck.elapsed().as_secs_f64() >= self.ck_seconds)
+    }
+    fn checkpoint(&mut self, m: &March3, pos: &Pos3) -> Result<()> {
+        self.history.sync()?;
+        self.splits.sync()?;
+        let mut ck = Checkpoint3::capture(m, pos);
+        ck.put_section("output3", 1, &Writer3State { snapshots: self.snapshots, splits_seen: self.splits_seen, history: self.history.mark(), splits: self.splits.mark() })?;
+        self.seq += 1;
+        ck.seq = self.seq;
+        crate::output::atomic_write(&self.dir.join(file_name(self.seq)), &ck.encode(self.hash)?)?;
+        prune(self.dir, self.seq, self.ck_keep)?;
+        self.last_ck = Instant::now();
+        Ok(())
+    }
+    fn should_stop(&mut self) -> bool {
+        self.stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed))
+    }
 }
 
-/// Builds the body of a 3D scene and runs it in `dir` (created empty or emptied of a previous
-/// run's files by the caller): the stage results, also in `summary.json`.
+/// Builds the body of a 3D scene and runs it in `dir` (created by the caller; the logs are
+/// replaced at their first row): the stage results, also in `summary.json`.
 pub fn run3_in_folder(scene: &mut Scene3, dir: &Path) -> Result<(March3, Vec<Stage3Result>)> {
-    let t0 = std::time::Instant::now();
+    run3_with(scene, dir, false, None)
+}
+
+/// [`run3_in_folder`], or (`resume`) its continuation from the newest valid checkpoint of `dir`
+/// (`checkpoint3.rs`; the logs are cut back to what they were then); `stop` (a SIGINT flag)
+/// ends the run after a checkpoint with `FlemError::Interrupted`.
+pub fn run3_with(scene: &mut Scene3, dir: &Path, resume: bool, stop: Option<Arc<AtomicBool>>) -> Result<(March3, Vec<Stage3Result>)> {
+    let t0 = Instant::now();
+    let scene_json = serde_json::to_string(&scene.file).map_err(|e| FlemError::Other(format!("the scene cannot be written as JSON for its hash: {e}")))?;
     let mut m = March3::from_scene(scene)?;
+    let hash = scene_hash3(&scene_json, &m);
     // The pre-separated faces' splits are in the first stage's rows of splits3.csv.
-    let mut w = Writer3 { dir, snapshots: 0, splits_seen: 0 };
+    let mut w = Writer3::new(dir, scene, hash, stop);
+    let mut from = None;
+    if resume {
+        let (ck, path, refused) = load_newest3(dir, hash)?;
+        m.warnings.extend(refused);
+        ck.restore(&mut m)?;
+        let st: Writer3State = ck.section("output3", 1)?.ok_or_else(|| FlemError::Checkpoint { path: path.display().to_string(), msg: "has no output section".into() })?;
+        w.history.resume(&dir.join("history.csv"), st.history, &path)?;
+        w.splits.resume(&dir.join("splits3.csv"), st.splits, &path)?;
+        w.snapshots = st.snapshots;
+        w.splits_seen = st.splits_seen;
+        w.seq = ck.seq;
+        m.warnings.push(format!("resumed from {} (step {}, stage {} step {})", path.display(), ck.step, ck.pos.stage + 1, ck.pos.steps));
+        from = Some(ck.pos);
+    }
     let (stages, compare) = if scene.file.check.is_some() {
         let mut c = crate::output::compare3::Comparer3::new(&mut w, scene, dir)?;
-        let stages = m.run_scene(scene, &mut c)?;
+        if let Some(p) = &from {
+            c.keep_rows_before(p.stage);
+        }
+        let stages = m.run_scene_from(scene, &mut c, from)?;
         (stages, Some(c.rows))
     } else {
-        (m.run_scene(scene, &mut w)?, None)
+        (m.run_scene_from(scene, &mut w, from)?, None)
     };
+    // Logs that got no row are written with their header (and an older run's are replaced).
+    w.history.append(b"")?;
+    w.splits.append(b"")?;
+    w.history.sync()?;
+    w.splits.sync()?;
     let mut summary = serde_json::json!({
         "scene": scene.path.display().to_string(),
         "dim": 3,

@@ -58,13 +58,16 @@ pub struct March3 {
     pub dt: f64,
     pub damping: Box<dyn Damping>,
     pub ledger: Ledger,
-    stats: StepStats,
-    omega_max: f64,
+    pub(crate) stats: StepStats,
+    pub(crate) omega_max: f64,
     partials: Vec<[f64; NSUM]>,
     /// Ratio of the last step.
     pub ratio: f64,
     /// What building the body warned about (reoriented cells).
     pub warnings: Vec<String>,
+    /// Every cut of the failure check, in order: (cluster, faces). A checkpoint replays them
+    /// (`output::checkpoint3`); the pre-separated face sets are cut again by `from_scene`.
+    pub cuts: Vec<(u32, Vec<u32>)>,
 }
 
 impl March3 {
@@ -120,6 +123,7 @@ impl March3 {
             partials: Vec::new(),
             ratio: f64::INFINITY,
             warnings: Vec::new(),
+            cuts: Vec::new(),
             mesh,
             topo,
             blocks,
@@ -382,6 +386,7 @@ impl March3 {
             let r = self.topo.cut(cl, &faces, true);
             if !r.is_empty() {
                 n_split += 1;
+                self.cuts.push((cl.0, faces.iter().map(|f| f.0).collect()));
             }
             self.follow(&r);
             rec.extend(r);
@@ -394,6 +399,32 @@ impl March3 {
             self.omega_max = self.omega_bound();
         }
         Ok(rec)
+    }
+
+    /// Replays a cut of the failure check (a checkpoint's, `output::checkpoint3`): the same
+    /// `Topology3::cut` and the arrays following it, without the blocks' reconnection (call
+    /// [`Self::after_cuts`] once after the last).
+    pub fn replay_cut(&mut self, cluster: u32, faces: &[u32]) -> Result<()> {
+        if cluster as usize >= self.topo.n_clusters() {
+            return Err(FlemError::Other(format!("a replayed cut names cluster {cluster}, and the body has {}", self.topo.n_clusters())));
+        }
+        let faces: Vec<FaceId> = faces.iter().map(|&f| FaceId(f)).collect();
+        let r = self.topo.cut(ClusterId(cluster), &faces, true);
+        if r.is_empty() {
+            return Err(FlemError::Other(format!("a replayed cut at cluster {cluster} splits nothing: the checkpoint does not fit this body")));
+        }
+        self.follow(&r);
+        self.cuts.push((cluster, faces.iter().map(|f| f.0).collect()));
+        Ok(())
+    }
+
+    /// After replayed cuts: forces, blocks and the stiffness bound follow the topology.
+    pub fn after_cuts(&mut self) {
+        self.rebuild_forces();
+        for b in &mut self.blocks {
+            b.reconnect(&self.topo);
+        }
+        self.omega_max = self.omega_bound();
     }
 
     /// Every per-cluster array follows a split.
@@ -462,7 +493,7 @@ pub fn face_normal(mesh: &RawMesh3, topo: &Topology3, f: FaceId) -> [f64; 3] {
 }
 
 /// What a stage of a 3D scene did.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Stage3Result {
     pub name: String,
     pub steps: u64,
@@ -492,6 +523,30 @@ pub trait Observer3 {
     fn stage_done(&mut self, _m: &March3, _stage: usize, _r: &Stage3Result) -> Result<()> {
         Ok(())
     }
+    /// Polled between two steps: a checkpoint is due (e.g. `output.checkpoint_every`).
+    fn checkpoint_due(&mut self, _m: &March3) -> bool {
+        false
+    }
+    /// Takes a checkpoint of the body at `pos` (between two steps, or after a stage).
+    fn checkpoint(&mut self, _m: &March3, _pos: &Pos3) -> Result<()> {
+        Ok(())
+    }
+    /// Polled once per step: stop the run (after a checkpoint) with `FlemError::Interrupted`.
+    fn should_stop(&mut self) -> bool {
+        false
+    }
+}
+
+/// Where the stage loop of a 3D run stands (a checkpoint's position, `output::checkpoint3`):
+/// the stage, whether it began (its levels set), the steps run in it, the clusters at its
+/// start, and the stages done.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Pos3 {
+    pub stage: usize,
+    pub began: bool,
+    pub steps: u64,
+    pub clusters0: usize,
+    pub done: Vec<Stage3Result>,
 }
 
 impl March3 {
@@ -562,22 +617,54 @@ impl March3 {
     /// nothing) or every `check_every` steps (`at_equilibrium = false`); a `dynamic` stage runs
     /// its steps (or to its `end_time`) without the tolerance.
     pub fn run_scene(&mut self, scene: &crate::scene3::Scene3, obs: &mut dyn Observer3) -> Result<Vec<Stage3Result>> {
+        self.run_scene_from(scene, obs, None)
+    }
+
+    /// [`Self::run_scene`] from the start (`None`) or from a checkpoint's position (the body
+    /// restored by `output::checkpoint3`). Between two steps the observer may take a
+    /// checkpoint (`checkpoint_due`); one is taken after every stage; `should_stop` ends the
+    /// run after a checkpoint with `FlemError::Interrupted`.
+    pub fn run_scene_from(&mut self, scene: &crate::scene3::Scene3, obs: &mut dyn Observer3, from: Option<Pos3>) -> Result<Vec<Stage3Result>> {
         let f = &scene.file;
         let levels = scene.stage_levels();
-        obs.start(self)?;
-        let mut out = Vec::new();
-        for (i, st) in f.stages.iter().enumerate() {
-            self.set_levels(&levels[i]);
-            self.damping.reset();
+        let resumed = from.is_some();
+        let mut pos = match from {
+            Some(p) => p,
+            None => {
+                obs.start(self)?;
+                Pos3 { stage: 0, began: false, steps: 0, clusters0: self.topo.n_clusters(), done: Vec::new() }
+            }
+        };
+        let mut fresh = resumed;
+        while pos.stage < f.stages.len() {
+            let i = pos.stage;
+            let st = &f.stages[i];
+            if !pos.began {
+                self.set_levels(&levels[i]);
+                self.damping.reset();
+                pos.clusters0 = self.topo.n_clusters();
+                pos.began = true;
+            }
             let tol = st.tolerance.unwrap_or(f.solver.tolerance);
             let max_steps = st.max_steps.unwrap_or(f.solver.max_steps);
             let every = f.solver.ratio_every;
             let obs_every = obs.every();
-            let clusters0 = self.topo.n_clusters();
-            let (mut steps, mut at_rest) = (0u64, false);
-            while steps < max_steps {
+            let mut at_rest = false;
+            while pos.steps < max_steps {
+                // Between two steps: the state is whole here (a resumed run starts here).
+                if !fresh {
+                    if obs.should_stop() {
+                        obs.checkpoint(self, &pos)?;
+                        return Err(FlemError::Interrupted { step: self.state.step, stage: i, stage_step: pos.steps });
+                    }
+                    if obs.checkpoint_due(self) {
+                        obs.checkpoint(self, &pos)?;
+                    }
+                }
+                fresh = false;
                 self.step()?;
-                steps += 1;
+                pos.steps += 1;
+                let steps = pos.steps;
                 if obs_every > 0 && steps % obs_every == 0 {
                     obs.step(self, i)?;
                 }
@@ -603,18 +690,23 @@ impl March3 {
                     break;
                 }
             }
+            fresh = false;
             let r = Stage3Result {
                 name: if st.name.is_empty() { format!("stage{i}") } else { st.name.clone() },
-                steps,
+                steps: pos.steps,
                 ratio: self.ratio,
                 at_rest,
-                splits: self.topo.n_clusters() - clusters0,
+                splits: self.topo.n_clusters() - pos.clusters0,
                 fragments: self.fragments(),
                 time: self.state.time,
             };
             obs.stage_done(self, i, &r)?;
-            out.push(r);
+            pos.done.push(r);
+            pos.stage += 1;
+            pos.steps = 0;
+            pos.began = false;
+            obs.checkpoint(self, &pos)?;
         }
-        Ok(out)
+        Ok(pos.done)
     }
 }
