@@ -143,7 +143,8 @@ def three_d():
     (cube.geo: two regions, side and inner face sets, a curve and a point group) in tetrahedra
     and bricks, each in msh 2.2 and 4.1, ASCII and binary; the notched bar (notched_bar.geo) in
     tetrahedra and bricks at h = 0.125 m and the Brazilian cylinder (cylinder.geo) in
-    tetrahedra at h = 0.02 m, msh 4.1 ASCII; the brick cubes as .vtu through meshio."""
+    tetrahedra at h = 0.02 m and the strip-loaded Brazilian disc (brazilian.geo) at h = 5 and
+    3.5 mm, msh 4.1 ASCII; the brick cubes as .vtu through meshio."""
     for kind, hexa in (("tet", 0), ("hex", 1)):
         mesh3("cube.geo", {"hex": hexa, "n": 2}, [
             ("cube_%s_v22.msh" % kind, 2.2, False),
@@ -153,6 +154,11 @@ def three_d():
         ])
         mesh3("notched_bar.geo", {"hex": hexa, "h": 0.125}, [("notched_bar_%s_v41.msh" % kind, 4.1, False)])
     mesh3("cylinder.geo", {"h": 0.02}, [("cylinder_tet_v41.msh", 4.1, False)])
+    # The Brazilian disc with its loading strips (brazilian.geo, brazilian.toml,
+    # tests/brazilian3.rs): tetrahedra at h = 5 mm (the scene's) and 3.5 mm (the finer mesh of
+    # the initiation test), the strips' edges at h / 2.
+    for h in (5, 3.5):
+        mesh3("brazilian.geo", {"h": h}, [("brazilian_h%s_v41.msh" % h, 4.1, False)])
     # The brick cubes as a .vtu written by meshio (its "gmsh:physical" cell array on every
     # block): the 3D VTK importer's doc file (plugins/src/import/vtk3.rs).
     import meshio

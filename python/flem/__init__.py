@@ -204,6 +204,14 @@ class Result:
     energy_residual, checks). ``info`` is the whole summary.json as a dict, ``compare`` the
     ``[check]`` rows (list of dicts), ``warnings`` the run's warnings, ``out`` its folder (None
     when it was a temporary one, removed after reading).
+
+    A 3D scene (``[model] dim = 3``, docs/3d.md; ``dim`` is 3, else 2): ``points``,
+    ``displacement``, ``velocity`` (n, 3); ``nodal_stress`` (n, 6) and ``elem_stress``
+    (nelems, 6) ``[sxx, syy, szz, sxy, syz, szx]``; ``cells`` ``{"tetra": (m, 4),
+    "hexahedron": (m, 8)}`` on clusters; ``fragment`` (nelems,); ``crack_faces`` (nf, 2) the two
+    *elements* of each separated face, ``crack_state`` (nf,) at how many of its corners it is
+    separated; ``splits`` is splits3.csv; no ``clusters``/``copy_offsets``, ``failure_index``
+    None. ``resume``, ``on_stage`` and ``on_progress`` are refused for a 3D scene (not yet).
     """
 
     points: np.ndarray
@@ -225,8 +233,9 @@ class Result:
     def __init__(self, arrays: Dict[str, Any], out: Path, keep: bool, compare: List[Dict[str, Any]], warnings: List[str]) -> None:
         for k, v in arrays.items():
             setattr(self, k, v)
+        self.dim: int = int(arrays.get("dim", 2))
         self.history = _read_csv(out / "history.csv")
-        self.splits = _read_csv(out / "splits.csv")
+        self.splits = _read_csv(out / ("splits3.csv" if self.dim == 3 else "splits.csv"))
         self.info: Dict[str, Any] = json.loads((out / "summary.json").read_text())
         stages = self.info.get("stages", [])
         keys = ["name", "steps", "converged", "final_ratio", "wall_seconds", "time", "splits", "energy_residual", "checks"]

@@ -47,10 +47,14 @@ fn paths(path: &str, base: &str) -> (PathBuf, PathBuf) {
     (PathBuf::from(path), PathBuf::from(base))
 }
 
-/// Validates scene text as `flem run` would; raises SceneError with the CLI's message.
+/// Validates scene text as `flem run` would (a 3D scene as one); raises SceneError with the
+/// CLI's message.
 #[pyfunction]
 fn scene_check(py: Python<'_>, text: &str, path: &str, base: &str) -> PyResult<()> {
     let (p, b) = paths(path, base);
+    if flem_core::scene3::scene_dim(text) == 3 {
+        return flem_core::scene3::Scene3::from_str(text, &p, &b).map(|_| ()).map_err(|e| to_py(py, e));
+    }
     Scene::from_str(text, &p, &b).map(|_| ()).map_err(|e| to_py(py, e))
 }
 
@@ -229,6 +233,48 @@ fn arrays_dict<'py>(py: Python<'py>, r: &ResultArrays) -> PyResult<Bound<'py, Py
     Ok(d)
 }
 
+/// A 3D scene's run (`[model] dim = 3`, `output::run3`) in `out`: its arrays.
+fn run3_detached(text: &str, path: &Path, base: &Path, out: &Path) -> flem_core::Result<(flem_core::output::run3::Arrays3, Vec<String>)> {
+    let mut scene = flem_core::scene3::Scene3::from_str(text, path, base)?;
+    let _lock = flem_core::output::lock::lock_dir(out, &format!("python flem.run (process {})", std::process::id()))?;
+    flem_core::output::prepare_dir(out)?;
+    let (m, _) = flem_core::output::run3::run3_in_folder(&mut scene, out)?;
+    Ok((flem_core::output::run3::arrays3(&m), m.warnings.clone()))
+}
+
+/// The arrays of a 3D run (docs/python.md "3D runs"): `dim` = 3, points, displacement and
+/// velocity (n, 3), nodal_stress (n, 6) `[xx, yy, zz, xy, yz, zx]`, cells on clusters
+/// (`tetra` (m, 4), `hexahedron` (m, 8)), elem_stress (nelems, 6), crack_faces (nf, 2): the two
+/// elements of each separated face.
+fn arrays3_dict<'py>(py: Python<'py>, r: &flem_core::output::run3::Arrays3) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("dim", 3)?;
+    d.set_item("points", arr2(py, &r.points)?)?;
+    d.set_item("point_id", PyArray1::from_vec(py, r.point_id.iter().map(|&x| x as i64).collect()))?;
+    let cells = PyDict::new(py);
+    for (kind, name, n) in [(flem_core::mesh::CellKind3::T4, "tetra", 4usize), (flem_core::mesh::CellKind3::H8, "hexahedron", 8)] {
+        let conn: Vec<i64> = r.cells.iter().filter(|c| c.kind == kind).flat_map(|c| c.corners().iter().map(|&p| p as i64)).collect();
+        if !conn.is_empty() {
+            let m = conn.len() / n;
+            cells.set_item(name, PyArray1::from_vec(py, conn).reshape([m, n])?)?;
+        }
+    }
+    d.set_item("cells", cells)?;
+    d.set_item("cell_kinds", PyList::new(py, r.cells.iter().map(|c| if c.kind == flem_core::mesh::CellKind3::T4 { "tetra" } else { "hexahedron" }))?)?;
+    d.set_item("region", PyArray1::from_vec(py, r.region.clone()))?;
+    d.set_item("displacement", arr2(py, &r.displacement)?)?;
+    d.set_item("velocity", arr2(py, &r.velocity)?)?;
+    d.set_item("mass", PyArray1::from_vec(py, r.mass.clone()))?;
+    d.set_item("nodal_stress", arr2(py, &r.nodal_stress)?)?;
+    d.set_item("elem_stress", arr2(py, &r.elem_stress)?)?;
+    d.set_item("fragment", PyArray1::from_vec(py, r.fragment.iter().map(|&x| x as i64).collect()))?;
+    let faces: Vec<i64> = r.crack_faces.iter().flat_map(|f| f.map(|c| c as i64)).collect();
+    d.set_item("crack_faces", PyArray1::from_vec(py, faces).reshape([r.crack_faces.len(), 2])?)?;
+    d.set_item("crack_state", PyArray1::from_vec(py, r.crack_state.iter().map(|&x| x as i32).collect()))?;
+    d.set_item("failure_index", py.None())?;
+    Ok(d)
+}
+
 /// Runs a scene into `out` with the GIL released. Returns a dict: `arrays` (numpy arrays of the
 /// final state), `compare` (JSON rows of a `[check]` scene), `warnings`. Raises SceneError or
 /// FlemError as the CLI would stop, `flem.RunInterrupted` (a KeyboardInterrupt) after Ctrl-C
@@ -250,6 +296,20 @@ fn run<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let (p, b) = paths(path, base);
     let out_p = PathBuf::from(out);
+    if flem_core::scene3::scene_dim(text) == 3 {
+        // A 3D scene (issue 38): no resume and no callbacks yet (checkpoints and the stage
+        // observer of 3D runs are not wired to Python).
+        if resume.is_some() || on_stage.is_some() || on_progress.is_some() {
+            return Err(to_py(py, FlemError::config(path, "model.dim", "= 3: flem.run of a 3D scene takes no resume, on_stage or on_progress yet")));
+        }
+        let (arrays, warnings) = py.detach(|| run3_detached(text, &p, &b, &out_p)).map_err(|e| to_py(py, e))?;
+        let d = PyDict::new(py);
+        d.set_item("arrays", arrays3_dict(py, &arrays)?)?;
+        d.set_item("compare", "[]")?;
+        d.set_item("warnings", warnings)?;
+        d.set_item("checkpoint", py.None())?;
+        return Ok(d);
+    }
     let resume_p = resume.map(PathBuf::from);
     let mut obs = PyObserver { on_stage, on_progress, progress_every: Duration::from_secs_f64(progress_every.max(0.0)), last_signal: Instant::now(), last_progress: None, err: None };
     let r = py.detach(|| run_detached(text, &p, &b, &out_p, threads, resume_p.as_deref(), &mut obs));

@@ -8,7 +8,9 @@
 //! VTK's order for symmetric tensors, `xx, yy, zz, xy, yz, xz` (ParaView shows them as a
 //! symmetric tensor; meshio hands back an `(n, 6)` array), or as the 9 components of the full
 //! tensor, row by row (meshio: `(n, 9)`; `reshape(-1, 3, 3)` gives the tensors)
-//! ([`StressLayout`]). Nothing non-finite is written: an array holding NaN or infinity, or of
+//! ([`StressLayout`]). A VTU of surface polygons ([`Vtu3::polygons`]: triangles, quads, VTK
+//! types 5 and 9) takes the same arrays: the crack faces of a 3D run (`cracks_NNNN_stageK.vtu`,
+//! [`super::run3`]). Nothing non-finite is written: an array holding NaN or infinity, or of
 //! the wrong length, is refused by name before any byte reaches the disk.
 use std::path::Path;
 
@@ -46,6 +48,8 @@ struct Array {
 pub struct Vtu3 {
     points: Vec<[f64; 3]>,
     cells: Vec<RawCell3>,
+    /// Surface polygons (3 or more points each), written after `cells`.
+    polys: Vec<Vec<u32>>,
     point: Vec<Array>,
     cell: Vec<Array>,
     title: String,
@@ -54,7 +58,13 @@ pub struct Vtu3 {
 impl Vtu3 {
     /// The points and cells; no array yet.
     pub fn new(points: &[[f64; 3]], cells: &[RawCell3]) -> Self {
-        Vtu3 { points: points.to_vec(), cells: cells.to_vec(), point: Vec::new(), cell: Vec::new(), title: "FLEM 3D snapshot".into() }
+        Vtu3 { points: points.to_vec(), cells: cells.to_vec(), polys: Vec::new(), point: Vec::new(), cell: Vec::new(), title: "FLEM 3D snapshot".into() }
+    }
+
+    /// The points and surface polygons (each 3 or more point indices: VTK triangles, quads,
+    /// polygons); no array yet. Cell arrays have one entry per polygon.
+    pub fn polygons(points: &[[f64; 3]], polys: &[Vec<u32>]) -> Self {
+        Vtu3 { points: points.to_vec(), cells: Vec::new(), polys: polys.to_vec(), point: Vec::new(), cell: Vec::new(), title: "FLEM 3D crack faces".into() }
     }
 
     /// The point array "displacement" (3 components).
@@ -104,12 +114,15 @@ impl Vtu3 {
         if let Some(i) = self.points.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
             return Err(format!("point {i} has a non-finite coordinate {:?}", self.points[i]));
         }
-        for (e, c) in self.cells.iter().enumerate() {
-            if let Some(&p) = c.corners().iter().find(|&&p| p as usize >= np) {
+        for (e, c) in self.cells.iter().map(|c| c.corners()).chain(self.polys.iter().map(|p| p.as_slice())).enumerate() {
+            if let Some(&p) = c.iter().find(|&&p| p as usize >= np) {
                 return Err(format!("cell {e} refers to point {p}, but there are {np} points"));
             }
+            if c.len() < 3 {
+                return Err(format!("cell {e} has {} points (a polygon needs 3 at least)", c.len()));
+            }
         }
-        for (arrays, n, what) in [(&self.point, np, "point"), (&self.cell, self.cells.len(), "cell")] {
+        for (arrays, n, what) in [(&self.point, np, "point"), (&self.cell, self.cells.len() + self.polys.len(), "cell")] {
             for (k, a) in arrays.iter().enumerate() {
                 if a.name.is_empty() || arrays[..k].iter().any(|b| b.name == a.name) {
                     return Err(format!("the {what} array \"{}\" is unnamed or named twice", a.name));
@@ -135,8 +148,8 @@ impl Vtu3 {
     pub fn vtk(&self) -> Vtk {
         let mut conn = Vec::new();
         let mut offs = Vec::with_capacity(self.cells.len());
-        for c in &self.cells {
-            conn.extend(c.corners().iter().map(|&p| p as u64));
+        for c in self.cells.iter().map(|c| c.corners()).chain(self.polys.iter().map(|p| p.as_slice())) {
+            conn.extend(c.iter().map(|&p| p as u64));
             offs.push(conn.len() as u64);
         }
         let types = self
@@ -146,6 +159,11 @@ impl Vtu3 {
                 CellKind3::T4 => CellType::Tetra,
                 CellKind3::H8 => CellType::Hexahedron,
             })
+            .chain(self.polys.iter().map(|p| match p.len() {
+                3 => CellType::Triangle,
+                4 => CellType::Quad,
+                _ => CellType::Polygon,
+            }))
             .collect();
         let attr = |a: &Array| {
             let at = Attribute::generic(&a.name, a.components as u32);
