@@ -134,6 +134,24 @@ pub struct Checkpoint {
     pub sections: Vec<Section>,
 }
 
+/// Adds (or replaces) a section of a checkpoint's list (2D and 3D).
+pub fn put_section<T: Serialize>(sections: &mut Vec<Section>, name: &str, version: u32, value: &T) -> Result<()> {
+    let bytes = postcard::to_stdvec(value).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be encoded: {e}")))?;
+    sections.retain(|s| s.name != name);
+    sections.push(Section { name: name.to_string(), version, bytes });
+    Ok(())
+}
+
+/// Reads a section of a checkpoint's list: `Ok(None)` when absent, an error when its version
+/// is not `version`.
+pub fn section<T: DeserializeOwned>(sections: &[Section], name: &str, version: u32) -> Result<Option<T>> {
+    let Some(s) = sections.iter().find(|s| s.name == name) else { return Ok(None) };
+    if s.version != version {
+        return Err(FlemError::Other(format!("checkpoint section \"{name}\" has version {}, this program reads version {version}", s.version)));
+    }
+    postcard::from_bytes(&s.bytes).map(Some).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be decoded: {e}")))
+}
+
 /// FNV-1a, 64 bit. Hand-written (6 lines) because the scene hash must be stable across Rust
 /// releases (std's `DefaultHasher` is not) and a cryptographic hash would add a dependency
 /// for no gain: it guards against resuming with another scene, not against an adversary.
@@ -236,19 +254,12 @@ impl Checkpoint {
 
     /// Adds (or replaces) a section.
     pub fn put_section<T: Serialize>(&mut self, name: &str, version: u32, value: &T) -> Result<()> {
-        let bytes = postcard::to_stdvec(value).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be encoded: {e}")))?;
-        self.sections.retain(|s| s.name != name);
-        self.sections.push(Section { name: name.to_string(), version, bytes });
-        Ok(())
+        put_section(&mut self.sections, name, version, value)
     }
 
     /// Reads a section: `Ok(None)` when absent, an error when its version is not `version`.
     pub fn section<T: DeserializeOwned>(&self, name: &str, version: u32) -> Result<Option<T>> {
-        let Some(s) = self.sections.iter().find(|s| s.name == name) else { return Ok(None) };
-        if s.version != version {
-            return Err(FlemError::Other(format!("checkpoint section \"{name}\" has version {}, this program reads version {version}", s.version)));
-        }
-        postcard::from_bytes(&s.bytes).map(Some).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be decoded: {e}")))
+        section(&self.sections, name, version)
     }
 
     /// Puts the state into `sim`, a simulation freshly built from the same scene
@@ -460,9 +471,15 @@ pub fn list(dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
 /// per newer file refused (naming the file and the reason).
 pub fn load_newest(dir: &Path, sim: &Simulation) -> Result<(Checkpoint, PathBuf, Vec<String>)> {
     let hash = scene_hash(sim);
+    newest_valid(dir, |path, b| Checkpoint::decode(path, b, hash))
+}
+
+/// The newest checkpoint file of `dir` that `decode` accepts (2D and 3D), its path, and one
+/// message per newer file refused.
+pub fn newest_valid<T>(dir: &Path, decode: impl Fn(&Path, &[u8]) -> Result<T>) -> Result<(T, PathBuf, Vec<String>)> {
     let mut refused = Vec::new();
     for (_, path) in list(dir)? {
-        let r = std::fs::read(&path).map_err(|e| FlemError::Checkpoint { path: path.display().to_string(), msg: format!("cannot be read: {e}") }).and_then(|b| Checkpoint::decode(&path, &b, hash));
+        let r = std::fs::read(&path).map_err(|e| FlemError::Checkpoint { path: path.display().to_string(), msg: format!("cannot be read: {e}") }).and_then(|b| decode(&path, &b));
         match r {
             Ok(ck) => return Ok((ck, path, refused)),
             Err(e) => refused.push(format!("{e}; trying the previous one")),

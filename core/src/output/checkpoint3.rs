@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
 use crate::error::{FlemError, Result};
-use crate::output::checkpoint::{fnv1a, frame, list, unframe, Section};
+use crate::output::checkpoint::{fnv1a, frame, newest_valid, put_section, section, unframe, Section};
 use crate::plugin::damping::StepStats;
 use crate::solver::march3::{March3, Pos3};
 use crate::solver::Ledger;
@@ -107,19 +107,12 @@ impl Checkpoint3 {
 
     /// Adds (or replaces) a section.
     pub fn put_section<T: Serialize>(&mut self, name: &str, version: u32, value: &T) -> Result<()> {
-        let bytes = postcard::to_stdvec(value).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be encoded: {e}")))?;
-        self.sections.retain(|s| s.name != name);
-        self.sections.push(Section { name: name.to_string(), version, bytes });
-        Ok(())
+        put_section(&mut self.sections, name, version, value)
     }
 
     /// Reads a section: `Ok(None)` when absent, an error when its version is not `version`.
     pub fn section<T: DeserializeOwned>(&self, name: &str, version: u32) -> Result<Option<T>> {
-        let Some(s) = self.sections.iter().find(|s| s.name == name) else { return Ok(None) };
-        if s.version != version {
-            return Err(FlemError::Other(format!("checkpoint section \"{name}\" has version {}, this program reads version {version}", s.version)));
-        }
-        postcard::from_bytes(&s.bytes).map(Some).map_err(|e| FlemError::Other(format!("checkpoint section \"{name}\" cannot be decoded: {e}")))
+        section(&self.sections, name, version)
     }
 
     /// Puts the state into `m`, a body freshly built from the same scene
@@ -193,14 +186,5 @@ pub fn peek3(path: &Path) -> Result<Checkpoint3> {
 /// The newest checkpoint of `dir` valid for the scene hash, its path, and one message per newer
 /// file refused (naming the file and the reason).
 pub fn load_newest3(dir: &Path, hash: u64) -> Result<(Checkpoint3, PathBuf, Vec<String>)> {
-    let mut refused = Vec::new();
-    for (_, path) in list(dir)? {
-        let r = std::fs::read(&path).map_err(|e| FlemError::Checkpoint { path: path.display().to_string(), msg: format!("cannot be read: {e}") }).and_then(|b| Checkpoint3::decode(&path, &b, hash));
-        match r {
-            Ok(ck) => return Ok((ck, path, refused)),
-            Err(e) => refused.push(format!("{e}; trying the previous one")),
-        }
-    }
-    let why = if refused.is_empty() { String::from("it holds no checkpoint_*.bin file") } else { format!("every checkpoint was refused:\n  {}", refused.join("\n  ")) };
-    Err(FlemError::Other(format!("cannot resume from {}: {why}", dir.display())))
+    newest_valid(dir, |path, b| Checkpoint3::decode(path, b, hash))
 }

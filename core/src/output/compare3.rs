@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{FlemError, Result};
-use crate::mesh::{RawCell3, RawMesh3};
+use crate::mesh::RawMesh3;
 use crate::output::compare::{rel_l2, StageComparison};
 use crate::output::{atomic_write, run3::snapshot3};
 use crate::plugin::check::{CheckCfg, Linear3};
@@ -45,15 +45,7 @@ pub fn linear3_of<'a>(m: &March3, scene: &Scene3, mesh: &'a mut RawMesh3) -> Res
     let t = &m.topo;
     mesh.source = format!("{} (its clusters after the run's splits)", m.mesh.source);
     mesh.points = t.cluster_point.iter().map(|p| m.mesh.points[p.idx()]).collect();
-    mesh.cells = (0..t.n_elems())
-        .map(|e| {
-            let mut nodes = [0u32; 8];
-            for (a, k) in t.elem_copies(crate::ids::ElemId::new(e)).enumerate() {
-                nodes[a] = t.copy_cluster[k].0;
-            }
-            RawCell3 { kind: m.mesh.cells[e].kind, nodes }
-        })
-        .collect();
+    mesh.cells = crate::output::run3::cluster_cells(m);
     mesh.ids = m.mesh.ids.clone();
     let name = scene.path.display().to_string();
     let mut cells = vec![(0.0, 0.0, ""); t.n_elems()];

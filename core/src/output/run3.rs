@@ -72,11 +72,11 @@ impl<'a> Writer3<'a> {
     }
 }
 
-/// The body as VTU: one point per cluster at its point's reference position.
-pub fn snapshot3(m: &March3) -> Vtu3 {
+/// The cells of the body with their corners' clusters (one point per cluster: a separated
+/// face is open).
+pub fn cluster_cells(m: &March3) -> Vec<RawCell3> {
     let t = &m.topo;
-    let points: Vec<[f64; 3]> = t.cluster_point.iter().map(|p| m.mesh.points[p.idx()]).collect();
-    let cells: Vec<RawCell3> = (0..t.n_elems())
+    (0..t.n_elems())
         .map(|e| {
             let mut nodes = [0u32; 8];
             for (a, k) in t.elem_copies(crate::ids::ElemId::new(e)).enumerate() {
@@ -84,14 +84,17 @@ pub fn snapshot3(m: &March3) -> Vtu3 {
             }
             RawCell3 { kind: m.mesh.cells[e].kind, nodes }
         })
-        .collect();
-    let nodal = m.nodal_stress();
-    let s1: Vec<f64> = nodal.iter().map(|&s| -crate::plugin::traits::principal3(s).p.s3).collect();
+        .collect()
+}
+
+/// The mean of every element's corner stresses (Voigt `xx, yy, zz, xy, yz, zx`).
+fn elem_mean_stress(m: &March3) -> Vec<[f64; 6]> {
+    let t = &m.topo;
     let mut corner = vec![[0.0; 6]; t.copy_point.len()];
     for b in &m.blocks {
         b.corner_stresses(&m.state.u, &t.elem_first_copy, &mut corner);
     }
-    let stress: Vec<[[f64; 3]; 3]> = (0..t.n_elems())
+    (0..t.n_elems())
         .map(|e| {
             let r = t.elem_copies(crate::ids::ElemId::new(e));
             let n = r.len() as f64;
@@ -101,11 +104,15 @@ pub fn snapshot3(m: &March3) -> Vtu3 {
                     s[d] += corner[k][d] / n;
                 }
             }
-            [[s[0], s[3], s[5]], [s[3], s[1], s[4]], [s[5], s[4], s[2]]]
+            s
         })
-        .collect();
+        .collect()
+}
+
+/// Every element's region as a number (regions numbered in order of first appearance).
+fn region_ids(m: &March3) -> Vec<i32> {
     let mut regions: Vec<&str> = Vec::new();
-    let region: Vec<i32> = (0..t.n_elems())
+    (0..m.topo.n_elems())
         .map(|e| {
             let r = m.mesh.cell_region.get(e).map_or("all", |s| s.as_str());
             match regions.iter().position(|x| *x == r) {
@@ -116,7 +123,18 @@ pub fn snapshot3(m: &March3) -> Vtu3 {
                 }
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The body as VTU: one point per cluster at its point's reference position.
+pub fn snapshot3(m: &March3) -> Vtu3 {
+    let t = &m.topo;
+    let points: Vec<[f64; 3]> = t.cluster_point.iter().map(|p| m.mesh.points[p.idx()]).collect();
+    let cells = cluster_cells(m);
+    let nodal = m.nodal_stress();
+    let s1: Vec<f64> = nodal.iter().map(|&s| -crate::plugin::traits::principal3(s).p.s3).collect();
+    let stress: Vec<[[f64; 3]; 3]> = elem_mean_stress(m).iter().map(|s| [[s[0], s[3], s[5]], [s[3], s[1], s[4]], [s[5], s[4], s[2]]]).collect();
+    let region = region_ids(m);
     let (frag, _) = t.fragments();
     let point_id: Vec<f64> = t.cluster_point.iter().map(|p| p.0 as f64).collect();
     let mut cracked = vec![0.0; t.n_elems()];
@@ -349,45 +367,9 @@ pub struct Arrays3 {
 /// [`Arrays3`] of the body now.
 pub fn arrays3(m: &March3) -> Arrays3 {
     let t = &m.topo;
-    let cells: Vec<RawCell3> = (0..t.n_elems())
-        .map(|e| {
-            let mut nodes = [0u32; 8];
-            for (a, k) in t.elem_copies(crate::ids::ElemId::new(e)).enumerate() {
-                nodes[a] = t.copy_cluster[k].0;
-            }
-            RawCell3 { kind: m.mesh.cells[e].kind, nodes }
-        })
-        .collect();
-    let mut corner = vec![[0.0; 6]; t.copy_point.len()];
-    for b in &m.blocks {
-        b.corner_stresses(&m.state.u, &t.elem_first_copy, &mut corner);
-    }
-    let elem_stress = (0..t.n_elems())
-        .map(|e| {
-            let r = t.elem_copies(crate::ids::ElemId::new(e));
-            let n = r.len() as f64;
-            let mut s = [0.0; 6];
-            for k in r {
-                for d in 0..6 {
-                    s[d] += corner[k][d] / n;
-                }
-            }
-            s
-        })
-        .collect();
-    let mut regions: Vec<&str> = Vec::new();
-    let region = (0..t.n_elems())
-        .map(|e| {
-            let r = m.mesh.cell_region.get(e).map_or("all", |s| s.as_str());
-            match regions.iter().position(|x| *x == r) {
-                Some(i) => i as i32,
-                None => {
-                    regions.push(r);
-                    regions.len() as i32 - 1
-                }
-            }
-        })
-        .collect();
+    let cells = cluster_cells(m);
+    let elem_stress = elem_mean_stress(m);
+    let region = region_ids(m);
     let (mut crack_faces, mut crack_state) = (Vec::new(), Vec::new());
     for (f, face) in t.faces.iter().enumerate() {
         let s = t.crack_state(crate::ids::FaceId::new(f));
