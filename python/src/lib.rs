@@ -234,12 +234,20 @@ fn arrays_dict<'py>(py: Python<'py>, r: &ResultArrays) -> PyResult<Bound<'py, Py
 }
 
 /// A 3D scene's run (`[model] dim = 3`, `output::run3`) in `out`: its arrays.
-fn run3_detached(text: &str, path: &Path, base: &Path, out: &Path) -> flem_core::Result<(flem_core::output::run3::Arrays3, Vec<String>)> {
+/// With `resume`, the run continues from the newest valid checkpoint in `out`
+/// (`output::checkpoint3`); its `[check]` rows are `compare.json`'s.
+fn run3_detached(text: &str, path: &Path, base: &Path, out: &Path, resume: bool) -> flem_core::Result<(flem_core::output::run3::Arrays3, Vec<String>, String)> {
     let mut scene = flem_core::scene3::Scene3::from_str(text, path, base)?;
     let _lock = flem_core::output::lock::lock_dir(out, &format!("python flem.run (process {})", std::process::id()))?;
     flem_core::output::prepare_dir(out)?;
-    let (m, _) = flem_core::output::run3::run3_in_folder(&mut scene, out)?;
-    Ok((flem_core::output::run3::arrays3(&m), m.warnings.clone()))
+    let (m, _) = flem_core::output::run3::run3_with(&mut scene, out, resume, None)?;
+    let compare = match scene.file.check {
+        Some(_) => {
+            std::fs::read_to_string(out.join("compare.json")).ok().and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok()).map_or_else(|| "[]".to_string(), |v| v["stages"].to_string())
+        }
+        None => "[]".to_string(),
+    };
+    Ok((flem_core::output::run3::arrays3(&m), m.warnings.clone(), compare))
 }
 
 /// The arrays of a 3D run (docs/python.md "3D runs"): `dim` = 3, points, displacement and
@@ -297,15 +305,18 @@ fn run<'py>(
     let (p, b) = paths(path, base);
     let out_p = PathBuf::from(out);
     if flem_core::scene3::scene_dim(text) == 3 {
-        // A 3D scene (issue 38): no resume and no callbacks yet (checkpoints and the stage
-        // observer of 3D runs are not wired to Python).
-        if resume.is_some() || on_stage.is_some() || on_progress.is_some() {
-            return Err(to_py(py, FlemError::config(path, "model.dim", "= 3: flem.run of a 3D scene takes no resume, on_stage or on_progress yet")));
+        // A 3D scene (issue 38): resume in its own folder; no callbacks yet (the stage
+        // observer of 3D runs is not wired to Python).
+        if on_stage.is_some() || on_progress.is_some() {
+            return Err(to_py(py, FlemError::config(path, "model.dim", "= 3: flem.run of a 3D scene takes no on_stage or on_progress yet")));
         }
-        let (arrays, warnings) = py.detach(|| run3_detached(text, &p, &b, &out_p)).map_err(|e| to_py(py, e))?;
+        if let Some(r) = resume.filter(|r| Path::new(r).canonicalize().ok() != out_p.canonicalize().ok()) {
+            return Err(to_py(py, FlemError::config(path, "model.dim", format!("= 3: a 3D run resumes in the folder of its checkpoints; resume = {r:?} is not out = {out:?}"))));
+        }
+        let (arrays, warnings, compare) = py.detach(|| run3_detached(text, &p, &b, &out_p, resume.is_some())).map_err(|e| to_py(py, e))?;
         let d = PyDict::new(py);
         d.set_item("arrays", arrays3_dict(py, &arrays)?)?;
-        d.set_item("compare", "[]")?;
+        d.set_item("compare", compare)?;
         d.set_item("warnings", warnings)?;
         d.set_item("checkpoint", py.None())?;
         return Ok(d);
