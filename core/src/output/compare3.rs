@@ -30,7 +30,7 @@ use std::time::Instant;
 use crate::error::{FlemError, Result};
 use crate::mesh::RawMesh3;
 use crate::output::compare::{rel_l2, StageComparison};
-use crate::output::{atomic_write, run3::snapshot3};
+use crate::output::{atomic_write, body3::snapshot3};
 use crate::plugin::check::{CheckCfg, Linear3};
 use crate::scene3::Scene3;
 use crate::solver::march3::{March3, Observer3, Stage3Result};
@@ -45,7 +45,7 @@ pub fn linear3_of<'a>(m: &March3, scene: &Scene3, mesh: &'a mut RawMesh3) -> Res
     let t = &m.topo;
     mesh.source = format!("{} (its clusters after the run's splits)", m.mesh.source);
     mesh.points = t.cluster_point.iter().map(|p| m.mesh.points[p.idx()]).collect();
-    mesh.cells = crate::output::run3::cluster_cells(m);
+    mesh.cells = crate::output::body3::cluster_cells(m);
     mesh.ids = m.mesh.ids.clone();
     let name = scene.path.display().to_string();
     let mut cells = vec![(0.0, 0.0, ""); t.n_elems()];

@@ -15,6 +15,7 @@
 //! Beside the writer: `checkpoint.rs` (checkpoints and resume) and `compare.rs` (the
 //! FLEM-vs-implicit comparison). Both the writer and the comparer are `crate::solver::Observer`s.
 pub mod arrays;
+pub mod body3;
 pub mod checkpoint;
 pub mod checkpoint3;
 pub mod compare;
