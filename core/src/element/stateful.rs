@@ -1051,6 +1051,14 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         self.elastic_range(range, u, f)
     }
 
+    /// `elastic_range` compiled for AVX-512 (one pack per register, as `packs_total_avx512`;
+    /// the same bits: Rust does not contract a multiply and an add into an FMA).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    fn elastic_range_avx512(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.elastic_range(range, u, f)
+    }
+
     fn stress3(&self, i: usize, k: usize, u: &[[f64; 2]]) -> [f64; 3] {
         let s = self.stress4(i, k, u);
         [s[0], s[1], s[2]]
@@ -1166,6 +1174,12 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         if self.enh.is_empty() && !self.gp.is_empty() {
+            #[cfg(target_arch = "x86_64")]
+            if crate::element::block::Simd::best() == crate::element::block::Simd::Avx512 {
+                // SAFETY: `Simd::best` answers Avx512 only when the CPU has those features.
+                unsafe { self.elastic_range_avx512(range, u, f) };
+                return;
+            }
             #[cfg(target_arch = "x86_64")]
             if crate::element::block::Simd::best() != crate::element::block::Simd::Plain && crate::element::block::Simd::Avx2.detected() {
                 // SAFETY: the CPU has AVX2 (detected just above; `FLEM_SIMD=plain` turns it off).
