@@ -5,7 +5,8 @@
 //! - **explicit**: the scene as written (`flem run`): the strip footings pushed at constant
 //!   velocity with local damping, their plateau the footing pressure `|R_y| / b` (b = 1) at the
 //!   last history row; the slope's factor of safety by `flem fos` (default options: bracket
-//!   [0.5, 3], 1 %), and with `--warm` (ours: trials from the last stable trial's state);
+//!   [0.5, 3], 1 %), with `--warm` (ours: trials from the last stable trial's state) and with
+//!   `--early` (ours: a trial stopped once it clearly flows or stands, `FosOptions::early`);
 //! - **implicit**: Newton with the consistent tangent (`flem_plugins::check::newton`, the
 //!   implicit plastic check) on the same mesh and law: the footing's settlement of the explicit
 //!   run's end (`|v| * max_steps * dt`) prescribed in `n` load increments from rest, the plateau
@@ -143,10 +144,10 @@ fn footing_implicit(path: &Path, inc: usize) -> Result<(f64, f64)> {
     Ok((q, t0.elapsed().as_secs_f64()))
 }
 
-fn fos_explicit(path: &Path, warm: bool) -> Result<(f64, f64)> {
+fn fos_explicit(path: &Path, warm: bool, early: bool) -> Result<(f64, f64)> {
     let (text, base) = load(path)?;
     let t0 = Instant::now();
-    let o = FosOptions { warm, ..FosOptions::default() };
+    let o = FosOptions { warm, early, ..FosOptions::default() };
     let r = factor_of_safety(&text, path, &base, &o, &mut |_| {})?;
     Ok((r.fos, t0.elapsed().as_secs_f64()))
 }
@@ -203,9 +204,11 @@ pub fn run(a: &Args) -> Result<()> {
         vs.push(Variant { scene: "footing, phi = 30", method: format!("implicit, {n} increments"), reference: nc30, run: Box::new(move || footing_implicit(&p, n)) });
     }
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, false)) });
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit, warm start (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, true)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit, warm start (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, true, false)) });
+    let p = slope.clone();
+    vs.push(Variant { scene: "slope, fos", method: "explicit, early verdicts (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, true)) });
     if !a.quick {
         let p = slope.clone();
         vs.push(Variant { scene: "slope, fos", method: "implicit, 10 increments".into(), reference: BISHOP, run: Box::new(move || fos_implicit(&p)) });

@@ -9,7 +9,9 @@
 //! explicit march, Griffiths & Lane's criterion: the trial stands when the last stage's loads,
 //! applied in `--increments` load increments (halved when an increment does not converge), reach
 //! equilibrium within the Newton budget ([`implicit_trial`]), and flows when they do not; the same
-//! bisection. No mechanism picture then (fos.json says so).
+//! bisection. No mechanism picture then (fos.json says so). `--early` (ours, off by default):
+//! the early verdicts of `flem_core::solver::fos` (a trial's last stage stopped once its largest
+//! displacement clearly accelerates or comes to rest; fos.json marks those trials `early`).
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
@@ -41,8 +43,13 @@ pub struct Args {
     pub warm: bool,
     /// Every trial by Newton (the implicit plastic check's solver) instead of the explicit
     /// march (ours; docs/materials.md).
-    #[arg(long, conflicts_with = "warm")]
+    #[arg(long, conflicts_with_all = ["warm", "early"])]
     pub implicit: bool,
+    /// Early verdicts (ours): a trial's last stage is stopped as soon as its largest
+    /// displacement clearly accelerates (flows) or comes to rest (stands), judged at its history
+    /// rows (fewer steps; a verdict may differ from the one at the step limit).
+    #[arg(long)]
+    pub early: bool,
     /// With --implicit: nominal load increments of the last stage's loads.
     #[arg(long, default_value_t = 10)]
     pub increments: usize,
@@ -78,7 +85,7 @@ pub fn implicit_trial(text: &str, scene: &std::path::Path, base: &std::path::Pat
 }
 
 fn run_implicit(a: &Args, text: &str, base: &std::path::Path, out: &std::path::Path) -> Result<()> {
-    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: false };
+    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: false, early: false };
     let mut trials = Vec::new();
     let name = a.scene.display().to_string();
     let (fos, bracket, _, _) = flem_core::solver::fos::bisect(&name, &o, |f| {
@@ -130,7 +137,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.implicit {
         return run_implicit(&a, &text, &base, &out);
     }
-    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: a.warm };
+    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: a.warm, early: a.early };
     let mut show = |t: &Trial| {
         eprintln!(
             "F = {:.4}: {} (ratio {:.2e} after {} steps, {}; largest displacement {:.4e}, grew {:.1} % over the second half){} {:.1} s",
@@ -138,7 +145,13 @@ pub fn run(a: Args) -> Result<()> {
             if t.flows { "flows" } else { "equilibrium" },
             t.ratio,
             t.steps,
-            if t.converged { "converged" } else { "step limit" },
+            if t.converged {
+                "converged"
+            } else if t.early {
+                "early verdict"
+            } else {
+                "step limit"
+            },
             t.u_max,
             100.0 * t.growth,
             t.from.map(|f| format!(" from F = {f:.4}")).unwrap_or_default(),
@@ -159,7 +172,7 @@ pub fn run(a: Args) -> Result<()> {
     let title = format!("{}: plastic shear strain at F = {:.4} (flows); factor of safety {:.4} in [{:.4}, {:.4}]", a.scene.display(), r.bracket[1], r.fos, r.bracket[0], r.bracket[1]);
     let files =
         flem_plot::field::element_field(&out.join("mechanism"), &flem_plot::field::Field { title: &title, label: "plastic shear strain (deformed mesh, true scale)", cells: &cells, values: &g })?;
-    let json = serde_json::json!({
+    let mut json = serde_json::json!({
         "fos": r.fos,
         "bracket": r.bracket,
         "scene": a.scene.display().to_string(),
@@ -175,6 +188,10 @@ pub fn run(a: Args) -> Result<()> {
         "pictures": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
         "trials": r.trials,
     });
+    if a.early {
+        // Only when on: the default fos.json keeps its keys.
+        json["criterion"]["early"] = serde_json::json!("ours: the last stage stopped at a history row once it flows (growth over the second half so far above 3 growth with the last 3 increments of the largest displacement increasing, or from 2/5 of the step limit above growth with the last 5 increasing) or stands (from half the step limit, growth at most `growth` with the last 4 increments decreasing)");
+    }
     flem_core::output::atomic_write(&out.join("fos.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
     println!("factor of safety {:.4} (bracket [{:.4}, {:.4}], {} trials); {}", r.fos, r.bracket[0], r.bracket[1], r.trials.len(), out.join("fos.json").display());
     Ok(())

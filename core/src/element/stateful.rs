@@ -1021,6 +1021,44 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         }
     }
 
+    /// The elastic forces of elements `range` by packs (`elastic_pack`: `elastic_force`'s
+    /// arithmetic lane by lane, the same bits), the elements scattered in order.
+    #[inline(always)]
+    fn elastic_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        let mut i = range.start;
+        while i < range.end {
+            let p = i / LANES;
+            let (l0, l1) = (i - p * LANES, (range.end - p * LANES).min(LANES));
+            let fe = if self.bbar() { self.elastic_pack::<true>(p, l0, l1, u) } else { self.elastic_pack::<false>(p, l0, l1, u) };
+            for l in l0..l1 {
+                let c = &self.conn[p * LANES + l];
+                for a in 0..N {
+                    f[c[a] as usize][0] += fe[a][0][l];
+                    f[c[a] as usize][1] += fe[a][1][l];
+                }
+            }
+            i = p * LANES + l1;
+        }
+    }
+
+    /// `elastic_range` compiled for AVX2 (ours, issue 37: the power iteration of the stable
+    /// step, a fifth of a short plastic run, ran on the baseline instruction set). The same
+    /// operations in the same order (no fused multiply-add: the `fma` feature is not enabled),
+    /// so the same bits, as `packs_avx2`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn elastic_range_avx2(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.elastic_range(range, u, f)
+    }
+
+    /// `elastic_range` compiled for AVX-512 (one pack per register, as `packs_total_avx512`;
+    /// the same bits: Rust does not contract a multiply and an add into an FMA).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    fn elastic_range_avx512(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.elastic_range(range, u, f)
+    }
+
     fn stress3(&self, i: usize, k: usize, u: &[[f64; 2]]) -> [f64; 3] {
         let s = self.stress4(i, k, u);
         [s[0], s[1], s[2]]
@@ -1136,22 +1174,19 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
     }
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
         if self.enh.is_empty() && !self.gp.is_empty() {
-            // By packs (`elastic_pack`: `elastic_force`'s arithmetic lane by lane, the same
-            // bits), the elements scattered in order.
-            let mut i = range.start;
-            while i < range.end {
-                let p = i / LANES;
-                let (l0, l1) = (i - p * LANES, (range.end - p * LANES).min(LANES));
-                let fe = if self.bbar() { self.elastic_pack::<true>(p, l0, l1, u) } else { self.elastic_pack::<false>(p, l0, l1, u) };
-                for l in l0..l1 {
-                    let c = &self.conn[p * LANES + l];
-                    for a in 0..N {
-                        f[c[a] as usize][0] += fe[a][0][l];
-                        f[c[a] as usize][1] += fe[a][1][l];
-                    }
-                }
-                i = p * LANES + l1;
+            #[cfg(target_arch = "x86_64")]
+            if crate::element::block::Simd::best() == crate::element::block::Simd::Avx512 {
+                // SAFETY: `Simd::best` answers Avx512 only when the CPU has those features.
+                unsafe { self.elastic_range_avx512(range, u, f) };
+                return;
             }
+            #[cfg(target_arch = "x86_64")]
+            if crate::element::block::Simd::best() != crate::element::block::Simd::Plain && crate::element::block::Simd::Avx2.detected() {
+                // SAFETY: the CPU has AVX2 (detected just above; `FLEM_SIMD=plain` turns it off).
+                unsafe { self.elastic_range_avx2(range, u, f) };
+                return;
+            }
+            self.elastic_range(range, u, f);
             return;
         }
         for i in range {
@@ -1163,6 +1198,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
             }
         }
     }
+
     fn add_mass(&self, m: &mut [f64]) {
         for i in 0..self.len() {
             let me = element::lumped_mass::<S, N>(&self.x[i], self.mat.density, self.mat.thickness);

@@ -33,6 +33,25 @@
 //! fits, and the stage either comes back to rest (in fewer steps than from the start) or flows.
 //! Strength reduction then follows one loading path, as a continuation in `F` (Dawson, Roth &
 //! Drescher 1999 restart each trial; FLAC's `solve fos` too).
+//!
+//! Early verdicts (ours, `FosOptions::early`, `flem fos --early`, off by default: a verdict
+//! taken before the step limit may differ from the one at the limit, so the bracket may
+//! move): the last stage of a trial is judged at its history rows (every 1/20 of its step
+//! limit) from the largest displacement `u_j` of each row and its increments
+//! `d_j = u_j - u_{j-1}`, and stopped as soon as
+//! - it **flows**: (a) from the fourth row on, the displacement grew by more than `3 growth`
+//!   over the second half of the steps so far and the last three increments increase; or
+//!   (b) from the eighth row (two fifths of the limit) on, it grew by more than `growth` over
+//!   that second half and the last five increments increase. A mechanism under constant
+//!   loads moves at a steady or growing rate (FLAC's "continuously increasing velocity"
+//!   sign of failure); a body coming to rest under local damping slows down;
+//! - it **stands**: from the tenth row (half the limit) on, it grew by at most `growth`
+//!   over the second half of the steps so far and the last four increments decrease.
+//!
+//! On configs/verification/slope.toml every verdict is the one of the full trial (the
+//! standing trial nearest the factor, F = 1.3789, grows by at most 7 % over the second half
+//! of any prefix of its steps, and its increments stop increasing after the fifth row), in
+//! about half the steps (docs/materials.md, "Speed of plastic scenes").
 use std::path::Path;
 
 use crate::error::{FlemError, Result};
@@ -54,11 +73,14 @@ pub struct FosOptions {
     /// Warm start (ours, off by default; module docs): a trial above the highest `F` that
     /// stood starts its last stage from that trial's final state.
     pub warm: bool,
+    /// Early verdicts (ours, off by default; module docs): a trial's last stage is judged at
+    /// its history rows and stopped once it clearly flows or stands.
+    pub early: bool,
 }
 
 impl Default for FosOptions {
     fn default() -> Self {
-        FosOptions { lo: 0.5, hi: 3.0, rel_tol: 0.01, max_trials: 16, growth: 0.1, warm: false }
+        FosOptions { lo: 0.5, hi: 3.0, rel_tol: 0.01, max_trials: 16, growth: 0.1, warm: false, early: false }
     }
 }
 
@@ -84,6 +106,9 @@ pub struct Trial {
     /// The `F` of the stable trial whose final state this one started from (warm start).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub from: Option<f64>,
+    /// The verdict was taken before the step limit (`FosOptions::early`): the steps run.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub early: bool,
 }
 
 /// The answer.
@@ -111,10 +136,41 @@ pub fn reduced_scene(text: &str, path: &Path, base: &Path, f: f64) -> Result<Sce
     Ok(sc)
 }
 
-/// Largest displacement of the last stage at each of its history rows.
+/// Largest displacement of the last stage at each of its history rows; with early verdicts
+/// (`growth` given), the verdict once the rows show it (module docs).
 struct Watch {
     last_stage: usize,
     rows: Vec<(u64, f64)>,
+    /// `Some(growth)`: early verdicts on.
+    early: Option<f64>,
+    /// The stage's first step (the step counter before it).
+    start: u64,
+    /// The early verdict (true: flows) and the unbalanced ratio then.
+    verdict: Option<(bool, f64)>,
+}
+
+/// The early verdict of the module docs from the rows `(step, largest displacement)` of a
+/// stage that began after step `start`: `Some(true)` flows, `Some(false)` stands, `None`
+/// not yet.
+fn early_verdict(rows: &[(u64, f64)], start: u64, growth: f64) -> Option<bool> {
+    let n = rows.len();
+    if n < 4 {
+        return None;
+    }
+    let (step, u) = rows[n - 1];
+    let mid = start + (step - start) / 2;
+    let u_half = rows.iter().rev().find(|r| r.0 <= mid).map(|r| r.1).unwrap_or(0.0);
+    let g = if u > 0.0 { (u - u_half) / u } else { 0.0 };
+    let d = |j: usize| rows[j].1 - rows[j - 1].1;
+    // The last `m` increments strictly increase (`up`) or decrease.
+    let monotone = |m: usize, up: bool| n > m && (n - m + 1..n).all(|j| if up { d(j) > d(j - 1) } else { d(j) < d(j - 1) });
+    if (g > 3.0 * growth && monotone(3, true)) || (n >= 8 && g > growth && monotone(5, true)) {
+        return Some(true);
+    }
+    if n >= 10 && g <= growth && monotone(4, false) {
+        return Some(false);
+    }
+    None
 }
 
 impl Observer for Watch {
@@ -122,19 +178,36 @@ impl Observer for Watch {
         if stage == self.last_stage {
             let u = s.state.u.iter().map(|u| u[0].hypot(u[1])).fold(0.0, f64::max);
             self.rows.push((s.state.step, u));
+            if let (Some(growth), None) = (self.early, self.verdict) {
+                if let Some(v) = early_verdict(&self.rows, self.start, growth) {
+                    self.verdict = Some((v, s.unbalanced_ratio()));
+                }
+            }
         }
         Ok(())
+    }
+    fn stage_end(&mut self, s: &Simulation, stage: usize) -> Result<()> {
+        // The step counter at the start of the last stage (read when the stage before it
+        // ends; 0 when it is the first).
+        if stage + 1 == self.last_stage {
+            self.start = s.state.step;
+        }
+        Ok(())
+    }
+    fn should_stop(&mut self, _sim: &Simulation) -> bool {
+        self.verdict.is_some()
     }
 }
 
 /// Runs one trial: the scene at strength factor `f`, judged as the module docs say.
 pub fn trial(text: &str, path: &Path, base: &Path, f: f64, growth: f64) -> Result<(Trial, Simulation)> {
-    trial_from(text, path, base, f, growth, None)
+    trial_from(text, path, base, f, growth, None, false)
 }
 
 /// [`trial`], its last stage started from `warm` when given (the warm start: the final state
-/// of a stable trial at the strength factor `warm.0`, captured by [`warm_state`]).
-pub fn trial_from(text: &str, path: &Path, base: &Path, f: f64, growth: f64, warm: Option<(f64, &WarmState)>) -> Result<(Trial, Simulation)> {
+/// of a stable trial at the strength factor `warm.0`, captured by [`warm_state`]), with the
+/// early verdicts of the module docs when `early`.
+pub fn trial_from(text: &str, path: &Path, base: &Path, f: f64, growth: f64, warm: Option<(f64, &WarmState)>, early: bool) -> Result<(Trial, Simulation)> {
     let t0 = std::time::Instant::now();
     let mut sc = reduced_scene(text, path, base, f)?;
     let last = sc.file.stages.len() - 1;
@@ -150,33 +223,31 @@ pub fn trial_from(text: &str, path: &Path, base: &Path, f: f64, growth: f64, war
     // Twenty rows over the stage: the middle and the end are among them.
     sc.file.output.history_every = (max_steps / 20).max(1);
     let mut sim = Simulation::new(sc)?;
-    let mut w = Watch { last_stage: last, rows: Vec::new() };
-    match warm {
+    let mut w = Watch { last_stage: last, rows: Vec::new(), early: early.then_some(growth), start: 0, verdict: None };
+    let ran = match warm {
         Some((_, ws)) => {
             ws.restore(&mut sim, last)?;
-            sim.run_from(StagePos::start(last), &mut w)?;
+            w.start = sim.state.step;
+            sim.run_from(StagePos::start(last), &mut w)
         }
-        None => sim.run(&mut w)?,
-    }
-    let res = sim.stages_done.last().expect("a stage ran");
+        None => sim.run(&mut w),
+    };
+    // An early verdict stops the stage (`Watch::should_stop`): the run answers `Interrupted`.
+    let (converged, ratio, steps, verdict) = match (ran, w.verdict) {
+        (Err(FlemError::Interrupted { stage, stage_step, .. }), Some((v, ratio))) if stage == last => (false, ratio, stage_step, Some(v)),
+        (Err(e), _) => return Err(e),
+        (Ok(()), _) => {
+            let res = sim.stages_done.last().expect("a stage ran");
+            (res.converged, res.final_ratio, res.steps, None)
+        }
+    };
     let u_end = sim.state.u.iter().map(|u| u[0].hypot(u[1])).fold(0.0, f64::max);
     let start = w.rows.first().map(|r| r.0).unwrap_or(0).saturating_sub(sim.scene.file.output.history_every);
-    let mid = start + res.steps / 2;
+    let mid = start + steps / 2;
     let u_half = w.rows.iter().rev().find(|r| r.0 <= mid).map(|r| r.1).unwrap_or(0.0);
     let g = if u_end > 0.0 { (u_end - u_half) / u_end } else { 0.0 };
-    let flows = !res.converged && g > growth;
-    let t = Trial {
-        f,
-        flows,
-        converged: res.converged,
-        ratio: res.final_ratio,
-        steps: res.steps,
-        u_max: u_end,
-        u_max_half: u_half,
-        growth: g,
-        seconds: t0.elapsed().as_secs_f64(),
-        from: warm.map(|s| s.0),
-    };
+    let flows = verdict.unwrap_or(!converged && g > growth);
+    let t = Trial { f, flows, converged, ratio, steps, u_max: u_end, u_max_half: u_half, growth: g, seconds: t0.elapsed().as_secs_f64(), from: warm.map(|s| s.0), early: verdict.is_some() };
     Ok((t, sim))
 }
 
@@ -291,7 +362,7 @@ pub fn factor_of_safety(text: &str, path: &Path, base: &Path, o: &FosOptions, ea
     let mut stood: Option<(f64, WarmState)> = None;
     let (fos, bracket, flow, _) = bisect(&name, o, |f| {
         let start = stood.as_ref().filter(|s| o.warm && s.0 < f).map(|s| (s.0, &s.1));
-        let (t, sim) = trial_from(text, path, base, f, o.growth, start)?;
+        let (t, sim) = trial_from(text, path, base, f, o.growth, start, o.early)?;
         each(&t);
         let flows = t.flows;
         trials.push(t);
@@ -301,4 +372,47 @@ pub fn factor_of_safety(text: &str, path: &Path, base: &Path, o: &FosOptions, ea
         Ok((flows, sim))
     })?;
     Ok(FosResult { fos, bracket, trials, flow })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::early_verdict;
+
+    /// Rows every 300 steps of a 6000-step stage (as a trial writes them).
+    fn rows(u: impl Fn(f64) -> f64, n: usize) -> Vec<(u64, f64)> {
+        (1..=n).map(|j| (300 * j as u64, u(300.0 * j as f64))).collect()
+    }
+
+    /// The early verdicts on closed-form histories: a mechanism under constant loads
+    /// (`u = u0 + a t^2`, accelerating) flows: from the fourth row when it grows fast, from
+    /// two fifths of the limit when it grows slowly; a steady creep (`u = u0 + v t`) gets no
+    /// early verdict; a body coming to rest (`u = u_inf (1 - exp(-t / tau))`) stands from half
+    /// the limit and never flows; a history too short gets no verdict. References: the rules
+    /// of the module docs applied by hand to these curves.
+    #[test]
+    fn early_verdicts_on_closed_form_histories() {
+        let acc = |t: f64| 0.01 + 1e-8 * t * t;
+        assert_eq!(early_verdict(&rows(acc, 3), 0, 0.1), None, "three rows are too few");
+        assert_eq!(early_verdict(&rows(acc, 4), 0, 0.1), Some(true));
+        // Steady (exact binary fractions: equal increments): the increments never increase
+        // strictly, so a steady creep is left to the step limit.
+        let steady = |t: f64| 0.25 + t / 1024.0;
+        for n in 4..20 {
+            assert_eq!(early_verdict(&rows(steady, n), 0, 0.1), None, "steady, {n} rows");
+        }
+        // Slow acceleration (growth over the second half below 3 x 10 % at first): only from
+        // the eighth row.
+        let slow = |t: f64| 0.01 + 5e-10 * t * t;
+        let first = (4..20).find(|&n| early_verdict(&rows(slow, n), 0, 0.1).is_some()).expect("a verdict");
+        assert!(first >= 8 && early_verdict(&rows(slow, first), 0, 0.1) == Some(true), "first verdict at {first} rows");
+        // Coming to rest: stands at the tenth row, never flows before.
+        let rest = |t: f64| 0.01 * (1.0 - (-t / 600.0).exp());
+        for n in 4..10 {
+            assert_eq!(early_verdict(&rows(rest, n), 0, 0.1), None, "rest, {n} rows");
+        }
+        assert_eq!(early_verdict(&rows(rest, 10), 0, 0.1), Some(false));
+        // The same histories shifted by an earlier stage's steps: the same verdicts.
+        let shifted: Vec<(u64, f64)> = rows(rest, 10).into_iter().map(|(s, u)| (s + 4000, u)).collect();
+        assert_eq!(early_verdict(&shifted, 4000, 0.1), Some(false));
+    }
 }

@@ -212,6 +212,120 @@ impl MohrCoulomb {
         inside
     }
 
+    /// The returns of `return_active` after the main face, in lanes, for a law without
+    /// tension planes (`used` = the three shear planes; ours, issue 37: the Tresca footing's
+    /// points under the footing return to the edges): the active sets that
+    /// come next in its order, `{1}`, `{2}` and the two edges `{0, 1}`
+    /// (`s1 = s2`) and `{0, 2}` (`s2 = s3`), each with `solve`'s arithmetic and
+    /// `return_active`'s tests (multipliers `>= 0`, no plane violated after), computed for
+    /// every lane; a lane that the face did not take (`face[l]` false) and whose trial violates
+    /// a plane (`vio[l]`) takes the first consistent set of that list, as `return_active`
+    /// would, since every set before it in its order was tried and failed (`{0}`: the face).
+    /// Such a lane gets `plastic_update`'s rotation back and history (`fs`, `gam`) and is
+    /// marked in `face` (a vectorised return); a lane none of these sets fits (corners, the
+    /// apex, the tension planes' pairs) is left to `plastic_update`. The same operations in
+    /// the same order as the scalar return, so the same bits.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn edge_lanes(
+        &self,
+        q: &[[f64; LANES]; 3],
+        vio: &[bool; LANES],
+        za: &[bool; LANES],
+        zb: &[bool; LANES],
+        rad: &[f64; LANES],
+        half: &[f64; LANES],
+        sxy: &[f64; LANES],
+        face: &mut [bool; LANES],
+        fs: &mut [[f64; LANES]; 4],
+        gam: &mut [f64; LANES],
+    ) {
+        debug_assert_eq!(self.used, 0b111);
+        let used: [bool; 6] = std::array::from_fn(|k| self.used & (1 << k) != 0);
+        let big = self.a[0][0].abs().max(self.a[3][3].abs());
+        let ok = |x: f64| x >= -1e-14 * (1.0 + x.abs());
+        // The singles' and the pairs' solvability (`solve`'s tests: constants of the law).
+        let single: [bool; 6] = std::array::from_fn(|k| used[k] & (self.a[k][k].abs() > 1e-12 * big));
+        let det = |a: usize, b: usize| self.a[a][a] * self.a[b][b] - self.a[a][b] * self.a[b][a];
+        let pairs = [(0usize, 1usize), (0, 2)];
+        let pair_ok: [bool; 2] = std::array::from_fn(|t| det(pairs[t].0, pairs[t].1).abs() > 1e-10 * big * big);
+        for l in 0..LANES {
+            let ql = [q[0][l], q[1][l], q[2][l]];
+            let check = 1e-9 * (self.scale + ql[0].abs().max(ql[2].abs()));
+            // (Three planes: the caller calls this for a law without tension planes only.)
+            let adm = |out: &[f64; 3]| {
+                let mut a = true;
+                for k in 0..3 {
+                    a &= self.f(k, out) <= check;
+                }
+                a
+            };
+            // `found`: a set before the current one fits (the face, or one of this list).
+            let mut found = face[l] | !vio[l];
+            let (mut o, mut dp, mut take) = ([0.0; 3], [0.0; 3], false);
+            for k in 1..3 {
+                let dl = self.f(k, &ql) / self.a[k][k];
+                let mut out = ql;
+                let mut dep = [0.0; 3];
+                for d in 0..3 {
+                    out[d] -= dl * self.dm[k][d];
+                    dep[d] += dl * self.m[k][d];
+                }
+                let fits = single[k] & ok(dl) & adm(&out);
+                let t = !found & fits;
+                for d in 0..3 {
+                    o[d] = if t { out[d] } else { o[d] };
+                    dp[d] = if t { dep[d] } else { dp[d] };
+                }
+                take |= t;
+                found |= fits;
+            }
+            for (t, &(a, b)) in pairs.iter().enumerate() {
+                let (b0, b1) = (self.f(a, &ql), self.f(b, &ql));
+                let (a00, a01, a10, a11) = (self.a[a][a], self.a[a][b], self.a[b][a], self.a[b][b]);
+                let dt = a00 * a11 - a01 * a10;
+                let dl = [(b0 * a11 - a01 * b1) / dt, (a00 * b1 - b0 * a10) / dt];
+                let mut out = ql;
+                let mut dep = [0.0; 3];
+                for (u, j) in [a, b].into_iter().enumerate() {
+                    for d in 0..3 {
+                        out[d] -= dl[u] * self.dm[j][d];
+                        dep[d] += dl[u] * self.m[j][d];
+                    }
+                }
+                let fits = pair_ok[t] & ok(dl[0]) & ok(dl[1]) & adm(&out);
+                let tk = !found & fits;
+                for d in 0..3 {
+                    o[d] = if tk { out[d] } else { o[d] };
+                    dp[d] = if tk { dep[d] } else { dp[d] };
+                }
+                take |= tk;
+                found |= fits;
+            }
+            // `plastic_update`'s rotation back, as the face lanes'.
+            let na = if za[l] { o[1] } else { o[0] };
+            let nb = if zb[l] { o[2] } else { o[1] };
+            let nz = if za[l] {
+                o[0]
+            } else if zb[l] {
+                o[1]
+            } else {
+                o[2]
+            };
+            let pos = rad[l] > 0.0;
+            let c2 = if pos { half[l] / rad[l] } else { 1.0 };
+            let s2 = if pos { sxy[l] / rad[l] } else { 0.0 };
+            let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
+            let g = dp[0].max(dp[1]).max(dp[2]) - dp[0].min(dp[1]).min(dp[2]);
+            let v = [m + h * c2, m - h * c2, h * s2, nz];
+            for c in 0..4 {
+                fs[c][l] = if take { v[c] } else { fs[c][l] };
+            }
+            gam[l] = if take { g } else { gam[l] };
+            face[l] |= take;
+        }
+    }
+
     /// The rest of `update` when the trial fails the quick test: the return in principal
     /// stresses (out of line: the elastic path stays small enough to inline and vectorise).
     #[inline(never)]
@@ -457,14 +571,17 @@ impl MaterialLaw for MohrCoulomb {
             };
             q[2][l] = if zb[l] { pb[l] } else { pz[l] };
         }
-        let (mut face, mut fs, mut gam) = ([false; LANES], [z; 4], z);
+        let (mut face, mut fs, mut gam, mut vio) = ([false; LANES], [z; 4], z, [false; LANES]);
         for l in 0..LANES {
             let ql = [q[0][l], q[1][l], q[2][l]];
             let tol = 1e-12 * (self.scale + ql[0].abs().max(ql[2].abs()));
-            let mut viol = false;
-            for k in 0..6 {
-                viol |= used[k] & (self.f(k, &ql) > tol);
-            }
+            // `return_active`'s test over the planes in use, on the main face and the first
+            // tension plane only: for sorted stresses (`q0 >= q1 >= q2`) every other plane's
+            // `f` is at most one of these two, in floating point too (the same products and
+            // sums but one, larger or equal, and rounding is monotone: `f1, f2 <= f0`,
+            // `f4, f5 <= f3`), so the test has the same answer.
+            let viol = (self.f(0, &ql) > tol) | (used[3] & (self.f(3, &ql) > tol));
+            vio[l] = viol;
             let dl = self.f(0, &ql) / d0;
             let ok = dl >= -1e-14 * (1.0 + dl.abs());
             let mut out = ql;
@@ -503,6 +620,15 @@ impl MaterialLaw for MohrCoulomb {
             fs[2][l] = h * s2;
             fs[3][l] = nz;
             gam[l] = dep[0].max(dep[1]).max(dep[2]) - dep[0].min(dep[1]).min(dep[2]);
+        }
+        // The lanes that the face does not take: the next active sets of `return_active`'s
+        // order in lanes (`edge_lanes`), when some lane needs them.
+        // Only for a law without tension planes (Tresca's case: three planes, the sets in lanes
+        // cheaper than the scalar search from two lanes on; with the tension planes, five
+        // singles and six planes to check, the scalar search with its early exits is faster),
+        // and when two lanes at least need it.
+        if !t_on && (0..n).filter(|&l| !inside[l] & !face[l] & vio[l]).count() >= 2 {
+            self.edge_lanes(&q, &vio, &za, &zb, &rad, &half, &ts[2], &mut face, &mut fs, &mut gam);
         }
         // The elastic and face lanes without a branch: the stress selected, the history
         // rewritten (a face lane: `h0 + gam`, state 1; an elastic one: state 1 -> 2); then the

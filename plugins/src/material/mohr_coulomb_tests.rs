@@ -310,6 +310,64 @@ fn update_lanes_is_update_bit_for_bit() {
     assert!(n_el > 100 && n_pl > 100, "elastic {n_el}, plastic {n_pl}");
 }
 
+/// `update_lanes` against `update` lane by lane on trials that return to the edges and
+/// corners (issue 37: the edge returns in lanes, `MohrCoulomb::edge_lanes`): the in-plane
+/// stresses nearly equal (a small Mohr circle, radius `e`) and the out-of-plane one `b` away
+/// from them, `|b|` from 1 to 6 cohesions, so that two principal stresses are close and the
+/// trial lies beyond an edge `s1 = s2` or `s2 = s3` (for `b > 0` and `b < 0`), with the
+/// tension planes on and off, associated and not. Reference: the scalar return
+/// (`return_active`'s ordered search), bit for bit; the history too. Counts that the edge
+/// sets were reached: lanes whose returned stress has two equal principal stresses.
+#[test]
+fn update_lanes_edges_are_update_bit_for_bit() {
+    use flem_core::element::kernel::LANES;
+    let laws = [law(1.0, 0.0, 0.0, None), law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 30.0, Some(0.5)), law(2.0, 20.0, 0.0, Some(0.0))];
+    let mut rnd = xorshift(0x2545_F491_4F6C_DD1D);
+    let mut edges = 0;
+    for law in &laws {
+        for round in 0..300 {
+            let n = if round % 7 == 6 { 1 + round % LANES } else { LANES };
+            let mut s = [[0.0; LANES]; 4];
+            let mut de = [[0.0; LANES]; 4];
+            let mut hist = vec![0.0; LANES * 4];
+            for l in 0..LANES {
+                let (a, b, e) = (-3.0 * rnd().abs(), (1.0 + 5.0 * rnd().abs()) * if rnd() > 0.0 { 1.0 } else { -1.0 }, 0.05 * rnd());
+                s[0][l] = a + e;
+                s[1][l] = a - e;
+                s[2][l] = 0.5 * e * rnd();
+                s[3][l] = a + b;
+                for c in 0..3 {
+                    de[c][l] = 1e-4 * rnd();
+                }
+                hist[l * 4] = rnd().abs();
+                hist[l * 4 + 1] = [0.0, 1.0, 2.0][(round + l) % 3];
+            }
+            let (mut s_ref, mut h_ref) = (s, hist.clone());
+            for l in 0..n {
+                let mut sl = [s_ref[0][l], s_ref[1][l], s_ref[2][l], s_ref[3][l]];
+                law.update(&mut sl, [de[0][l], de[1][l], de[2][l], de[3][l]], &mut h_ref[l * 4..l * 4 + 2]);
+                let (c, r) = (0.5 * (sl[0] + sl[1]), (0.25 * (sl[0] - sl[1]).powi(2) + sl[2] * sl[2]).sqrt());
+                let close = |x: f64, y: f64| (x - y).abs() < 1e-9 * (1.0 + x.abs());
+                if h_ref[l * 4 + 1] == 1.0 && (close(c + r, sl[3]) || close(c - r, sl[3]) || r < 1e-12) {
+                    edges += 1;
+                }
+                for c in 0..4 {
+                    s_ref[c][l] = sl[c];
+                }
+            }
+            law.update_lanes(&mut s, &de, &mut hist, 4, n);
+            for l in 0..n {
+                for c in 0..4 {
+                    assert_eq!(s[c][l].to_bits(), s_ref[c][l].to_bits(), "stress {c} of lane {l}, round {round}");
+                }
+                assert_eq!(hist[l * 4].to_bits(), h_ref[l * 4].to_bits(), "plastic shear strain of lane {l}, round {round}");
+                assert_eq!(hist[l * 4 + 1], h_ref[l * 4 + 1], "state of lane {l}, round {round}");
+            }
+        }
+    }
+    assert!(edges > 1000, "only {edges} returns to an edge or a corner");
+}
+
 /// The never-yielded shortcut of the stateful block (`StatefulOpts::elastic_shortcut`: a pack
 /// whose points never yielded takes the stress of the total strain and stores nothing)
 /// against the stored path (every point's stress updated incrementally), on a distorted
