@@ -7,6 +7,7 @@ mod common;
 mod compare;
 mod configs;
 mod contact;
+mod contact3;
 mod cracking;
 mod dynamic;
 mod dynkinds;

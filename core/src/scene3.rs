@@ -1,8 +1,8 @@
 //! A 3D scene (issue 38, docs/3d.md): `[model] dim = 3`. The same scene language as 2D, with
 //! the sections that 3D has today (`[mesh]`, `[[set]]`-free node and face sets of the mesh,
 //! `[[material]]`, `[solver]`, `[[support]]`, `[[load]]`, `[[stage]]`, `[cracking]`,
-//! `[output]`); the 2D sections and keys that have no 3D form yet are refused by name
-//! (`[contact]`, `[check]`, material laws, co-rotation, the events solver, nonlocal stress,
+//! `[contact]` (node-to-face, `crate::contact::contact3`), `[output]`); the 2D sections and keys that have no 3D form yet are refused by name
+//! (`[check]`, material laws, co-rotation, the events solver, nonlocal stress,
 //! Weibull scatter, probes), so that a 3D scene never runs something else than it says.
 //!
 //! 3D keys: `[[support]] fix` takes any of `x`, `y`, `z` (`"xyz"`, `"z"`, `"xz"`...);
@@ -155,6 +155,10 @@ pub struct Scene3File {
     pub output: Output3Cfg,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cracking: Option<CrackingCfg>,
+    /// `[contact]` (docs/3d.md "Contact (3D)"): `surfaces` are face sets; the law must have a
+    /// 3D form. Taken by the body it builds (`March3::from_scene`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<crate::contact::ContactCfg>,
 }
 
 /// A validated 3D scene.
@@ -172,9 +176,14 @@ pub fn scene_dim(text: &str) -> u8 {
     v.and_then(|t| t.get("model")?.get("dim")?.as_integer()).map_or(2, |d| d.clamp(0, 255) as u8)
 }
 
+/// `[contact]` of a 3D scene: its keys, and a law with a 3D form (refused by name otherwise).
+fn validate_contact3(c: &crate::contact::ContactCfg, file: &str) -> Result<()> {
+    c.validate(file)?;
+    c.law.evaluate_3d(&[], &mut [], &mut []).map_err(|e| FlemError::config(file, "contact.law", format!("{e}: a 3D scene takes \"spring_dashpot\" or \"penalty\"")))
+}
+
 /// Sections and keys of the 2D scene language with no 3D form yet: named in the refusal.
-const NOT_IN_3D: [(&str, &str); 4] = [
-    ("contact", "contact in 3D (node-to-face) is not built yet"),
+const NOT_IN_3D: [(&str, &str); 3] = [
     ("check", "the implicit check of a 3D run is not wired to scenes yet"),
     ("set", "[[set]] selections by geometry are 2D; name the mesh's physical groups"),
     ("plugins", "dynamic plugin libraries have no 3D ABI yet"),
@@ -299,6 +308,9 @@ impl Scene3 {
                 }
                 range(&format!("stage[{i}].levels.{load}"), lv, -MAX_MAGNITUDE, true, MAX_MAGNITUDE, true)?;
             }
+        }
+        if let Some(c) = &f.contact {
+            validate_contact3(c, &n)?;
         }
         if let Some(c) = &f.cracking {
             if c.nonlocal.is_some() || c.weibull.is_some() {
