@@ -102,11 +102,12 @@ fn mean_motion(m: &March3, in_part: &dyn Fn(usize) -> bool) -> ([f64; 3], [f64; 
 /// so that the elastic transient is small), and marched without damping (the contact's
 /// dashpots damp the contact modes). Returns (times, the upper block's mean displacement and
 /// velocity down the slope) and the block's mean normal displacement at the end.
-fn incline(theta: f64, mu: f64, ramp: f64, t_end: f64, every: usize) -> (Vec<(f64, f64, f64)>, f64) {
+fn incline(kind: CellKind3, theta: f64, mu: f64, ramp: f64, t_end: f64, every: usize) -> (Vec<(f64, f64, f64)>, f64) {
     let g = 10.0;
-    let mut mesh = block([0.0; 3], [1.0, 1.0, 1.0], [4, 2, 2], CellKind3::H8, "all", "box");
+    let mut mesh = block([0.0; 3], [1.0, 1.0, 1.0], [4, 2, 2], kind, "all", "box");
     let mid: Vec<usize> = (0..mesh.cells.len()).filter(|&e| mesh.cells[e].corners().iter().all(|&p| mesh.points[p as usize][2] <= 0.5 + 1e-12)).collect();
-    let iface = mid.iter().map(|&e| cell_face(&mesh.cells[e], &CellKind3::H8.faces()[1])).collect();
+    let on_mid = |p: &u32| (mesh.points[*p as usize][2] - 0.5).abs() < 1e-12;
+    let iface = mid.iter().flat_map(|&e| kind.faces().iter().map(move |l| (e, l))).map(|(e, l)| cell_face(&mesh.cells[e], l)).filter(|f| f.corners().iter().all(on_mid)).collect();
     mesh.face_sets.insert("interface".into(), iface);
     let upper: Vec<bool> = (0..mesh.cells.len()).map(|e| !mid.contains(&e)).collect();
     let t = theta.tan();
@@ -166,7 +167,7 @@ fn block_on_an_incline_sticks_below_and_slides_above_the_friction_angle() {
     let mut accel = Vec::new();
     for (ratio, slides) in [(0.98, false), (1.02, true)] {
         let theta = (ratio * mu as f64).atan();
-        let (hist, un) = incline(theta, mu, ramp, t_end, 20);
+        let (hist, un) = incline(CellKind3::H8, theta, mu, ramp, t_end, 20);
         let after: Vec<(f64, f64)> = hist.iter().filter(|h| h.0 > ramp + 0.1).map(|h| (h.0, h.2)).collect();
         let a = slope(&after);
         let a_ref = g * (theta.sin() - mu * theta.cos());
@@ -187,21 +188,24 @@ fn block_on_an_incline_sticks_below_and_slides_above_the_friction_angle() {
     }
 }
 
-/// The same incline well above the friction angle (`tan(theta) = 1.5 mu`): the block slides
-/// with `g (sin(theta) - mu cos(theta))`, also across the edges of the faces below it (it slides
+/// The same incline well above the friction angle (`tan(theta) = 1.5 mu`), on bricks (bilinear
+/// master faces) and on tetrahedra (triangles, six per brick): the block slides with
+/// `g (sin(theta) - mu cos(theta))`, also across the edges of the faces below it (it slides
 /// more than a face's length, 0.25). Reference: Coulomb's law for a rigid block; 2 %.
 #[test]
 fn block_slides_down_a_steep_incline_with_coulomb_acceleration() {
     let (mu, g) = (0.5, 10.0);
     let theta = (1.5 * mu as f64).atan();
-    let (hist, _) = incline(theta, mu, 0.1, 0.6, 10);
-    let after: Vec<(f64, f64)> = hist.iter().filter(|h| h.0 > 0.2).map(|h| (h.0, h.2)).collect();
-    let a = slope(&after);
-    let a_ref = g * (theta.sin() - mu * theta.cos());
-    let s_end = hist.last().unwrap().1;
-    eprintln!("tan(theta) = 1.5 mu: acceleration {a:.5e} (Coulomb {a_ref:.5e}, {:+.3} %), slid {s_end:.3}", 100.0 * (a / a_ref - 1.0));
-    assert!(s_end > 0.3, "slid {s_end}: less than a face");
-    assert!((a - a_ref).abs() <= 0.02 * a_ref, "acceleration {a:.5e}, Coulomb {a_ref:.5e}");
+    for kind in [CellKind3::H8, CellKind3::T4] {
+        let (hist, _) = incline(kind, theta, mu, 0.1, 0.6, 10);
+        let after: Vec<(f64, f64)> = hist.iter().filter(|h| h.0 > 0.2).map(|h| (h.0, h.2)).collect();
+        let a = slope(&after);
+        let a_ref = g * (theta.sin() - mu * theta.cos());
+        let s_end = hist.last().unwrap().1;
+        eprintln!("{kind:?}: tan(theta) = 1.5 mu: acceleration {a:.5e} (Coulomb {a_ref:.5e}, {:+.3} %), slid {s_end:.3}", 100.0 * (a / a_ref - 1.0));
+        assert!(s_end > 0.3, "{kind:?}: slid {s_end}: less than a face");
+        assert!((a - a_ref).abs() <= 0.02 * a_ref, "{kind:?}: acceleration {a:.5e}, Coulomb {a_ref:.5e}");
+    }
 }
 
 /// The drop: a base 1 x 1 x 0.25 of 4 x 4 x 1 bricks held at its bottom, and a block 0.5 x 0.5 x

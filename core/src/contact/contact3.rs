@@ -21,7 +21,9 @@
 //! - A slave touches a face when it projects inside it (a new pair: up to `XI_NEW` of the
 //!   face's size outside; an existing pair is kept up to `XI_KEEP` outside unless a face it
 //!   slid onto takes it) and lies behind it by less than `max_depth` x the face size
-//!   (`sqrt(area)`). One pair per slave: its old master while it holds it, else the
+//!   (`sqrt(area)`), and the slave *faces* it (one of its own faces has its current outward
+//!   normal within 60 degrees of opposite the master's: a node of a flat surface is not pushed
+//!   sideways through the side face of a block landing on it). One pair per slave: its old master while it holds it, else the
 //!   shallowest penetrated face (ties: lowest face id). A slave never pairs with a face of an
 //!   element it belongs to.
 //! - Forces (eq. 15-17 in 3D): the law's normal force along `n` plus its tangential vector on
