@@ -54,7 +54,9 @@
 //! Limits: node-to-face only (no edge-to-edge or node-to-node contact: a slave at a concave
 //! edge of the master surface is held by the faces on either side, but an edge crossing an
 //! edge is not seen); small sliding per step (the pair moves to the face it slid onto, found
-//! in its Verlet list); no cohesive law in 3D; no checkpoint section yet.
+//! in its Verlet list); no cohesive law in 3D. Checkpoints: [`Contact3::pairs`] (plain serde)
+//! and [`Contact3::verlet_state`], restored by [`Contact3::restore`] (no 3D checkpoint writes
+//! them yet).
 //!
 //! ```toml
 //! [contact]
@@ -154,6 +156,14 @@ pub struct PairReport3 {
     pub gap: f64,
     /// Outward unit normal of the master at the projection.
     pub normal: [f64; 3],
+}
+
+/// What [`Contact3::restore`] needs to rebuild the Verlet list of a checkpoint.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct VerletState3 {
+    pub u_build: Vec<[f64; 3]>,
+    pub dirty: bool,
+    pub rebuilds: u64,
 }
 
 /// A master: face `id / 2` seen from side `id % 2` (its element's outward orientation).
@@ -535,6 +545,29 @@ impl Contact3 {
     /// first copy); its area is recomputed at the next step.
     pub fn on_split(&mut self, mesh: &RawMesh3, topo: &Topology3) {
         self.rebuild_surfaces(mesh, topo);
+    }
+
+    /// The Verlet list's build state, for checkpoints (as 2D's `Contact::verlet_state`): a
+    /// resumed run must rebuild its list at the same steps and from the same positions.
+    pub fn verlet_state(&self) -> VerletState3 {
+        VerletState3 { u_build: self.u_build.clone(), dirty: self.dirty, rebuilds: self.rebuilds }
+    }
+
+    /// Restores a checkpoint's pairs and Verlet list (the topology must already be the
+    /// checkpoint's; the surfaces are rebuilt from it): the list is rebuilt from the saved
+    /// surface displacements, so that it and its next rebuild are the uninterrupted run's. A
+    /// state that does not fit the surfaces leaves the list to be rebuilt at the next step.
+    pub fn restore(&mut self, mesh: &RawMesh3, topo: &Topology3, pairs: Vec<Pair3>, st: VerletState3) {
+        self.rebuild_surfaces(mesh, topo);
+        self.pairs = pairs;
+        if !st.dirty && st.u_build.len() == self.slaves.len() {
+            let mut u = vec![[0.0; 3]; topo.n_clusters()];
+            for (&s, b) in self.slaves.iter().zip(&st.u_build) {
+                u[s as usize] = *b;
+            }
+            self.build_verlet(&mesh.points, &u);
+        }
+        self.rebuilds = st.rebuilds;
     }
 
     /// Rebuilds the Verlet list: for every slave, the faces (not of an element it belongs to)
