@@ -8,6 +8,7 @@ mod common;
 mod compare;
 mod configs;
 mod contact;
+mod contact3;
 mod cracking;
 mod dynamic;
 mod dynkinds;

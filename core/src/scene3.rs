@@ -1,8 +1,9 @@
 //! A 3D scene (issue 38, docs/3d.md): `[model] dim = 3`. The same scene language as 2D, with
 //! the sections that 3D has today (`[mesh]`, `[[set]]`-free node and face sets of the mesh,
 //! `[[material]]`, `[solver]`, `[[support]]`, `[[load]]`, `[[stage]]`, `[cracking]`,
+//! `[contact]` (node-to-face, `crate::contact::contact3`), `[check]` (`output::compare3`),
 //! `[output]`); the 2D sections and keys that have no 3D form yet are refused by name
-//! (`[contact]`, material laws, co-rotation, the events solver, nonlocal stress,
+//! (material laws, co-rotation, the events solver, nonlocal stress,
 //! Weibull scatter, probes), so that a 3D scene never runs something else than it says.
 //!
 //! 3D keys: `[[support]] fix` takes any of `x`, `y`, `z` (`"xyz"`, `"z"`, `"xz"`...);
@@ -175,6 +176,10 @@ pub struct Scene3File {
     /// `[check]`: every stage compared with the implicit solve (`output::compare3`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub check: Option<crate::plugin::check::CheckCfg>,
+    /// `[contact]` (docs/3d.md "Contact (3D)"): `surfaces` are face sets; the law must have a
+    /// 3D form. Taken by the body it builds (`March3::from_scene`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<crate::contact::ContactCfg>,
 }
 
 /// A validated 3D scene.
@@ -192,12 +197,14 @@ pub fn scene_dim(text: &str) -> u8 {
     v.and_then(|t| t.get("model")?.get("dim")?.as_integer()).map_or(2, |d| d.clamp(0, 255) as u8)
 }
 
+/// `[contact]` of a 3D scene: its keys, and a law with a 3D form (refused by name otherwise).
+fn validate_contact3(c: &crate::contact::ContactCfg, file: &str) -> Result<()> {
+    c.validate(file)?;
+    c.law.evaluate_3d(&[], &mut [], &mut []).map_err(|e| FlemError::config(file, "contact.law", format!("{e}: a 3D scene takes \"spring_dashpot\" or \"penalty\"")))
+}
+
 /// Sections and keys of the 2D scene language with no 3D form yet: named in the refusal.
-const NOT_IN_3D: [(&str, &str); 3] = [
-    ("contact", "contact in 3D (node-to-face) is not built yet"),
-    ("set", "[[set]] selections by geometry are 2D; name the mesh's physical groups"),
-    ("plugins", "dynamic plugin libraries have no 3D ABI yet"),
-];
+const NOT_IN_3D: [(&str, &str); 2] = [("set", "[[set]] selections by geometry are 2D; name the mesh's physical groups"), ("plugins", "dynamic plugin libraries have no 3D ABI yet")];
 
 impl Scene3 {
     /// Parses and validates a 3D scene text (`[model] dim = 3`); `path` is used in messages,
@@ -328,6 +335,9 @@ impl Scene3 {
         range("output.checkpoint_seconds", f.output.checkpoint_seconds, 0.0, true, f64::INFINITY, false)?;
         if f.output.checkpoint_keep == 0 {
             return Err(FlemError::config(&n, "output.checkpoint_keep", "= 0 is incorrect; it must be >= 1"));
+        }
+        if let Some(c) = &f.contact {
+            validate_contact3(c, &n)?;
         }
         if let Some(c) = &f.cracking {
             if c.nonlocal.is_some() || c.weibull.is_some() {

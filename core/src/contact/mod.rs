@@ -99,6 +99,7 @@
 //! separate term of the balance). A split itself dissipates nothing: the node's copies keep
 //! their displacement, the strain energy is unchanged and goes to the faces' motion; without a
 //! cohesive law the energy a crack releases leaves as waves and kinetic energy.
+pub mod contact3;
 pub mod dynlaw;
 pub mod search;
 
@@ -281,6 +282,13 @@ pub trait ContactLaw: Debug + Send + Sync {
     /// for the fracture energy ([`search::CohesionAccount`]), never in the march.
     fn unreleased(&self, _st: &PairState) -> f64 {
         0.0
+    }
+    /// The 3D form of the law (issue 38, [`contact3`]): the same springs with the tangential
+    /// quantities as vectors in the master face's plane and the Coulomb cap on their length.
+    /// A law without one returns an error (the default); a 3D scene probes it with empty
+    /// slices and refuses the law by name.
+    fn evaluate_3d(&self, _kin: &[contact3::PairKinematics3], _hist: &mut [contact3::PairState3], _out: &mut [contact3::PairForce3]) -> std::result::Result<(), String> {
+        Err("this contact law has no 3D form (docs/3d.md, \"Contact (3D)\")".into())
     }
     /// An error the law met in `evaluate` (a dynamic law that failed or returned a non-finite
     /// force; it then returned NaN forces, which the divergence guard stops on).

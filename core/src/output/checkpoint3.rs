@@ -10,9 +10,11 @@
 //! position ([`Pos3`]: stage, begun, steps, clusters at its start, stages done), the failure
 //! check's cuts in order ((cluster, faces): on restore they are replayed through the same
 //! `Topology3::cut` after `March3::from_scene` has cut the pre-separated face sets again, and
-//! the copy-to-cluster map is compared with the stored one), and named sections (the output
-//! writer's: snapshot count and the logs' byte length and CRC-32, so that a resume truncates
-//! `history.csv` and `splits3.csv` to what they were, `csvlog.rs`).
+//! the copy-to-cluster map is compared with the stored one), and named sections: the output
+//! writer's ("output3": snapshot count and the logs' byte length and CRC-32, so that a resume
+//! truncates `history.csv` and `splits3.csv` to what they were, `csvlog.rs`) and, with
+//! `[contact]`, the contact pairs with their history and the Verlet list's build state
+//! ("contact3").
 //!
 //! The scene hash is FNV-1a of the tag "3D", the scene as parsed (JSON of `Scene3File`, every
 //! default filled in) and the mesh's points and cells after validation: a 2D checkpoint is never
@@ -76,10 +78,10 @@ pub fn scene_hash3(scene_json: &str, m: &March3) -> u64 {
 
 impl Checkpoint3 {
     /// The state of `m` at `pos` (nothing in `m` changes).
-    pub fn capture(m: &March3, pos: &Pos3) -> Checkpoint3 {
+    pub fn capture(m: &March3, pos: &Pos3) -> Result<Checkpoint3> {
         let st = &m.state;
         let s = &m.stats;
-        Checkpoint3 {
+        let mut ck = Checkpoint3 {
             seq: 0,
             pos: pos.clone(),
             step: st.step,
@@ -102,7 +104,13 @@ impl Checkpoint3 {
             cuts: m.cuts.clone(),
             copy_cluster: m.topo.copy_cluster.iter().map(|c| c.0).collect(),
             sections: Vec::new(),
+        };
+        // Contact (`[contact]`): the open pairs with their history and the Verlet list's build
+        // state (`Contact3::restore` rebuilds the same list, rebuilt again at the same steps).
+        if let Some(c) = &m.contact {
+            ck.put_section("contact3", 1, &(&c.pairs, c.verlet_state()))?;
         }
+        Ok(ck)
     }
 
     /// Adds (or replaces) a section.
@@ -159,6 +167,13 @@ impl Checkpoint3 {
         let s = self.stats;
         m.stats = StepStats { step: s.0, dt: s.1, omega_max: s.2, kinetic: s.3, u_f_int: s.4, u_m_u: s.5 };
         m.damping.set_state(&self.damping_state);
+        let contact = self.section::<(Vec<crate::contact::contact3::Pair3>, crate::contact::contact3::VerletState3)>("contact3", 1)?;
+        match (m.contact.as_mut(), contact) {
+            (Some(c), Some((pairs, verlet))) => c.restore(&m.mesh, &m.topo, pairs, verlet),
+            (None, None) => {}
+            (Some(_), None) => return Err(bad("the scene has [contact] and the checkpoint no contact state".into())),
+            (None, Some(_)) => return Err(bad("the checkpoint has contact pairs and the scene has no [contact]".into())),
+        }
         Ok(())
     }
 

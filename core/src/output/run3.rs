@@ -101,7 +101,7 @@ impl Observer3 for Writer3<'_> {
     fn checkpoint(&mut self, m: &March3, pos: &Pos3) -> Result<()> {
         self.history.sync()?;
         self.splits.sync()?;
-        let mut ck = Checkpoint3::capture(m, pos);
+        let mut ck = Checkpoint3::capture(m, pos)?;
         ck.put_section("output3", 1, &Writer3State { snapshots: self.snapshots, splits_seen: self.splits_seen, history: self.history.mark(), splits: self.splits.mark() })?;
         self.seq += 1;
         ck.seq = self.seq;

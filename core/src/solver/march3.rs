@@ -4,8 +4,8 @@
 //! the unbalanced-force ratio, and the failure check that splits points along element faces
 //! (`Topology3::cut`, the separation rule's `propose_3d`).
 //!
-//! What it is not yet: the scene's stage loop, contact, checkpoints and output in 3D (the
-//! builder below takes its supports and loads from the caller); docs/3d.md says what is left.
+//! Contact (`[contact]`): `crate::contact::contact3`, one call in the step (`contact_forces`).
+//! What it is not yet: checkpoints in 3D; docs/3d.md says what is left.
 //! Every per-node quantity is a flat array indexed by cluster (`State<3>`), every per-copy one
 //! by copy: a partition of the mesh later slices them.
 use super::{pick_variant, ratio_of, Ledger, NodeCtx, State, NODE_CHUNK, NSUM};
@@ -68,6 +68,8 @@ pub struct March3 {
     /// Every cut of the failure check, in order: (cluster, faces). A checkpoint replays them
     /// (`output::checkpoint3`); the pre-separated face sets are cut again by `from_scene`.
     pub cuts: Vec<(u32, Vec<u32>)>,
+    /// Node-to-face contact, only with `[contact]` (`March3::attach_contact`).
+    pub contact: Option<crate::contact::contact3::Contact3>,
 }
 
 impl March3 {
@@ -124,6 +126,7 @@ impl March3 {
             ratio: f64::INFINITY,
             warnings: Vec::new(),
             cuts: Vec::new(),
+            contact: None,
             mesh,
             topo,
             blocks,
@@ -145,7 +148,9 @@ impl March3 {
         for b in &self.blocks {
             b.add_row_sums(&mut rows);
         }
-        rows.iter().zip(&self.state.mass).map(|(r, m)| (r / m).sqrt()).fold(0.0, f64::max)
+        let w = rows.iter().zip(&self.state.mass).map(|(r, m)| (r / m).sqrt()).fold(0.0, f64::max);
+        // With contact, its springs' term: omega^2 = omega_el^2 + omega_contact^2 (as 2D).
+        self.contact.as_ref().map_or(w, |c| (w * w + c.omega2).sqrt())
     }
 
     /// A new load (level 0) named `name`; returns its index.
@@ -264,6 +269,7 @@ impl March3 {
             b.add_internal_forces(&self.state.u, &mut self.state.f_int);
         }
         self.state.f_ext.copy_from_slice(&self.f_const);
+        let with_contact = self.contact_forces()?;
         let co = self.damping.coeffs(&self.stats);
         let dt = self.dt;
         let (a, beta, eta) = (co.viscous, co.local, co.eta);
@@ -277,7 +283,7 @@ impl March3 {
         } else {
             0
         };
-        let update = pick_variant::<3>(false, damp, true, true, Simd::best());
+        let update = pick_variant::<3>(with_contact, damp, true, true, Simd::best());
         let State { u, v, f_int, f_ext, f_con, mass, fix, v_pres, .. } = &mut self.state;
         let ctx = NodeCtx::<3> { mass, fix, f_int, f_ext, f_con, v_pres, dt, inv_dt: 1.0 / dt, c1, c2, beta, eta_hdt: 0.5 * eta * dt, a_hdt: 0.5 * a * dt };
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
@@ -291,7 +297,9 @@ impl March3 {
                 *s = if k == 11 { f64::max(*s, *x) } else { *s + x };
             }
         }
-        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, _, _, num, asum, cnt] = sum;
+        let [w, dmp, pw, pd, ke, keh, ufi, umu, uf, wc, pc, num, asum, cnt] = sum;
+        self.ledger.contact_work += wc;
+        self.ledger.pending_contact = pc;
         self.ledger.external_work += w;
         self.ledger.damping += dmp;
         self.ledger.pending_ext = pw;
@@ -396,6 +404,7 @@ impl March3 {
             for b in &mut self.blocks {
                 b.reconnect(&self.topo);
             }
+            self.contact_follow_split();
             self.omega_max = self.omega_bound();
         }
         Ok(rec)
@@ -424,6 +433,7 @@ impl March3 {
         for b in &mut self.blocks {
             b.reconnect(&self.topo);
         }
+        self.contact_follow_split();
         self.omega_max = self.omega_bound();
     }
 
@@ -474,6 +484,50 @@ impl March3 {
         }
         self.rebuild_forces();
         Ok(())
+    }
+
+    /// Adds node-to-face contact (`[contact]`, after the pre-separated faces were cut) and sets
+    /// the time step with the contact springs' term: `dt` when given (refused above the
+    /// critical step unless `allow_unstable`), else `safety` of the stable step.
+    pub fn attach_contact(&mut self, cfg: crate::contact::ContactCfg, file: &str, dt: Option<f64>, safety: f64, allow_unstable: bool) -> Result<()> {
+        let mut c = crate::contact::contact3::Contact3::new(cfg, &self.mesh, &self.topo, file)?;
+        c.update_omega2(&self.mesh, &self.topo, &self.copy_mass, &self.state.mass, &self.state.fix);
+        self.contact = Some(c);
+        self.omega_max = self.omega_bound();
+        let crit = 2.0 / self.omega_max;
+        match dt {
+            Some(dt) if dt > crit && !allow_unstable => Err(FlemError::config(
+                file,
+                "solver.dt",
+                format!("= {dt} is above the critical step {crit:.6e} with the contact springs (contact.law normal_stiffness / shear_stiffness); lower it or set solver.allow_unstable_dt = true"),
+            )),
+            Some(dt) => {
+                self.dt = dt;
+                Ok(())
+            }
+            None => {
+                self.dt = safety * self.damping.stability_factor() * crit;
+                Ok(())
+            }
+        }
+    }
+
+    /// The contact forces of this step into `f_con` and the contact terms of the ledger;
+    /// false (and nothing done) without contact.
+    fn contact_forces(&mut self) -> Result<bool> {
+        let Some(c) = self.contact.as_mut() else { return Ok(false) };
+        let (stored, diss) = c.compute(&self.mesh.points, &self.state.u, &self.state.v, self.dt, &mut self.state.f_con)?;
+        self.ledger.contact_energy = stored;
+        self.ledger.contact_dissipated += diss;
+        Ok(true)
+    }
+
+    /// The contact surfaces follow splits (new faces, new slaves, the stable-step term).
+    fn contact_follow_split(&mut self) {
+        if let Some(c) = self.contact.as_mut() {
+            c.on_split(&self.mesh, &self.topo);
+            c.update_omega2(&self.mesh, &self.topo, &self.copy_mass, &self.state.mass, &self.state.fix);
+        }
     }
 
     /// Connected fragments of the body.
@@ -555,6 +609,7 @@ impl March3 {
     /// the time step.
     pub fn from_scene(scene: &mut crate::scene3::Scene3) -> Result<March3> {
         let damping = scene.file.solver.damping.take();
+        let contact = scene.file.contact.take();
         let f = &scene.file;
         let name = scene.path.display().to_string();
         let mut mesh = match f.mesh.load_any(&scene.base_dir)? {
@@ -606,6 +661,9 @@ impl March3 {
         }
         for (i, set) in f.model.separated.iter().enumerate() {
             m.separate_face_set(set).map_err(|e| FlemError::config(&name, format!("model.separated[{i}]"), e.to_string()))?;
+        }
+        if let Some(c) = contact {
+            m.attach_contact(c, &name, f.solver.dt, f.solver.dt_safety, f.solver.allow_unstable_dt)?;
         }
         m.rebuild_forces();
         Ok(m)

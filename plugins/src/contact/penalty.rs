@@ -16,6 +16,7 @@
 //! [contact]
 //! law = { type = "penalty", normal_stiffness = 1e5, friction = 0.3, slip_velocity = 1e-4 }
 //! ```
+use flem_core::contact::contact3::{PairForce3, PairKinematics3, PairState3};
 use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
@@ -62,6 +63,28 @@ impl ContactLaw for Penalty {
             let diss = (-(normal - el) * k.vn - ft * k.vs) * k.dt;
             *o = PairForce { normal, tangential: ft, active: true, stored: 0.5 * el * el / kn, dissipated: diss, fracture: 0.0 };
         }
+    }
+    /// The 3D form (issue 38, docs/3d.md "Contact (3D)"): the same total-gap normal force;
+    /// friction `f_t = -mu f_n v_s / sqrt(|v_s|^2 + v_reg^2)` with `v_s` the tangential
+    /// relative velocity vector in the face's plane.
+    fn evaluate_3d(&self, kin: &[PairKinematics3], hist: &mut [PairState3], out: &mut [PairForce3]) -> Result<(), String> {
+        for ((k, h), o) in kin.iter().zip(hist.iter_mut()).zip(out.iter_mut()) {
+            if k.gap >= 0.0 {
+                *o = PairForce3::default();
+                continue;
+            }
+            let kn = self.normal_stiffness * k.area;
+            let el = -kn * k.gap;
+            let normal = (el - self.normal_damping * k.area * k.vn).max(0.0);
+            let v2 = k.vs[0] * k.vs[0] + k.vs[1] * k.vs[1] + k.vs[2] * k.vs[2];
+            let c = -self.friction * normal / (v2 + self.slip_velocity * self.slip_velocity).sqrt();
+            let ft = k.vs.map(|v| c * v);
+            h.en = el;
+            h.es = ft;
+            let diss = (-(normal - el) * k.vn - c * v2) * k.dt;
+            *o = PairForce3 { normal, tangential: ft, active: true, stored: 0.5 * el * el / kn, dissipated: diss };
+        }
+        Ok(())
     }
 }
 

@@ -42,6 +42,7 @@
 //! shear_damping = 10.0
 //! friction = 0.577            # paper Table 1
 //! ```
+use flem_core::contact::contact3::{PairForce3, PairKinematics3, PairState3};
 use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
@@ -103,6 +104,50 @@ impl ContactLaw for SpringDashpot {
             *o = PairForce { normal, tangential: h.es + ds, active: true, stored: 0.5 * h.en * h.en / kn + 0.5 * h.es * h.es / ks, dissipated: diss, fracture: 0.0 };
         }
     }
+    /// The 3D form (issue 38, docs/3d.md "Contact (3D)"): eqs. 10-14 with the shear spring
+    /// `e_s` a vector in the face's plane, `e_s -= k_s A dslip` (vector), the Coulomb cap on
+    /// its length `|e_s + d_s| <= mu (e_n + d_n)` (eq. 13: the trial scaled back along
+    /// itself), slip dissipation `(e_s,old + e_s) . (e_s* - e_s) / (2 k_s A)` (the 1D
+    /// trapezoid rule with dot products). In 1D-like motion (slip along one direction) it is
+    /// the 2D law exactly.
+    fn evaluate_3d(&self, kin: &[PairKinematics3], hist: &mut [PairState3], out: &mut [PairForce3]) -> Result<(), String> {
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        for ((k, h), o) in kin.iter().zip(hist.iter_mut()).zip(out.iter_mut()) {
+            let (kn, ks) = (self.normal_stiffness * k.area, self.shear_stiffness * k.area);
+            let es_old = if k.new { [0.0; 3] } else { h.es };
+            if k.new {
+                h.en = kn * (-k.gap).max(0.0);
+                h.es = [0.0; 3];
+            } else {
+                h.en -= kn * k.dgap;
+                for d in 0..3 {
+                    h.es[d] -= ks * k.dslip[d];
+                }
+            }
+            if h.en <= 0.0 {
+                *o = PairForce3::default();
+                continue;
+            }
+            let dn = -self.normal_damping * k.area * k.vn;
+            let mut ds = k.vs.map(|v| -self.shear_damping * k.area * v);
+            let normal = (h.en + dn).max(0.0);
+            let trial: [f64; 3] = std::array::from_fn(|d| h.es[d] + ds[d]);
+            let (lt, lim) = (dot(trial, trial).sqrt(), self.friction * normal);
+            let mut diss = 0.0;
+            if lt > lim {
+                let capped = trial.map(|t| t * lim.max(0.0) / lt);
+                let sum: [f64; 3] = std::array::from_fn(|d| es_old[d] + capped[d]);
+                let dif: [f64; 3] = std::array::from_fn(|d| h.es[d] - capped[d]);
+                diss += 0.5 * dot(sum, dif) / ks;
+                h.es = capped;
+                ds = [0.0; 3];
+            }
+            diss += -((normal - h.en) * k.vn + dot(ds, k.vs)) * k.dt;
+            let tangential: [f64; 3] = std::array::from_fn(|d| h.es[d] + ds[d]);
+            *o = PairForce3 { normal, tangential, active: true, stored: 0.5 * h.en * h.en / kn + 0.5 * dot(h.es, h.es) / ks, dissipated: diss };
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -142,6 +187,40 @@ mod tests {
         l.evaluate(&[k], &mut h, &mut o);
         assert!((o[0].tangential + 5.0).abs() < 1e-12, "{}", o[0].tangential);
         assert!(o[0].dissipated > 0.0);
+    }
+
+    /// The 3D form on a slip along a fixed direction equals the 2D law on the same path, and a
+    /// slip that turns keeps the cap on the length of the shear force. Reference: the 2D law
+    /// (eqs. 10-14) and Coulomb's law |e_s| <= mu e_n; 1e-12.
+    #[test]
+    fn three_d_form_matches_the_2d_law_and_caps_the_length() {
+        let l = law();
+        let dir = [0.6, 0.0, 0.8];
+        let (mut h2, mut h3) = ([PairState::default()], [PairState3::default()]);
+        let (mut o2, mut o3) = ([PairForce::default()], [PairForce3::default()]);
+        for i in 0..40 {
+            let t = i as f64;
+            let (g, ds) = (-0.01 - 0.004 * (t * 0.3).sin(), 0.004 * (t * 0.2).cos());
+            let dg = if i == 0 { 0.0 } else { -0.004 * ((t * 0.3).sin() - ((t - 1.0) * 0.3).sin()) };
+            let k2 = PairKinematics { gap: g, dgap: dg, dslip: ds, area: 2.0, dt: 1.0, new: i == 0, ..Default::default() };
+            let k3 = PairKinematics3 { gap: g, dgap: dg, dslip: dir.map(|c| c * ds), area: 2.0, dt: 1.0, new: i == 0, ..Default::default() };
+            l.evaluate(&[k2], &mut h2, &mut o2);
+            l.evaluate_3d(&[k3], &mut h3, &mut o3).unwrap();
+            assert!((o2[0].normal - o3[0].normal).abs() < 1e-12);
+            for d in 0..3 {
+                assert!((o2[0].tangential * dir[d] - o3[0].tangential[d]).abs() < 1e-12, "step {i}");
+            }
+            assert!((o2[0].stored - o3[0].stored).abs() < 1e-12 && (o2[0].dissipated - o3[0].dissipated).abs() < 1e-12);
+        }
+        // A slip turning in the plane: the force's length stays at the cap mu e_n.
+        let mut h = [PairState3 { en: 10.0, ..Default::default() }];
+        let mut o = [PairForce3::default()];
+        for i in 0..20 {
+            let a = 0.3 * i as f64;
+            l.evaluate_3d(&[PairKinematics3 { gap: -0.05, dslip: [a.cos(), a.sin(), 0.0], area: 1.0, dt: 1.0, ..Default::default() }], &mut h, &mut o).unwrap();
+            let t = o[0].tangential;
+            assert!(((t[0] * t[0] + t[1] * t[1]).sqrt() - 5.0).abs() < 1e-12 && o[0].dissipated > 0.0);
+        }
     }
 
     /// Energy of the law against the ledger's quadrature, without dashpots: a pair held in
