@@ -20,8 +20,8 @@
 //! the masses and the stable-step bound.
 //!
 //! **Threads, bit for bit** (ours; issue 38 must-show 3 and 6). Packs are grouped in chunks of
-//! `Kernel3::CHUNK_PACKS` consecutive packs (a size fixed per kind, never from the thread
-//! count). The chunks are coloured once, greedily in chunk order, so that two chunks of one
+//! consecutive packs (about 32 chunks a block, at least `Kernel3::CHUNK_PACKS` packs each: a
+//! size from the block alone, never from the thread count). The chunks are coloured once, greedily in chunk order, so that two chunks of one
 //! colour share no cluster. A pass runs the colours one after the other; the chunks of a colour
 //! run on the pool in any order, since none of them adds to a cluster that another adds to; a
 //! chunk adds its elements in element order. So every cluster receives its contributions in
@@ -55,7 +55,7 @@ type Lanes = [f64; LANES];
 /// What the element loop of one kind needs.
 trait Kernel3<const N: usize>: Send + Sync + 'static {
     const KIND: Kind3;
-    /// Packs per chunk of the threaded pass (fixed per kind).
+    /// The fewest packs in a chunk of the threaded pass.
     const CHUNK_PACKS: usize;
     /// The force pass's data of `LANES` elements.
     type Pack: Copy + Send + Sync + 'static;
@@ -170,23 +170,26 @@ impl Kernel3<8> for H8K {
             }
         }
         let mut ff = [[0.0; LANES]; 24];
-        let mut o = 0;
+        let mut rest: &[Lanes] = &p.k;
         for i in 0..24 {
+            // Row i of the triangle: K(i, i..24).
+            let (row, next) = rest.split_at(24 - i);
+            rest = next;
+            let ui = uf[i];
             let mut acc = [0.0; LANES];
             for l in 0..LANES {
-                acc[l] = p.k[o][l] * uf[i][l];
+                acc[l] = row[0][l] * ui[l];
             }
-            for j in i + 1..24 {
-                let k = &p.k[o + j - i];
+            let (lo, hi) = ff.split_at_mut(i + 1);
+            for ((k, uj), fj) in row[1..].iter().zip(&uf[i + 1..]).zip(hi.iter_mut()) {
                 for l in 0..LANES {
-                    acc[l] += k[l] * uf[j][l];
-                    ff[j][l] += k[l] * uf[i][l];
+                    acc[l] += k[l] * uj[l];
+                    fj[l] += k[l] * ui[l];
                 }
             }
             for l in 0..LANES {
-                ff[i][l] += acc[l];
+                lo[i][l] += acc[l];
             }
-            o += 24 - i;
         }
         for (a, fa) in f.iter_mut().enumerate() {
             for i in 0..3 {
@@ -262,6 +265,8 @@ struct Block<K: Kernel3<N>, const N: usize> {
     x: Vec<[[f64; 3]; N]>,
     conn: Vec<[u32; N]>,
     packs: Vec<K::Pack>,
+    /// Packs per chunk (`chunk_packs`).
+    chunk_packs: usize,
     /// The chunks of each colour, ascending.
     colours: Vec<Vec<u32>>,
     /// The largest cluster any element touches.
@@ -336,22 +341,35 @@ fn colour_chunks<const N: usize>(conn: &[[u32; N]], chunk: usize) -> Vec<Vec<u32
     colours
 }
 
+/// Chunks per block (about; fewer when a block is small): large chunks keep a colour's pass
+/// local (a 1e6-tetrahedron box in the mesh's order then has 2 colours, its 256-element chunks
+/// had 8, each colour sweeping the whole node range), and 16 chunks a colour keep 2 threads
+/// balanced (session 16, docs/perf/s16/3d_step.md).
+const CHUNKS: usize = 32;
+
+/// Packs per chunk of a block of `n_packs` packs: at least `min`, and about [`CHUNKS`] chunks
+/// (from the block's size only, never from the thread count).
+fn chunk_packs(min: usize, n_packs: usize) -> usize {
+    min.max(n_packs.div_ceil(CHUNKS))
+}
+
 fn build<K: Kernel3<N>, const N: usize>(inp: &BlockInput3) -> Box<dyn Block3> {
     let d = Dmat3::new(inp.young, inp.poisson);
     let x: Vec<[[f64; 3]; N]> = inp.x.iter().map(|x| std::array::from_fn(|a| x[a])).collect();
     let conn: Vec<[u32; N]> = inp.conn.iter().map(|c| std::array::from_fn(|a| c[a])).collect();
-    let packs = x.chunks(LANES).map(|x| K::pack(x, &d)).collect();
-    let colours = colour_chunks(&conn, K::CHUNK_PACKS * LANES);
+    let packs: Vec<K::Pack> = x.chunks(LANES).map(|x| K::pack(x, &d)).collect();
+    let chunk_packs = chunk_packs(K::CHUNK_PACKS, packs.len());
+    let colours = colour_chunks(&conn, chunk_packs * LANES);
     let top = conn.iter().flatten().fold(0u32, |m, &c| m.max(c)) as usize;
     let run = Block::<K, N>::chunk_fn(Simd::best());
-    Box::new(Block::<K, N> { elems: inp.elems.to_vec(), x, conn, packs, colours, top, d, rho: inp.density, run })
+    Box::new(Block::<K, N> { elems: inp.elems.to_vec(), x, conn, packs, chunk_packs, colours, top, d, rho: inp.density, run })
 }
 
 impl<K: Kernel3<N>, const N: usize> Block<K, N> {
     /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.
     #[inline(always)]
     fn chunk_body(&self, k: usize, u: &[[f64; 3]], f: Shared3) {
-        let cp = K::CHUNK_PACKS;
+        let cp = self.chunk_packs;
         let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
         let mut ug = [[[0.0; LANES]; 3]; N];
         let mut fg = [[[0.0; LANES]; 3]; N];
