@@ -256,7 +256,7 @@ impl March3 {
     }
 
     /// Runs the element loop and the node update on `threads` threads (0: one per core; 1: no
-    /// pool). The results do not depend on it (tests/march3.rs).
+    /// pool). The results do not depend on it (tests/threads3.rs).
     pub fn set_threads(&mut self, threads: usize) -> std::result::Result<(), rayon::ThreadPoolBuildError> {
         let n = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
         self.pool = if n <= 1 { None } else { Some(std::sync::Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build()?)) };
