@@ -31,6 +31,7 @@ mod skip;
 mod slope;
 mod softening;
 mod solid3;
+mod threads3;
 mod tools;
 mod verification;
 mod zero_free;

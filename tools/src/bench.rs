@@ -70,7 +70,7 @@ pub struct StepOpts {
 }
 
 /// Median of `v` (the mean of the two middle values for an even count).
-fn median(v: &[f64]) -> f64 {
+pub(crate) fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
     match s.len() {
@@ -82,13 +82,13 @@ fn median(v: &[f64]) -> f64 {
 
 /// The per-round values of named figures, printed as median and range.
 #[derive(Default)]
-struct Spread(BTreeMap<String, Vec<f64>>);
+pub(crate) struct Spread(BTreeMap<String, Vec<f64>>);
 
 impl Spread {
-    fn add(&mut self, k: &str, v: f64) {
+    pub(crate) fn add(&mut self, k: &str, v: f64) {
         self.0.entry(k.to_string()).or_default().push(v);
     }
-    fn json(&self) -> Value {
+    pub(crate) fn json(&self) -> Value {
         Value::Object(
             self.0
                 .iter()
@@ -133,7 +133,7 @@ pub(crate) fn time_per_call(min_time: f64, mut f: impl FnMut()) -> (f64, f64) {
 /// `a[i] = b[i] + s c[i]` over three arrays of 2^25 f64 (768 MiB in all, far beyond the caches),
 /// split into equal chunks over `threads` threads, counted as STREAM does (24 bytes per index:
 /// two reads and a write, the write-allocate read not counted). Median of 5 batches, GB/s.
-fn triad_gb_per_s(threads: usize, min_time: f64) -> Result<f64> {
+pub(crate) fn triad_gb_per_s(threads: usize, min_time: f64) -> Result<f64> {
     use rayon::prelude::*;
     const N: usize = 1 << 25;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build()?;

@@ -14,6 +14,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 mod bench;
+mod bench3;
 mod bench_answer;
 mod bench_contact;
 mod bench_dyncall;
@@ -251,6 +252,9 @@ enum BenchWhat {
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
     Dyncall(bench_dyncall::Args),
+    /// The 3D explicit step (issue 38): ns per element-update of T4 and H8 boxes on 1 and 2
+    /// threads, bit-identity across threads, the fraction of the triad (docs/3d.md "Speed").
+    Step3(bench3::Args),
     /// Time to answer of the plastic verification scenes (the strip footings' plateau, the
     /// slope's factor of safety), explicit beside implicit, and the chart of wall time against
     /// error (ours, issue 37; docs/materials.md).
@@ -843,6 +847,7 @@ fn bench(what: BenchWhat) -> Result<()> {
             bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h, rounds, graph_sizes)?
         }
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
+        BenchWhat::Step3(a) => bench3::run(&a)?,
         BenchWhat::Laws { elements, min_time } => bench_laws::run(elements, min_time)?,
         BenchWhat::Answer(a) => bench_answer::run(&a)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,

@@ -4,7 +4,10 @@
 //! Core names no 3D kind: a kind is a type implementing [`Block3`] in flem-plugins
 //! (`elements3d`) and one registration line, `inventory::submit! { Kind3Registration { .. } }`;
 //! core builds the blocks of a region by name ([`build_block3`]). A block's element loop is
-//! generic per kind (one dynamic call per block and step, none per element).
+//! generic per kind (one dynamic call per block and step, none per element); it may run on a
+//! thread pool (`Block3::add_internal_forces_pool`) and gives the same bits on any number of
+//! threads (plugins/src/elements3d/block.rs: chunks coloured so that no two of a colour share a
+//! cluster).
 use crate::error::{FlemError, Result};
 use crate::ids::ElemId;
 use crate::mesh::topology3::Topology3;
@@ -18,6 +21,21 @@ pub trait Block3: Send + Sync + std::fmt::Debug {
     fn elems(&self) -> &[ElemId];
     /// `f[c] += F_int` of every element from the displacements `u` (both indexed by cluster).
     fn add_internal_forces(&self, u: &[[f64; 3]], f: &mut [[f64; 3]]);
+    /// As `add_internal_forces`, on the threads of `pool` (`None`: this thread). The forces
+    /// are the same bits whatever the pool (a kind that cannot share its loop runs it on this
+    /// thread).
+    fn add_internal_forces_pool(&self, u: &[[f64; 3]], f: &mut [[f64; 3]], pool: Option<&rayon::ThreadPool>) {
+        let _ = pool;
+        self.add_internal_forces(u, f)
+    }
+    /// Bytes the force pass streams (the kernel's per-element data and connectivity).
+    fn kernel_bytes(&self) -> usize {
+        0
+    }
+    /// Colours of the threaded pass (the barriers of a step; 1 for a serial loop).
+    fn colours(&self) -> usize {
+        1
+    }
     /// The stress (tension positive, `[sxx, syy, szz, sxy, syz, szx]`) of every element at
     /// each corner (the paper's nodal stress: natural coordinates scaled by 0.9999; a
     /// tetrahedron's constant stress), written to `out[first_copy[e] + a]`.

@@ -70,6 +70,9 @@ pub struct March3 {
     pub cuts: Vec<(u32, Vec<u32>)>,
     /// Node-to-face contact, only with `[contact]` (`March3::attach_contact`).
     pub contact: Option<crate::contact::contact3::Contact3>,
+    /// The threads of the element loop and the node update (`None`: this thread only;
+    /// `set_threads`). Results are the same bits whatever it is.
+    pub pool: Option<std::sync::Arc<rayon::ThreadPool>>,
 }
 
 impl March3 {
@@ -127,6 +130,7 @@ impl March3 {
             warnings: Vec::new(),
             cuts: Vec::new(),
             contact: None,
+            pool: None,
             mesh,
             topo,
             blocks,
@@ -260,14 +264,33 @@ impl March3 {
         debug_assert_eq!(self.f_const.len(), nc);
     }
 
-    /// One step: element forces, the node update (the scene's damping), the ratio.
-    pub fn step(&mut self) -> Result<()> {
+    /// Runs the element loop and the node update on `threads` threads (0: one per core; 1: no
+    /// pool). The results do not depend on it (tests/threads3.rs).
+    pub fn set_threads(&mut self, threads: usize) -> std::result::Result<(), rayon::ThreadPoolBuildError> {
+        let n = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
+        self.pool = if n <= 1 { None } else { Some(std::sync::Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build()?)) };
+        Ok(())
+    }
+
+    /// Threads in use (1 without a pool).
+    pub fn threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
+    }
+
+    /// `f_int` of every block at the current displacement (zeroed, then each block adds, on
+    /// the pool's threads: the same bits on any number).
+    pub fn internal_forces(&mut self) {
         for f in &mut self.state.f_int {
             *f = [0.0; 3];
         }
         for b in &self.blocks {
-            b.add_internal_forces(&self.state.u, &mut self.state.f_int);
+            b.add_internal_forces_pool(&self.state.u, &mut self.state.f_int, self.pool.as_deref());
         }
+    }
+
+    /// One step: element forces, the node update (the scene's damping), the ratio.
+    pub fn step(&mut self) -> Result<()> {
+        self.internal_forces();
         self.state.f_ext.copy_from_slice(&self.f_const);
         let with_contact = self.contact_forces()?;
         let co = self.damping.coeffs(&self.stats);
@@ -288,8 +311,18 @@ impl March3 {
         let ctx = NodeCtx::<3> { mass, fix, f_int, f_ext, f_con, v_pres, dt, inv_dt: 1.0 / dt, c1, c2, beta, eta_hdt: 0.5 * eta * dt, a_hdt: 0.5 * a * dt };
         let n_chunks = u.len().div_ceil(NODE_CHUNK);
         self.partials.resize(n_chunks, [0.0; NSUM]);
-        for (k, ((u, v), s)) in u.chunks_mut(NODE_CHUNK).zip(v.chunks_mut(NODE_CHUNK)).zip(self.partials.iter_mut()).enumerate() {
-            *s = update(&ctx, k * NODE_CHUNK, u, v);
+        // Per fixed chunk of nodes, on the pool or not: the sums below do not depend on it.
+        match self.pool.as_deref() {
+            Some(pool) if n_chunks > 1 => {
+                use rayon::prelude::*;
+                let par = u.par_chunks_mut(NODE_CHUNK).zip(v.par_chunks_mut(NODE_CHUNK)).zip(self.partials.par_iter_mut()).enumerate();
+                pool.install(|| par.for_each(|(k, ((u, v), s))| *s = update(&ctx, k * NODE_CHUNK, u, v)));
+            }
+            _ => {
+                for (k, ((u, v), s)) in u.chunks_mut(NODE_CHUNK).zip(v.chunks_mut(NODE_CHUNK)).zip(self.partials.iter_mut()).enumerate() {
+                    *s = update(&ctx, k * NODE_CHUNK, u, v);
+                }
+            }
         }
         let mut sum = [0.0; NSUM];
         for p in &self.partials {
@@ -647,6 +680,7 @@ impl March3 {
         }
         m.gravity = f.model.gravity;
         m.warnings = warnings;
+        m.set_threads(f.solver.threads).map_err(|e| FlemError::config(&name, "solver.threads", format!("= {}: the thread pool could not be started: {e}", f.solver.threads)))?;
         for (i, l) in f.loads.iter().enumerate() {
             let k = m.add_load(l.name());
             let key = |s: &str| format!("load[{i}].{s}");
