@@ -418,34 +418,36 @@ fn checkpoints_3d_resume_bit_identically() {
     // The checkpoints of the cracking stage: one after the first split and before the last.
     let cks = flem_core::output::checkpoint::list(&a).unwrap();
     let hash_of = |p: &Path| flem_core::output::checkpoint3::peek3(p).unwrap();
-    let mid = cks
-        .iter()
-        .map(|(_, p)| (p.clone(), hash_of(p)))
-        .find(|(_, ck)| ck.pos.stage == 1 && ck.pos.steps > 0 && !ck.cuts.is_empty() && ck.cuts.len() < m.cuts.len())
-        .expect("a checkpoint inside the cracking stage between two splits");
-    eprintln!("resuming from {} (stage {} step {}, {} of {} cuts)", mid.0.display(), mid.1.pos.stage, mid.1.pos.steps, mid.1.cuts.len(), m.cuts.len());
-    // A folder as a killed run leaves it: later checkpoints gone, later rows and a cut row in
-    // the logs, a later snapshot.
-    let b = root.join("resumed");
-    std::fs::create_dir_all(&b).unwrap();
-    for e in std::fs::read_dir(&a).unwrap().flatten() {
-        std::fs::copy(e.path(), b.join(e.file_name())).unwrap();
-    }
-    for (seq, p) in &cks {
-        if *seq > mid.1.seq {
-            std::fs::remove_file(b.join(p.file_name().unwrap())).unwrap();
-        }
-    }
-    let mut h = std::fs::OpenOptions::new().append(true).open(b.join("history.csv")).unwrap();
-    std::io::Write::write_all(&mut h, b"9,late,1,1e0,false,1e0,0,1\n9,cu").unwrap();
-    run(&b, true, None).unwrap();
     let same = |a: &std::collections::BTreeMap<String, Vec<u8>>, what: &str| {
         let names = |m: &std::collections::BTreeMap<String, Vec<u8>>| m.keys().cloned().collect::<Vec<_>>();
         assert_eq!(names(a), names(&whole), "{what}: the same files");
         let differ: Vec<&String> = a.iter().filter(|(k, v)| whole[*k] != **v).map(|(k, _)| k).collect();
         assert!(differ.is_empty(), "{what}: {differ:?} differ from the uninterrupted run's");
     };
-    same(&run_files(&b), "resumed mid-stage");
+    // Resumed from a checkpoint in a folder as a killed run leaves it: later checkpoints gone,
+    // the later stages' VTU files gone, a later row and a cut row in history.csv.
+    let resume_from = |what: &str, pick: &dyn Fn(&flem_core::output::checkpoint3::Checkpoint3) -> bool| {
+        let (path, ck) = cks.iter().map(|(_, p)| (p.clone(), hash_of(p))).find(|(_, ck)| pick(ck)).unwrap_or_else(|| panic!("{what}: no such checkpoint"));
+        eprintln!("{what}: resuming from {} (stage {} began {} step {}, {} of {} cuts)", path.display(), ck.pos.stage, ck.pos.began, ck.pos.steps, ck.cuts.len(), m.cuts.len());
+        let b = root.join(what.replace(' ', "_"));
+        std::fs::create_dir_all(&b).unwrap();
+        for e in std::fs::read_dir(&a).unwrap().flatten() {
+            let name = e.file_name().to_string_lossy().to_string();
+            let later_vtu = name.ends_with(".vtu") && name.split('_').nth(1).and_then(|n| n.parse::<usize>().ok()).is_some_and(|n| n >= ck.pos.stage);
+            let later_ck = name.starts_with("checkpoint_") && name > path.file_name().unwrap().to_string_lossy().to_string();
+            if !later_vtu && !later_ck {
+                std::fs::copy(e.path(), b.join(e.file_name())).unwrap();
+            }
+        }
+        let mut h = std::fs::OpenOptions::new().append(true).open(b.join("history.csv")).unwrap();
+        std::io::Write::write_all(&mut h, b"9,late,1,1e0,false,1e0,0,1\n9,cu").unwrap();
+        run(&b, true, None).unwrap();
+        same(&run_files(&b), what);
+    };
+    // Inside the cracking stage between two splits, and at the end of the first stage (the
+    // next stage not begun: its levels are set by the resumed run).
+    resume_from("resumed mid-stage", &|ck| ck.pos.stage == 1 && ck.pos.steps > 0 && !ck.cuts.is_empty() && ck.cuts.len() < m.cuts.len());
+    resume_from("resumed at a stage end", &|ck| ck.pos.stage == 1 && !ck.pos.began);
     // Interrupted at once, then resumed.
     let c = root.join("interrupted");
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));

@@ -310,7 +310,7 @@ fn run<'py>(
         if on_stage.is_some() || on_progress.is_some() {
             return Err(to_py(py, FlemError::config(path, "model.dim", "= 3: flem.run of a 3D scene takes no on_stage or on_progress yet")));
         }
-        if let Some(r) = resume.filter(|r| Path::new(r).canonicalize().ok() != out_p.canonicalize().ok()) {
+        if let Some(r) = resume.filter(|r| Path::new(r).canonicalize().ok().zip(out_p.canonicalize().ok()).map_or(Path::new(r) != out_p, |(a, b)| a != b)) {
             return Err(to_py(py, FlemError::config(path, "model.dim", format!("= 3: a 3D run resumes in the folder of its checkpoints; resume = {r:?} is not out = {out:?}"))));
         }
         let (arrays, warnings, compare) = py.detach(|| run3_detached(text, &p, &b, &out_p, resume.is_some())).map_err(|e| to_py(py, e))?;

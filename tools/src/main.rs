@@ -439,7 +439,7 @@ fn run3(path: &Path, out: Option<PathBuf>, resume: Option<PathBuf>, plot: bool, 
     let out = out.or_else(|| resume.clone()).unwrap_or_else(|| PathBuf::from("out").join(stem));
     if let Some(r) = &resume {
         anyhow::ensure!(
-            r.canonicalize().ok() == out.canonicalize().ok(),
+            r.canonicalize().ok().zip(out.canonicalize().ok()).map_or(r == &out, |(a, b)| a == b),
             "{}: a 3D run resumes in the folder of its checkpoints ({}); leave out --out or give the same folder",
             path.display(),
             r.display()
@@ -505,7 +505,7 @@ fn compare3(path: &Path, out: Option<PathBuf>, max_steps: Option<u64>) -> Result
     flem_core::output::prepare_dir(&out)?;
     flem_core::output::run3::run3_in_folder(&mut scene, &out)?;
     let json = out.join("compare.json");
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).with_context(|| json.display().to_string())?).with_context(|| json.display().to_string())?;
     let rows: Vec<flem_core::output::compare::StageComparison> = serde_json::from_value(v["stages"].clone())?;
     print!("{}", flem_core::output::compare::table(&rows));
     println!("results in {}", json.display());

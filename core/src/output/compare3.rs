@@ -146,14 +146,26 @@ impl<'a> Comparer3<'a> {
     }
 
     /// A resumed run (`run3::run3_with`): the rows of the stages before `stage` from the
-    /// folder's `compare.json` (none when it cannot be read).
-    pub fn keep_rows_before(&mut self, stage: usize) {
-        let rows = std::fs::read_to_string(self.dir.join("compare.json"))
+    /// folder's `compare.json`; refused, naming the file, when it does not hold one row for each
+    /// of them (the resumed compare.json and summary.json would lose their verdicts).
+    pub fn keep_rows_before(&mut self, stage: usize) -> Result<()> {
+        if stage == 0 {
+            return Ok(());
+        }
+        let path = self.dir.join("compare.json");
+        let rows = std::fs::read_to_string(&path)
             .ok()
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
             .and_then(|v| serde_json::from_value::<Vec<StageComparison>>(v["stages"].clone()).ok())
             .unwrap_or_default();
         self.rows = rows.into_iter().filter(|r| r.stage < stage).collect();
+        if self.rows.len() != stage || self.rows.iter().enumerate().any(|(i, r)| r.stage != i) {
+            return Err(FlemError::Output {
+                path: path.display().to_string(),
+                msg: format!("does not hold the implicit check of the {stage} stage(s) before the checkpoint (missing or edited); the resumed run cannot report them: start it again without --resume"),
+            });
+        }
+        Ok(())
     }
 
     fn write_json(&self) -> Result<()> {

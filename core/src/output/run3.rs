@@ -135,8 +135,13 @@ pub fn run3_with(scene: &mut Scene3, dir: &Path, resume: bool, stop: Option<Arc<
     if resume {
         let (ck, path, refused) = load_newest3(dir, hash)?;
         m.warnings.extend(refused);
-        ck.restore(&mut m)?;
-        let st: Writer3State = ck.section("output3", 1)?.ok_or_else(|| FlemError::Checkpoint { path: path.display().to_string(), msg: "has no output section".into() })?;
+        // Errors of the restore name the checkpoint file.
+        let named = |e: FlemError| match e {
+            e @ FlemError::Checkpoint { .. } => e,
+            e => FlemError::Checkpoint { path: path.display().to_string(), msg: e.to_string() },
+        };
+        ck.restore(&mut m).map_err(named)?;
+        let st: Writer3State = ck.section("output3", 1).map_err(named)?.ok_or_else(|| FlemError::Checkpoint { path: path.display().to_string(), msg: "has no output section".into() })?;
         w.history.resume(&dir.join("history.csv"), st.history, &path)?;
         w.splits.resume(&dir.join("splits3.csv"), st.splits, &path)?;
         w.snapshots = st.snapshots;
@@ -144,11 +149,15 @@ pub fn run3_with(scene: &mut Scene3, dir: &Path, resume: bool, stop: Option<Arc<
         w.seq = ck.seq;
         m.warnings.push(format!("resumed from {} (step {}, stage {} step {})", path.display(), ck.step, ck.pos.stage + 1, ck.pos.steps));
         from = Some(ck.pos);
+    } else {
+        // A new run in a folder with an older run's checkpoints numbers after them (as 2D), so
+        // that its own are the newest.
+        w.seq = crate::output::checkpoint::list(dir)?.first().map_or(0, |(s, _)| *s);
     }
     let (stages, compare) = if scene.file.check.is_some() {
         let mut c = crate::output::compare3::Comparer3::new(&mut w, scene, dir)?;
         if let Some(p) = &from {
-            c.keep_rows_before(p.stage);
+            c.keep_rows_before(p.stage)?;
         }
         let stages = m.run_scene_from(scene, &mut c, from)?;
         (stages, Some(c.rows))

@@ -5,7 +5,8 @@
 //! (`Topology3::cut`, the separation rule's `propose_3d`).
 //!
 //! Contact (`[contact]`): `crate::contact::contact3`, one call in the step (`contact_forces`).
-//! What it is not yet: checkpoints in 3D; docs/3d.md says what is left.
+//! Checkpoints: `run_scene_from` resumes at a `Pos3` (`output::checkpoint3` stores the body and
+//! replays `cuts`). docs/3d.md says what is left.
 //! Every per-node quantity is a flat array indexed by cluster (`State<3>`), every per-copy one
 //! by copy: a partition of the mesh later slices them.
 use super::{pick_variant, ratio_of, Ledger, NodeCtx, State, NODE_CHUNK, NSUM};
