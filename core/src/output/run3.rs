@@ -126,7 +126,13 @@ pub fn run3_in_folder(scene: &mut Scene3, dir: &Path) -> Result<(March3, Vec<Sta
 /// ends the run after a checkpoint with `FlemError::Interrupted`.
 pub fn run3_with(scene: &mut Scene3, dir: &Path, resume: bool, stop: Option<Arc<AtomicBool>>) -> Result<(March3, Vec<Stage3Result>)> {
     let t0 = Instant::now();
-    let scene_json = serde_json::to_string(&scene.file).map_err(|e| FlemError::Other(format!("the scene cannot be written as JSON for its hash: {e}")))?;
+    // The scene's hash leaves out `solver.threads`: the results are the same bits on any number
+    // of threads, so a run may resume on another.
+    let mut scene_value = serde_json::to_value(&scene.file).map_err(|e| FlemError::Other(format!("the scene cannot be written as JSON for its hash: {e}")))?;
+    if let Some(s) = scene_value.get_mut("solver").and_then(|s| s.as_object_mut()) {
+        s.remove("threads");
+    }
+    let scene_json = scene_value.to_string();
     let mut m = March3::from_scene(scene)?;
     let hash = scene_hash3(&scene_json, &m);
     // The pre-separated faces' splits are in the first stage's rows of splits3.csv.
