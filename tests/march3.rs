@@ -512,3 +512,69 @@ fn checkpoints_3d_with_contact_resume_bit_identically() {
     assert!(differ.is_empty(), "{differ:?} differ from the uninterrupted run's");
     let _ = std::fs::remove_dir_all(&root);
 }
+
+/// A 3D bar on rollers (x = 0, y = 0, z = 0) stretched by a prescribed velocity of its end
+/// x = L (a `velocity` load over a dynamic stage of N steps), then held and relaxed: the end
+/// moved v N dt, and the bar carries the uniaxial stress sxx = E v N dt / L with the other
+/// components zero. Reference: that closed form; tolerance 1e-6 of sxx (FLEM relaxed to a
+/// ratio of 1e-11). Before the velocity was imposed at the start of the stage (crediting its
+/// kinetic energy as work, as 2D does), such a scene stopped at its first step (divergence
+/// guard).
+#[test]
+fn velocity_load_stretches_a_bar_to_the_uniaxial_stress() {
+    let text = r#"
+[model]
+dim = 3
+[mesh]
+type = "box"
+size = [2.0, 1.0, 1.0]
+nx = 4
+ny = 2
+nz = 2
+element = "h8"
+[[material]]
+young_modulus = 1000.0
+poisson_ratio = 0.25
+density = 1.0
+[solver]
+tolerance = 1e-11
+max_steps = 400000
+[[support]]
+nodes = "xmin"
+fix = "x"
+[[support]]
+nodes = "ymin"
+fix = "y"
+[[support]]
+nodes = "zmin"
+fix = "z"
+[[load]]
+name = "pull"
+type = "velocity"
+nodes = "xmax"
+x = 0.001
+[[stage]]
+name = "pull"
+levels = { pull = 1.0 }
+dynamic = true
+max_steps = 500
+[[stage]]
+name = "hold"
+levels = { pull = 0.0 }
+"#;
+    let mut sc = scene(text);
+    let mut m = March3::from_scene(&mut sc).unwrap();
+    let r = m.run_scene(&sc, &mut Quiet).unwrap();
+    assert!(r[1].at_rest, "held: at rest ({} steps, ratio {})", r[1].steps, r[1].ratio);
+    let u_end = 0.001 * 500.0 * m.dt;
+    let sxx = 1000.0 * u_end / 2.0;
+    let xmax = m.node_set("xmax").unwrap();
+    for &p in &xmax {
+        let c = m.topo.point_clusters[p as usize][0].idx();
+        assert!((m.state.u[c][0] - u_end).abs() <= 1e-12 * u_end, "the end moved v N dt: {} against {u_end}", m.state.u[c][0]);
+    }
+    let s = m.nodal_stress();
+    let err = s.iter().map(|v| (v[0] - sxx).abs().max(v[1].abs()).max(v[2].abs()).max(v[3].abs()).max(v[4].abs()).max(v[5].abs())).fold(0.0, f64::max);
+    eprintln!("sxx = {sxx:.6e}; largest deviation {:.2e} of it", err / sxx);
+    assert!(err <= 1e-6 * sxx, "uniaxial stress: deviation {err:e} against sxx = {sxx:e}");
+}

@@ -230,6 +230,22 @@ impl March3 {
         self.rebuild_forces();
     }
 
+    /// A prescribed velocity is imposed at once at the start of a stage (as 2D's
+    /// `begin_stage`): the kinetic energy it adds is work done on the body (without it the
+    /// ledger, and the divergence guard built on it, see energy appear from nothing: a scene
+    /// driven by a velocity load stopped at its first step).
+    pub fn impose_velocities(&mut self) {
+        let st = &mut self.state;
+        for c in 0..st.v.len() {
+            for d in 0..3 {
+                if st.fix[c] & (1 << d) != 0 && st.v[c][d] != st.v_pres[c][d] {
+                    self.ledger.external_work += 0.5 * st.mass[c] * (st.v_pres[c][d].powi(2) - st.v[c][d].powi(2));
+                    st.v[c][d] = st.v_pres[c][d];
+                }
+            }
+        }
+    }
+
     /// The external force in force (gravity plus every load times its level, on the current
     /// clusters) and the prescribed velocities.
     pub fn rebuild_forces(&mut self) {
@@ -734,6 +750,7 @@ impl March3 {
             let st = &f.stages[i];
             if !pos.began {
                 self.set_levels(&levels[i]);
+                self.impose_velocities();
                 self.damping.reset();
                 pos.clusters0 = self.topo.n_clusters();
                 pos.began = true;
