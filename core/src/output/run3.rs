@@ -184,7 +184,7 @@ pub fn run3_with(scene: &mut Scene3, dir: &Path, resume: bool, stop: Option<Arc<
         "dt": m.dt,
         "warnings": m.warnings,
         "stages": stages,
-        "energy": { "external_work": m.ledger.external_work, "kinetic": m.ledger.kinetic, "strain": m.ledger.strain, "damping": m.ledger.damping, "contact_stored": m.ledger.contact_energy, "contact_dissipated": m.ledger.contact_dissipated },
+        "energy": { "external_work": m.ledger.external(), "kinetic": m.ledger.kinetic, "strain": m.ledger.strain, "damping": m.ledger.dissipated(), "contact_stored": m.ledger.contact_energy, "contact_dissipated": m.ledger.contact_dissipated, "contact_work": m.ledger.contact_work - m.ledger.pending_contact, "residual": m.ledger.residual(), "relative_residual": m.ledger.relative_residual() },
         "wall_seconds": t0.elapsed().as_secs_f64(),
     });
     if let Some(rows) = compare {
