@@ -107,9 +107,10 @@
 //! carried both faces of a straight crack against one master (tests
 //! `one_cohesive_face_opened_releases_gc_times_its_area`,
 //! `a_node_with_two_cohesive_faces_releases_both`; the branching plate released 0.38 of
-//! `G_c` x its free crack). While a node holds bonds its contact search is off (its bonds carry
-//! its faces in compression too, the law's penalty); the two-pass contact of the other side's
-//! nodes goes on as before. Laws without cohesion (`spring_dashpot`, `penalty`, plugin laws)
+//! `G_c` x its free crack). A bond carries its face in compression too (the law's penalty): the
+//! contact search leaves a slave's bond masters out (no second spring on the same faces) and
+//! goes on for every other face (the notch's, another crack's); the two-pass contact of the
+//! other side's nodes goes on as before. Laws without cohesion (`spring_dashpot`, `penalty`, plugin laws)
 //! never make bonds: their runs are unchanged. Checkpoint section `contact_bonds` (version 1).
 //!
 //! Fracture energy (issue 36): the part of a law's dissipation that is fracture

@@ -63,7 +63,10 @@ struct Geo {
 /// Where the cohesion of crack faces went without its law opening them (issue 36: the
 /// fracture-energy account of docs/dynamic.md). Each term is the energy the pairs concerned
 /// had still to release (`A x ContactLaw::unreleased`) when their cohesion left, cumulative
-/// over the run; it was never dissipated (the faces came free without paying it). Not
+/// over the run; it was never dissipated (the faces came free without paying it). Since
+/// session 17 a law with cohesion carries it per face end ([`Bond`]) and these counters stay 0
+/// (the per-node pairs they watch are then contact only); `summary.json` keeps them so that
+/// a run's account shows it. Not
 /// checkpointed (a resumed run counts from the resume). Zero for laws without cohesion.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct CohesionAccount {
@@ -147,8 +150,9 @@ pub struct Contact {
     per_face: bool,
     /// The cohesive faces still holding (checkpoint section `contact_bonds`).
     pub bonds: Vec<Bond>,
-    /// Slaves holding bonds (sorted; scratch of the narrow phase).
-    bonded: Vec<u32>,
+    /// (slave, master face) of every bond, sorted: the contact search leaves a slave's bond
+    /// masters to its bonds.
+    bonded: Vec<(u32, u32)>,
     /// The bond of each batch entry from `n_pairs` on.
     bond_at: Vec<u32>,
     n_pairs: usize,
@@ -449,10 +453,10 @@ impl Contact {
         self.history = history;
     }
 
-    /// The slaves holding bonds, sorted (after the bonds changed).
+    /// The (slave, master face) of every bond, sorted (after the bonds changed).
     fn refresh_bonded(&mut self) {
         self.bonded.clear();
-        self.bonded.extend(self.bonds.iter().map(|b| b.slave));
+        self.bonded.extend(self.bonds.iter().map(|b| (b.slave, b.master)));
         self.bonded.sort_unstable();
         self.bonded.dedup();
     }
@@ -737,14 +741,14 @@ impl Contact {
             while h < pairs.len() && pairs[h].slave < s {
                 h += 1;
             }
-            let old = (h < pairs.len() && pairs[h].slave == s).then(|| pairs[h]);
-            if !self.bonded.is_empty() && self.bonded.binary_search(&s).is_ok() {
-                // A node holding cohesive faces is carried by its bonds (below), in compression
-                // too; a contact pair it had lets its springs go (dissipated).
-                if let Some(o) = old {
-                    self.released += o.state.stored;
-                }
-                continue;
+            let mut old = (h < pairs.len() && pairs[h].slave == s).then(|| pairs[h]);
+            // A face that a bond of this slave holds is the bond's (below, in compression too):
+            // no contact pair with it; a pair the slave had with it lets its springs go.
+            let bonded = &self.bonded;
+            let held = |f: u32| !bonded.is_empty() && bonded.binary_search(&(s, f)).is_ok();
+            if let Some(o) = old.filter(|o| matches!(o.master, Master::Face(f) if held(f))) {
+                self.released += o.state.stored;
+                old = None;
             }
             let p = x(s);
             let cands = &self.cand[self.cand_off[si] as usize..self.cand_off[si + 1] as usize];
@@ -762,7 +766,7 @@ impl Contact {
                         }
                         for &fi in cands {
                             let g = self.faces[fi as usize];
-                            if g.id == id || (g.a != end && g.b != end) {
+                            if g.id == id || (g.a != end && g.b != end) || held(g.id) {
                                 continue;
                             }
                             let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
@@ -780,6 +784,9 @@ impl Contact {
                 let mut corners: [(u32, u8); 4] = [(NONE, 0); 4];
                 for &fi in cands {
                     let g = self.faces[fi as usize];
+                    if held(g.id) {
+                        continue;
+                    }
                     let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
                     if gap >= 0.0 || -gap > self.max_depth * len {
                         continue;
