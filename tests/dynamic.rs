@@ -185,3 +185,113 @@ fn pulled_strip(gf: f64, end: f64) -> Simulation {
     s.run(&mut NoOutput).unwrap_or_else(|e| panic!("{e}"));
     s
 }
+
+/// A 2 x 2 square of four unit Q4 (no load, no support) with cohesive contact (sigma_t = 1,
+/// G_f = 0.01, delta_f = 0.02), whose edges between the given points are cut as a failure
+/// check would cut them (fresh faces), one `separate_edges` call per list; then driven by
+/// prescribed displacements through `Contact::compute` directly (no march: the faces open
+/// exactly as prescribed), one phase of 400 steps after the other: a phase gives a cluster,
+/// from the mean centroid of its elements and the phase's time `t` in (0, 1], its displacement,
+/// or `None` to keep it where it is. Returns after each phase the fracture energy summed so far
+/// (`Contact::fracture_step`), the crack-face area made (`Contact::fresh_face_area`) and the
+/// cohesive zones (`Contact::zones`: intact area, softening area, pending energy).
+type Drive<'a> = &'a dyn Fn([f64; 2], f64) -> Option<[f64; 2]>;
+fn cohesive_square_opened(cuts: &[&[([f64; 2], [f64; 2])]], phases: &[Drive]) -> Vec<(f64, f64, [f64; 3])> {
+    let text = "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 2.0\nnx = 2\nny = 2\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.2\ndensity = 1.0\n[contact]\nlaw = { type = \"cohesive\", normal_stiffness = 1e4, shear_stiffness = 1e4, tensile_strength = 1.0, fracture_energy = 0.01, friction = 0.0 }\n[[stage]]\nlevels = {}\n";
+    let mut s = sim(text);
+    for cut in cuts {
+        let edges: Vec<flem_core::ids::EdgeId> = cut
+            .iter()
+            .map(|&(a, b)| {
+                let (pa, pb) = (point_at(&s, a), point_at(&s, b));
+                s.model.topo.edge_between(flem_core::ids::PointId(pa as u32), flem_core::ids::PointId(pb as u32)).expect("an edge of the mesh")
+            })
+            .collect();
+        let rec = s.model.topo.separate_edges(&edges);
+        s.model.apply_record(&rec);
+        s.apply_split_record(&rec);
+    }
+    let topo = &s.model.topo;
+    let nc = topo.n_clusters();
+    let mut centre = vec![[0.0; 3]; nc];
+    for e in 0..topo.n_elems() {
+        let r = topo.elem_copies(flem_core::ids::ElemId(e as u32));
+        let pts: Vec<[f64; 2]> = r.clone().map(|k| s.model.mesh.points[topo.copy_point[k].idx()]).collect();
+        let m = pts.len() as f64;
+        for k in r {
+            let c = &mut centre[topo.copy_cluster[k].idx()];
+            c[0] += pts.iter().map(|p| p[0]).sum::<f64>() / m;
+            c[1] += pts.iter().map(|p| p[1]).sum::<f64>() / m;
+            c[2] += 1.0;
+        }
+    }
+    let centre: Vec<[f64; 2]> = centre.iter().map(|c| [c[0] / c[2], c[1] / c[2]]).collect();
+    let x0: Vec<[f64; 2]> = (0..nc).map(|c| s.model.mesh.points[topo.cluster_point[c].idx()]).collect();
+    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+    let c = s.contact.as_mut().unwrap();
+    let (n, dt) = (400usize, 1.0);
+    let mut u = vec![[0.0; 2]; nc];
+    let mut f = vec![[0.0; 2]; nc];
+    let mut fracture = 0.0;
+    let mut out = Vec::new();
+    for drive in phases {
+        for i in 1..=n {
+            let t = i as f64 / n as f64;
+            let un: Vec<[f64; 2]> = (0..nc).map(|cl| drive(centre[cl], t).unwrap_or(u[cl])).collect();
+            let v: Vec<[f64; 2]> = (0..nc).map(|cl| [(un[cl][0] - u[cl][0]) / dt, (un[cl][1] - u[cl][1]) / dt]).collect();
+            u = un;
+            c.compute(law, &x0, &u, &v, dt, &mut f);
+            fracture += c.fracture_step;
+        }
+        out.push((fracture, c.fresh_face_area(&s.model), c.zones(law)));
+    }
+    out
+}
+
+/// One crack face opened by a prescribed displacement (issue 36 must-show 3, the closed form
+/// first): the edge from the left side (0, 1) to the centre (1, 1) is cut; its end at the left
+/// side separates, the centre is the crack tip (one end: the face made is half the edge,
+/// `fresh_face_area` 0.5), and the top-left element's own corners (the upper copy of (0, 1) and
+/// (0, 2)) are lifted by 5 delta_f. Reference: a cohesive law releases G_f per unit of face
+/// area opened past delta_f (the area under its traction-separation curve, Hillerborg et al.
+/// 1976), so the fracture energy is G_f x 0.5 = 0.005, to 1e-9 (the law's released energy
+/// telescopes over the steps); nothing intact or softening is left.
+#[test]
+fn one_cohesive_face_opened_releases_gc_times_its_area() {
+    let lift = |c: [f64; 2], t: f64| (c[0] < 1.0 - 1e-9 && c[1] > 1.0 + 1e-9).then_some([0.0, 0.1 * t]);
+    let r = cohesive_square_opened(&[&[([0.0, 1.0], [1.0, 1.0])]], &[&lift]);
+    let (fracture, area, zones) = r[0];
+    eprintln!("one face: fracture {fracture:.9e}, face area {area}, zones {zones:?}");
+    assert!(rel(area, 0.5) < 1e-12, "face area {area}");
+    assert!(rel(fracture, 0.01 * 0.5) < 1e-9, "fracture {fracture:.9e} against G_f x 0.5 = 5e-3");
+    assert_eq!(zones, [0.0; 3]);
+}
+
+/// A node with two cut faces opened one after the other (the session-15 diagnosis of issue 36:
+/// cohesion followed one pair per slave node, so the second face of a node came free without
+/// its cohesion, or the first pair released both faces' energy at once). The square's
+/// mid-height line is cut through (two edges; the centre's lower copy B faces the top-left and
+/// the top-right elements), then the vertical edge from the centre to the top (1, 2) (the top
+/// splits into the top-left element TL and the top-right TR; three crack edges, both ends
+/// separated: face area 3). Phase 1 moves TL by (-5, 5) delta_f: the left half of the
+/// mid-height line and the vertical edge open past delta_f, the right half stays closed.
+/// Phase 2 moves TR by (5, 5) delta_f: the right half opens. Reference (Hillerborg: G_f per
+/// unit area of face opened past delta_f, the area under the traction-separation curve):
+/// after phase 1 the fracture energy is G_f x 2 and the right half (area 1) is intact; after
+/// phase 2 it is G_f x 3 and nothing is left; 1e-9. One pair per node (before the fix): after
+/// phase 1, 2.5 G_f or 1.5 G_f (B's one pair carried both halves of the mid-height line at
+/// the centre against one master), 0.5 intact.
+#[test]
+fn a_node_with_two_cohesive_faces_releases_both() {
+    let tl = |c: [f64; 2], t: f64| (c[0] < 1.0 - 1e-9 && c[1] > 1.0 + 1e-9).then_some([-0.1 * t, 0.1 * t]);
+    let tr = |c: [f64; 2], t: f64| (c[0] > 1.0 + 1e-9 && c[1] > 1.0 + 1e-9).then_some([0.1 * t, 0.1 * t]);
+    let line: &[([f64; 2], [f64; 2])] = &[([0.0, 1.0], [1.0, 1.0]), ([1.0, 1.0], [2.0, 1.0])];
+    let r = cohesive_square_opened(&[line, &[([1.0, 1.0], [1.0, 2.0])]], &[&tl, &tr]);
+    eprintln!("two faces at a node: {r:?}");
+    let gf = 0.01;
+    assert!(rel(r[1].1, 3.0) < 1e-12, "face area {}", r[1].1);
+    assert!(rel(r[0].0, 2.0 * gf) < 1e-9, "after phase 1: fracture {:.9e} against 2 G_f", r[0].0);
+    assert!(rel(r[0].2[0], 1.0) < 1e-12 && r[0].2[1] == 0.0, "after phase 1: zones {:?} (the right half intact)", r[0].2);
+    assert!(rel(r[1].0, 3.0 * gf) < 1e-9, "after phase 2: fracture {:.9e} against 3 G_f", r[1].0);
+    assert_eq!(r[1].2, [0.0; 3]);
+}

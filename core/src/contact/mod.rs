@@ -93,6 +93,26 @@
 //! notched plate's residual went from 3.6e-2..4.8e-2 (lost) to 1e-5..8e-5 (breakdown in the
 //! test's comment).
 //!
+//! # Cohesion per crack face (issue 36, session 17)
+//! With a law that has cohesion (`cohesive`: [`ContactLaw::unreleased`] of a fresh state > 0)
+//! the cohesion of crack faces is not carried by the one pair per slave node: every end of an
+//! edge cut in the run gets its own [`Bond`] (slave: the node of the lower face there; master:
+//! the other face; area: half the edge's, fixed), evaluated by the law in the same batch as the
+//! contact pairs until it opens past `delta_f` (then it is dropped: the face is free). A node
+//! with several cut faces (a straight crack: two; a junction or a branch: more) has one bond per
+//! face, each with its own opening and damage, and one that splits again keeps them all (the
+//! bond's slave is re-read from the topology at each split). Before (sessions 5-16) a node
+//! had one pair whose area was its faces facing the master: at a junction the second face got
+//! no cohesion, a split gave part of a pair's faces to the new node without a pair, and a pair
+//! carried both faces of a straight crack against one master (tests
+//! `one_cohesive_face_opened_releases_gc_times_its_area`,
+//! `a_node_with_two_cohesive_faces_releases_both`; the branching plate released 0.38 of
+//! `G_c` x its free crack). A bond carries its face in compression too (the law's penalty): the
+//! contact search leaves a slave's bond masters out (no second spring on the same faces) and
+//! goes on for every other face (the notch's, another crack's); the two-pass contact of the
+//! other side's nodes goes on as before. Laws without cohesion (`spring_dashpot`, `penalty`, plugin laws)
+//! never make bonds: their runs are unchanged. Checkpoint section `contact_bonds` (version 1).
+//!
 //! Fracture energy (issue 36): the part of a law's dissipation that is fracture
 //! ([`PairForce::fracture`]) is summed by [`Contact::compute`] into `Contact::fracture_step`
 //! and by the solver into the ledger's `fracture` (a part of `contact_dissipated`, not a
@@ -254,6 +274,24 @@ pub enum Master {
 pub struct Pair {
     pub slave: u32,
     pub master: Master,
+    pub state: PairState,
+}
+
+/// The cohesion of one crack face end (issue 36, session 17: cohesion per cut face): the end
+/// `end` of edge `edge`, cut during the run, joins the slave node there (the copy of the element
+/// whose face has the lower id) to the other element's face `master` (`4 x element + local
+/// edge`) with its own cohesive state over its own area, half the edge's (length x thickness),
+/// until its law lets it go (`PairForce::active` false: opened past `delta_f`). `slave` follows
+/// the splits of the node ([`search::Contact::on_split`]). Used only with a law that has
+/// cohesion ([`ContactLaw::unreleased`] of a fresh state > 0); see the module doc.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Bond {
+    pub edge: u32,
+    pub end: u8,
+    pub slave: u32,
+    pub master: u32,
+    /// Half the edge's area (length x thickness), fixed.
+    pub area: f64,
     pub state: PairState,
 }
 

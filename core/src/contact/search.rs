@@ -5,7 +5,7 @@
 //! sizes, the grid is rebuilt rarely (skin) and a counting sort into fixed cells gives a
 //! deterministic candidate order (by face index) with no dependency; a tree would need a
 //! sort of its query results to be deterministic anyway.
-use super::{ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, PairKinematics, PairState};
+use super::{Bond, ContactCfg, ContactHistory, ContactLaw, Master, Pair, PairForce, PairKinematics, PairState};
 use crate::element::model::Model;
 use crate::element::registry;
 use crate::error::Result;
@@ -63,7 +63,10 @@ struct Geo {
 /// Where the cohesion of crack faces went without its law opening them (issue 36: the
 /// fracture-energy account of docs/dynamic.md). Each term is the energy the pairs concerned
 /// had still to release (`A x ContactLaw::unreleased`) when their cohesion left, cumulative
-/// over the run; it was never dissipated (the faces came free without paying it). Not
+/// over the run; it was never dissipated (the faces came free without paying it). Since
+/// session 17 a law with cohesion carries it per face end ([`Bond`]) and these counters stay 0
+/// (the per-node pairs they watch are then contact only); `summary.json` keeps them so that
+/// a run's account shows it. Not
 /// checkpointed (a resumed run counts from the resume). Zero for laws without cohesion.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct CohesionAccount {
@@ -143,6 +146,16 @@ pub struct Contact {
     pub fracture_step: f64,
     /// Cohesion that left crack faces without dissipation (issue 36; [`CohesionAccount`]).
     pub cohesion: CohesionAccount,
+    /// The law has cohesion: crack faces carry it per face end ([`Bond`], module doc).
+    per_face: bool,
+    /// The cohesive faces still holding (checkpoint section `contact_bonds`).
+    pub bonds: Vec<Bond>,
+    /// (slave, master face) of every bond, sorted: the contact search leaves a slave's bond
+    /// masters to its bonds.
+    bonded: Vec<(u32, u32)>,
+    /// The bond of each batch entry from `n_pairs` on.
+    bond_at: Vec<u32>,
+    n_pairs: usize,
 }
 
 /// The force of one pair after a step, for tests and output.
@@ -210,6 +223,11 @@ impl Contact {
             n_active: 0,
             fracture_step: 0.0,
             cohesion: CohesionAccount::default(),
+            per_face: cfg.law.unreleased(&PairState { fresh: true, ..Default::default() }) > 0.0,
+            bonds: Vec::new(),
+            bonded: Vec::new(),
+            bond_at: Vec::new(),
+            n_pairs: 0,
         };
         c.rebuild_surfaces(model);
         Ok(c)
@@ -346,6 +364,26 @@ impl Contact {
             let (a, b) = (model.mesh.points[e.points[0].idx()], model.mesh.points[e.points[1].idx()]);
             0.5 * ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt() * model.material_of(se).thickness
         };
+        if self.per_face {
+            // Cohesion per face end (module doc): bonds follow their node's splits; every end
+            // cut now gets its own. The pairs are contact only.
+            for b in self.bonds.iter_mut() {
+                if let Some((s, _, _, _)) = bond_ends(topo, b.edge, b.end) {
+                    b.slave = s;
+                }
+            }
+            for &(e, end) in &rec.cut_edges {
+                let Some((s, sf, mf, se)) = bond_ends(topo, e.0, end) else { continue };
+                if self.face(sf).is_none() || self.face(mf).is_none() || self.bonds.iter().any(|b| b.edge == e.0 && b.end == end) {
+                    continue;
+                }
+                let area = half_area(&topo.edges[e.idx()], se);
+                self.bonds.push(Bond { edge: e.0, end, slave: s, master: mf, area, state: PairState { fresh: true, ..Default::default() } });
+            }
+            self.history.pairs = old;
+            self.refresh_bonded();
+            return;
+        }
         let mut added: Vec<Pair> = Vec::new();
         let mut cand: Vec<(u32, u32, f64)> = Vec::new();
         for &(e, end) in &rec.cut_edges {
@@ -413,6 +451,39 @@ impl Contact {
         }
         self.rebuild_surfaces(model);
         self.history = history;
+    }
+
+    /// The (slave, master face) of every bond, sorted (after the bonds changed).
+    fn refresh_bonded(&mut self) {
+        self.bonded.clear();
+        self.bonded.extend(self.bonds.iter().map(|b| (b.slave, b.master)));
+        self.bonded.sort_unstable();
+        self.bonded.dedup();
+    }
+
+    /// The master face of bond `b` when its end is separated (the slave is not the face's own
+    /// node there); `None` before (a cut edge's end can be listed before its node separates:
+    /// the bond waits, unevaluated and not counted as a face).
+    #[inline]
+    fn bond_face(&self, b: &Bond) -> Option<Face> {
+        self.face(b.master).filter(|fc| b.slave != fc.a && b.slave != fc.b)
+    }
+
+    /// Restores the checkpointed bonds (after [`Contact::restore`]); their slaves are re-read
+    /// from the topology.
+    pub fn restore_bonds(&mut self, model: &Model, mut bonds: Vec<Bond>) {
+        for b in bonds.iter_mut() {
+            if let Some((s, _, _, _)) = bond_ends(&model.topo, b.edge, b.end) {
+                b.slave = s;
+            }
+        }
+        self.bonds = bonds;
+        self.refresh_bonded();
+    }
+
+    /// Whether crack faces carry cohesion per face end ([`Bond`]; the law has cohesion).
+    pub fn per_face(&self) -> bool {
+        self.per_face
     }
 
     /// The Verlet list's build state, for checkpoints: a resumed run must rebuild its list at
@@ -624,7 +695,12 @@ impl Contact {
             let (g, o) = (&self.geo[k], &self.out[k]);
             diss += o.dissipated;
             self.fracture_step += o.fracture;
+            let bond = (k >= self.n_pairs).then(|| self.bond_at[k - self.n_pairs] as usize);
             if !o.active {
+                if let Some(bi) = bond {
+                    // Opened past delta_f: the face is free (area 0 marks it for removal).
+                    self.bonds[bi].area = 0.0;
+                }
                 continue;
             }
             stored += o.stored;
@@ -637,10 +713,17 @@ impl Contact {
                 f[c as usize][1] -= w * fv[1];
             }
             self.st[k].stored = o.stored;
-            self.next.push(Pair { slave: g.slave, master: g.master, state: self.st[k] });
+            match bond {
+                Some(bi) => self.bonds[bi].state = self.st[k],
+                None => self.next.push(Pair { slave: g.slave, master: g.master, state: self.st[k] }),
+            }
             self.reports.push(PairReport { slave: g.slave, master: g.master, force: fv, gap: self.kin[k].gap + self.st[k].offset });
         }
-        self.n_active = self.next.len();
+        if self.bonds.iter().any(|b| b.area <= 0.0) {
+            self.bonds.retain(|b| b.area > 0.0);
+            self.refresh_bonded();
+        }
+        self.n_active = self.reports.len();
         std::mem::swap(&mut self.next, &mut self.history.pairs);
         (stored, diss)
     }
@@ -658,7 +741,15 @@ impl Contact {
             while h < pairs.len() && pairs[h].slave < s {
                 h += 1;
             }
-            let old = (h < pairs.len() && pairs[h].slave == s).then(|| pairs[h]);
+            let mut old = (h < pairs.len() && pairs[h].slave == s).then(|| pairs[h]);
+            // A face that a bond of this slave holds is the bond's (below, in compression too):
+            // no contact pair with it; a pair the slave had with it lets its springs go.
+            let bonded = &self.bonded;
+            let held = |f: u32| !bonded.is_empty() && bonded.binary_search(&(s, f)).is_ok();
+            if let Some(o) = old.filter(|o| matches!(o.master, Master::Face(f) if held(f))) {
+                self.released += o.state.stored;
+                old = None;
+            }
             let p = x(s);
             let cands = &self.cand[self.cand_off[si] as usize..self.cand_off[si + 1] as usize];
             let mut found: Option<(Geo, f64, PairState, bool)> = None;
@@ -675,7 +766,7 @@ impl Contact {
                         }
                         for &fi in cands {
                             let g = self.faces[fi as usize];
-                            if g.id == id || (g.a != end && g.b != end) {
+                            if g.id == id || (g.a != end && g.b != end) || held(g.id) {
                                 continue;
                             }
                             let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
@@ -693,6 +784,9 @@ impl Contact {
                 let mut corners: [(u32, u8); 4] = [(NONE, 0); 4];
                 for &fi in cands {
                     let g = self.faces[fi as usize];
+                    if held(g.id) {
+                        continue;
+                    }
                     let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
                     if gap >= 0.0 || -gap > self.max_depth * len {
                         continue;
@@ -788,6 +882,26 @@ impl Contact {
             self.geo.push(g);
         }
         self.areas_stale = false;
+        // The cohesive faces (bonds), after the pairs: the slave against its master face's
+        // line, with the bond's own area and state.
+        self.n_pairs = self.geo.len();
+        self.bond_at.clear();
+        for (bi, b) in self.bonds.iter().enumerate() {
+            let Some(fc) = self.bond_face(b) else { continue };
+            let (gap, xi, _, n, t) = Self::face_geo(x(b.slave), x(fc.a), x(fc.b));
+            let g = Geo { slave: b.slave, master: Master::Face(b.master), i: fc.a, j: fc.b, xi: xi.clamp(0.0, 1.0), n, t };
+            let (vp, vi, vj) = (v[g.slave as usize], v[g.i as usize], v[g.j as usize]);
+            let vr = [vp[0] - (1.0 - g.xi) * vi[0] - g.xi * vj[0], vp[1] - (1.0 - g.xi) * vi[1] - g.xi * vj[1]];
+            let vn = vr[0] * g.n[0] + vr[1] * g.n[1];
+            let vs = vr[0] * g.t[0] + vr[1] * g.t[1];
+            let mut state = b.state;
+            let area_old = state.area;
+            state.area = b.area;
+            self.kin.push(PairKinematics { gap, dgap: vn * dt, dslip: vs * dt, vn, vs, area: b.area, area_old, dt, new: false });
+            self.st.push(state);
+            self.geo.push(g);
+            self.bond_at.push(bi as u32);
+        }
     }
 
     /// The gap the law of pair `o` would see with its slave at `p` now (its master's gap less
@@ -840,16 +954,17 @@ impl Contact {
     pub fn zones(&self, law: &dyn ContactLaw) -> [f64; 3] {
         let g_f = law.unreleased(&PairState { fresh: true, ..Default::default() });
         let mut z = [0.0; 3];
-        for p in &self.history.pairs {
-            let w = law.unreleased(&p.state);
+        let bonds = self.bonds.iter().filter(|b| self.bond_face(b).is_some()).map(|b| (b.area, &b.state));
+        for (area, st) in self.history.pairs.iter().map(|p| (p.state.area, &p.state)).chain(bonds) {
+            let w = law.unreleased(st);
             if w <= 0.0 {
                 continue;
             }
             if w >= g_f {
-                z[0] += p.state.area;
+                z[0] += area;
             } else {
-                z[1] += p.state.area;
-                z[2] += p.state.area * w;
+                z[1] += area;
+                z[2] += area * w;
             }
         }
         z
@@ -889,6 +1004,18 @@ impl Contact {
     pub fn forces(&self) -> &[PairReport] {
         &self.reports
     }
+}
+
+/// The cohesive face at end `end` of edge `e` ([`Bond`]): `(slave cluster, slave face, master
+/// face, slave element)`; the slave side is the face of lower id (one pass: each face's
+/// cohesion counted once). `None` for an edge with one side.
+fn bond_ends(topo: &Topology, e: u32, end: u8) -> Option<(u32, u32, u32, ElemId)> {
+    let ed = topo.edges.get(e as usize)?;
+    let [Some((ea, ka)), Some((eb, kb))] = ed.sides else { return None };
+    let (fa, fb) = (4 * ea.0 + ka as u32, 4 * eb.0 + kb as u32);
+    let (se, sf, mf) = if fa < fb { (ea, fa, fb) } else { (eb, fb, fa) };
+    let cs = topo.copy_at(se, *ed.points.get(end as usize)?)?;
+    Some((topo.copy_cluster[cs.idx()].0, sf, mf, se))
 }
 
 /// The cluster across master face `id` (element `id / 4`, local edge `id % 4`) at the point

@@ -248,6 +248,9 @@ impl Checkpoint {
         if let Some(c) = &sim.contact {
             ck.put_section("contact", 2, &c.history)?;
             ck.put_section("contact_verlet", 1, &c.verlet_state())?;
+            if c.per_face() {
+                ck.put_section("contact_bonds", 1, &c.bonds)?;
+            }
         }
         Ok(ck)
     }
@@ -362,6 +365,9 @@ impl Checkpoint {
         match (sim.contact.as_mut(), self.section::<crate::contact::ContactHistory>("contact", 2)?) {
             (Some(c), Some(h)) => {
                 c.restore(&sim.model, h);
+                if let Some(b) = self.section::<Vec<crate::contact::Bond>>("contact_bonds", 1)? {
+                    c.restore_bonds(&sim.model, b);
+                }
                 if let Some(v) = self.section::<crate::contact::search::VerletState>("contact_verlet", 1)? {
                     c.restore_verlet(&sim.x0, v);
                 }

@@ -46,7 +46,7 @@
 //! `time,step,branch,parent,x,y,arc,speed,fork_x,fork_y,boundary,crack_length,fracture_energy,
 //! fracture_per_length`: `boundary` 1 when the tip is on the outer boundary; `crack_length` the
 //! length of the crack faces made during the run (an edge separated at both ends whole, at one
-//! end half: the tributary length of the cohesive pair at its cut end, `contact::search`), the
+//! end half: the area of the cohesive bond at each cut end, `contact::Bond`), the
 //! notch excluded; `fracture_energy` the ledger's (`Ledger::fracture`, per the thickness of the
 //! first material); `fracture_per_length` = `fracture_energy / (crack_length x thickness)`,
 //! to compare with the cohesive law's `G_f`.
