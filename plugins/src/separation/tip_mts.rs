@@ -22,7 +22,7 @@
 //!    measured from the crack's direction at the tip; the crack is to follow the line through
 //!    the tip at that angle. A closed tip (`K_I < 0`) is not cut. A tip grown along such a
 //!    line keeps to it (aiming one element size ahead on it) until the crack behind it is
-//!    straight over `every` domain radii (default 2); then the factors are evaluated again (on
+//!    straight over `every` domain radii (default 1; 2 before session 17); then the factors are evaluated again (on
 //!    `reradius` times the domain) and a new line starts there (a curved path as a chain of
 //!    straight pieces). A tip at most `staircase h` off its line (partial moves: quads, a
 //!    structured grid) counts as on it, and is evaluated in the line's frame with the faces
@@ -51,7 +51,11 @@
 //! default 0.5), `route` (element sizes, default 3), `relocate` (default true; false: the
 //! direction only, cut along the nearest link), `cap_unsplit_boundary` (as `sigma1_nearest`),
 //! `staircase` (element sizes, default 0.5; 0: a tip must be on its line to 1e-6 h), `every`
-//! (domain radii, default 2), `reradius` (fraction of `radius`, default 1). All ours.
+//! (domain radii, default 1), `reradius` (fraction of `radius`, default 1), `shrink` (element
+//! sizes, default 2; 0: off) and `slide` (default true), session 17: near the boundary, a
+//! re-evaluation whose domain leaves the body uses the largest smaller one down to `shrink h`,
+//! and the last link's node on a straight stretch of the boundary slides along it to where the
+//! line meets it (the crack leaves the body there, not at the nearest boundary node). All ours.
 //!
 //! ```toml
 //! [cracking.separation]
@@ -60,8 +64,10 @@
 //! max_move = 0.5
 //! route = 3.0
 //! staircase = 0.5
-//! every = 2.0
+//! every = 1.0
 //! reradius = 1.0
+//! shrink = 2.0
+//! slide = true
 //! ```
 use serde::{Deserialize, Serialize};
 
@@ -108,8 +114,8 @@ pub struct TipMts {
     #[serde(default = "half")]
     pub staircase: f64,
     /// A tip grown along a line is evaluated again once the crack behind it is straight over
-    /// this many domain radii (ours).
-    #[serde(default = "two")]
+    /// this many domain radii (ours; default 1 since session 17, was 2).
+    #[serde(default = "one")]
     pub every: f64,
     /// The domain of a re-evaluation along a line, as a fraction of `radius` (ours).
     #[serde(default = "one")]
@@ -117,20 +123,21 @@ pub struct TipMts {
     /// Near the boundary (ours, session 17): when a re-evaluation's domain leaves the body, the
     /// largest smaller domain (`0.8^k` of it) down to `shrink` element sizes that stays inside
     /// is used, once the crack is straight over `every` of *its* radii. 0: off (the tip keeps
-    /// to its line up to the boundary, as before).
-    #[serde(default)]
+    /// to its line up to the boundary, as before). Default 2 (session 17).
+    #[serde(default = "two")]
     pub shrink: f64,
     /// Ours (session 17): the last link's far node, when it lies on a straight stretch of the
     /// outer boundary, slides along it towards where the line meets the boundary (at most
     /// `max_move` of the link's length; `path::slides_along_boundary`). false: a boundary node
-    /// never moves (the crack leaves the body at the nearest node, as before).
-    #[serde(default)]
+    /// never moves (the crack leaves the body at the nearest node, as before). Default true
+    /// (session 17).
+    #[serde(default = "yes")]
     pub slide: bool,
 }
 
 impl Default for TipMts {
     fn default() -> Self {
-        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 2.0, reradius: 1.0, shrink: 0.0, slide: false }
+        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 1.0, reradius: 1.0, shrink: 2.0, slide: true }
     }
 }
 
