@@ -76,6 +76,9 @@ def sif():
 
 
 PATHS_H = {"centre": (0.1, 0.05, 0.025), "sen": (0.05, 0.025, 0.0125)}
+# The shear test's whole path (must-show 3, ours, session 17): the same square (paths_sen.geo) at
+# h = 1/30, 1/40, 1/60, written as paths_shear_KIND_N.msh.
+PATHS_H["shear"] = (1.0 / 30, 1.0 / 40, 1.0 / 60)
 
 
 def paths():
@@ -84,14 +87,15 @@ def paths():
     triangles and gmsh-recombined quads at three sizes each (PATHS_H; refinement 1 coarsest).
     The structured Q4 grids of the same runs are the scenes' own `rectangle` meshes."""
     import re
-    for geo in ("centre", "sen"):
-        for k, h in enumerate(PATHS_H[geo], start=1):
+    for fam in ("centre", "sen", "shear"):
+        geo = "sen" if fam == "shear" else fam
+        for k, h in enumerate(PATHS_H[fam], start=1):
             for kind, quads in (("t3", 0), ("quad", 1)):
                 src = open(os.path.join(HERE, "paths_%s.geo" % geo)).read()
                 for key, v in (("h", h), ("quads", quads)):
                     src, n = re.subn(r"^%s = [^;]*;" % key, "%s = %s;" % (key, v), src, flags=re.M)
                     assert n == 1, (geo, key)
-                write_msh41(src, "paths_%s_%s_%d.msh" % (geo, kind, k))
+                write_msh41(src, "paths_%s_%s_%d.msh" % (fam, kind, k))
 
 
 def dynamic():

@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use flem_core::plugin::traits::SeparationRule;
 use flem_core::scene::Scene;
 use flem_core::solver::{NoOutput, Simulation};
-use flem_plugins::check::paths::{crack_faces, fragment_sizes, hausdorff, kinks, Kink};
+use flem_plugins::check::paths::{crack_faces, fragment_sizes, hausdorff, kinks_in_order, Kink};
 use flem_plugins::check::sif::{crack_tips, stage_sif, Radii};
 use flem_plugins::separation::tip_mts::kink_angle;
 use serde::Serialize;
@@ -102,7 +102,8 @@ pub fn measure(path: &PathBuf, rule: Option<&str>, sizes: f64) -> Result<Vec<Row
     let t0 = Instant::now();
     let run_error = sim.run(&mut NoOutput).err().map(|e| e.to_string());
     let wall_s = t0.elapsed().as_secs_f64();
-    let ks = kinks(&sim.model, &tips, &initial, sizes);
+    let cuts = sim.cracking.as_ref().map_or(&[][..], |c| &c.cuts[..]);
+    let ks = kinks_in_order(&sim.model, &tips, &initial, sizes, cuts);
     let small = fragment_sizes(&sim.model).iter().filter(|&&s| s < 3).count();
     let cr = sim.cracking.as_ref();
     let (splits, moves, refused) = cr.map_or((0, 0, 0), |c| (c.n_splits, c.path.moves.len(), c.path.refused));

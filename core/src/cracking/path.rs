@@ -7,8 +7,9 @@
 //! A *tip* is a point with one cluster (never split) at which exactly one interior crack face
 //! ends: an edge separated at its other end and joined at the tip (as `check::sif::crack_tips`).
 //!
-//! A move of point `p` to `x` is accepted when `p` is an interior point that never split, lies
-//! on no crack face, and every element with a corner at `p` keeps its orientation and a corner
+//! A move of point `p` to `x` is accepted when `p` is an interior point (or, ours since session
+//! 17, a boundary point sliding along a straight stretch of the boundary:
+//! [`slides_along_boundary`]) that never split, lies on no crack face, and every element with a corner at `p` keeps its orientation and a corner
 //! angle of at least [`MIN_ANGLE_DEG`] (or half its smallest angle before the move, whichever
 //! is smaller): no element is inverted or flattened.
 use serde::{Deserialize, Serialize};
@@ -129,6 +130,38 @@ fn shape(x: &[[f64; 2]], s0: f64) -> (f64, f64) {
     (smin, area)
 }
 
+/// Ours (session 17): whether a move of `p` to `to` is an interior point's (`Ok(true)`), or a
+/// boundary point's slide along a straight stretch of the outer boundary (`Ok(true)`: exactly two
+/// boundary edges at `p`, collinear to 1e-9, and `to` on their line to 1e-9 of their length; the
+/// body's outline is unchanged). `Ok(false)`: a boundary point otherwise (a corner, or a move off
+/// the boundary's line). A slide lets the crack leave the body where its line meets the boundary
+/// rather than at the nearest boundary node (docs/paths.md, "The shear test's whole path"). What
+/// was integrated on the boundary edges at the start (a traction's nodal forces) is not
+/// integrated again: the rule proposes a slide only with `slide = true`.
+pub fn slides_along_boundary(model: &Model, p: PointId, to: [f64; 2]) -> Result<bool, &'static str> {
+    let topo = &model.topo;
+    let x = &model.mesh.points;
+    let xp = x[p.idx()];
+    let mut ends: Vec<[f64; 2]> = Vec::new();
+    for &e in topo.point_edges.row(p.idx()) {
+        if topo.edges[e.idx()].sides[1].is_none() {
+            ends.push(x[topo.other_end(e, p).idx()]);
+        }
+    }
+    if ends.is_empty() {
+        return Ok(true);
+    }
+    if ends.len() != 2 {
+        return Ok(false);
+    }
+    let (a, b) = ([ends[0][0] - xp[0], ends[0][1] - xp[1]], [ends[1][0] - xp[0], ends[1][1] - xp[1]]);
+    let (la, lb) = (a[0].hypot(a[1]), b[0].hypot(b[1]));
+    let straight = (a[0] * b[1] - a[1] * b[0]).abs() <= 1e-9 * la * lb && a[0] * b[0] + a[1] * b[1] < 0.0;
+    let d = [to[0] - xp[0], to[1] - xp[1]];
+    let on_line = (a[0] * d[1] - a[1] * d[0]).abs() <= 1e-9 * la * la.min(lb);
+    Ok(straight && on_line)
+}
+
 /// Whether `p` may move to `to` (see the module doc); the reason when not.
 pub fn check_move(model: &Model, p: PointId, to: [f64; 2]) -> Result<(), &'static str> {
     let topo = &model.topo;
@@ -138,10 +171,10 @@ pub fn check_move(model: &Model, p: PointId, to: [f64; 2]) -> Result<(), &'stati
     if topo.point_clusters[p.idx()].len() != 1 {
         return Err("the point has split");
     }
+    if !slides_along_boundary(model, p, to)? {
+        return Err("a boundary point");
+    }
     for &e in topo.point_edges.row(p.idx()) {
-        if topo.edges[e.idx()].sides[1].is_none() {
-            return Err("a boundary point");
-        }
         if topo.is_separated_at(e, p) || topo.is_separated_at(e, topo.other_end(e, p)) {
             return Err("the point lies on a crack face");
         }

@@ -85,6 +85,35 @@ fn wrap_deg(a: f64) -> f64 {
 /// The kink at every tip of `tips` (the initial model's), in the final `model`; `initial`:
 /// [`crack_faces`] of the initial model; `n`: element sizes of the measurement.
 pub fn kinks(model: &Model, tips: &[CrackTip], initial: &[bool], n: f64) -> Vec<Kink> {
+    kinks_in_order(model, tips, initial, n, &[])
+}
+
+/// The cut at which each edge first became a crack face: the index into `cuts` (the run's
+/// `Cracking::cuts`, in cut order: cluster and cut edges) of the first cut that holds it;
+/// `u32::MAX` for an edge never cut.
+pub fn edge_cut_order(n_edges: usize, cuts: &[(u32, Vec<u32>)]) -> Vec<u32> {
+    let mut t = vec![u32::MAX; n_edges];
+    for (i, (_, edges)) in cuts.iter().enumerate() {
+        for &e in edges {
+            if let Some(slot) = t.get_mut(e as usize) {
+                *slot = (*slot).min(i as u32);
+            }
+        }
+    }
+    t
+}
+
+/// As [`kinks`], with the run's cuts in order (`Cracking::cuts`; ours, session 17): when the new
+/// crack reaches the outer boundary, the path is the one along which it reached it **first**,
+/// not the branch to the farthest point. Among the paths through the new crack faces from the
+/// tip (and its seeds) to a boundary point, the one whose latest cut is earliest (a minimax
+/// path over the cut index, fewest segments on a tie) is taken. A crack that another crack,
+/// started later elsewhere (by the edge rule, away from every tip), runs into is then still
+/// measured along its own faces: with the farthest point, the shear test's `t3_2` run followed
+/// such a later crack from where it joined (docs/paths.md). Without cuts (`&[]`), or when the
+/// crack has not reached the boundary, it is [`kinks`]'s farthest point.
+pub fn kinks_in_order(model: &Model, tips: &[CrackTip], initial: &[bool], n: f64, cuts: &[(u32, Vec<u32>)]) -> Vec<Kink> {
+    let order_of = (!cuts.is_empty()).then(|| edge_cut_order(model.topo.edges.len(), cuts));
     let topo = &model.topo;
     let x = &model.mesh.points;
     let now = crack_faces(model);
@@ -112,6 +141,7 @@ pub fn kinks(model: &Model, tips: &[CrackTip], initial: &[bool], n: f64) -> Vec<
                     }
                 }
             }
+            let sources: Vec<PointId> = queue.iter().copied().collect();
             let mut order = Vec::new();
             let mut branches = 0;
             while let Some(p) = queue.pop_front() {
@@ -133,17 +163,24 @@ pub fn kinks(model: &Model, tips: &[CrackTip], initial: &[bool], n: f64) -> Vec<
                     branches += kids - 1;
                 }
             }
-            let d = |p: PointId| (x[p.idx()][0] - t.x[0]).hypot(x[p.idx()][1] - t.x[1]);
-            let far = order.iter().copied().max_by(|a, b| d(*a).total_cmp(&d(*b)).then(b.cmp(a))).unwrap_or(p0);
-            let mut ids = vec![far];
-            let mut p = far;
-            while parent[p.idx()] != u32::MAX {
-                p = PointId(parent[p.idx()]);
-                ids.push(p);
-            }
-            ids.reverse();
-            let path: Vec<[f64; 2]> = ids.iter().map(|p| x[p.idx()]).collect();
             let on_boundary = |p: PointId| topo.point_edges.row(p.idx()).iter().any(|&e| topo.edges[e.idx()].sides[1].is_none());
+            let first = order_of.as_ref().and_then(|ord| first_through(topo, &now, initial, ord, &sources, &on_boundary));
+            let ids = match first {
+                Some(ids) => ids,
+                None => {
+                    let d = |p: PointId| (x[p.idx()][0] - t.x[0]).hypot(x[p.idx()][1] - t.x[1]);
+                    let far = order.iter().copied().max_by(|a, b| d(*a).total_cmp(&d(*b)).then(b.cmp(a))).unwrap_or(p0);
+                    let mut ids = vec![far];
+                    let mut p = far;
+                    while parent[p.idx()] != u32::MAX {
+                        p = PointId(parent[p.idx()]);
+                        ids.push(p);
+                    }
+                    ids.reverse();
+                    ids
+                }
+            };
+            let path: Vec<[f64; 2]> = ids.iter().map(|p| x[p.idx()]).collect();
             let boundary_at = ids.iter().skip(1).position(|&p| on_boundary(p)).map(|i| i + 1);
             let radius = n * t.h;
             let length: f64 = path.windows(2).map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])).sum();
@@ -198,6 +235,51 @@ pub fn kinks(model: &Model, tips: &[CrackTip], initial: &[bool], n: f64) -> Vec<
             }
         })
         .collect()
+}
+
+/// The path (point ids, from its source) along which the new crack first reached the outer
+/// boundary ([`kinks_in_order`]): a minimax search (Dijkstra's, on the key) over the new crack
+/// faces from `sources` (the tip and its seeds), the key of a path being (its latest cut, its
+/// segments), compared in that order. `None`: no boundary point is reached.
+fn first_through(topo: &flem_core::mesh::topology::Topology, now: &[bool], initial: &[bool], ord: &[u32], sources: &[PointId], on_boundary: &dyn Fn(PointId) -> bool) -> Option<Vec<PointId>> {
+    use std::cmp::Reverse;
+    use std::collections::{BTreeMap, BinaryHeap};
+    let mut key: BTreeMap<u32, (u32, u32)> = BTreeMap::new();
+    let mut parent: BTreeMap<u32, u32> = BTreeMap::new();
+    let mut heap = BinaryHeap::new();
+    for &p in sources {
+        key.insert(p.0, (0, 0));
+        heap.push(Reverse((0u32, 0u32, p.0)));
+    }
+    while let Some(Reverse((t, hops, p))) = heap.pop() {
+        if key.get(&p).is_some_and(|&k| k < (t, hops)) {
+            continue;
+        }
+        let pid = PointId(p);
+        if hops > 0 && on_boundary(pid) {
+            let mut ids = vec![pid];
+            let mut q = p;
+            while let Some(&r) = parent.get(&q) {
+                ids.push(PointId(r));
+                q = r;
+            }
+            ids.reverse();
+            return Some(ids);
+        }
+        for &e in topo.point_edges.row(p as usize) {
+            if !now[e.idx()] || initial.get(e.idx()).copied().unwrap_or(false) {
+                continue;
+            }
+            let q = topo.other_end(e, pid).0;
+            let k = (t.max(ord[e.idx()]), hops + 1);
+            if key.get(&q).is_none_or(|&old| k < old) {
+                key.insert(q, k);
+                parent.insert(q, p);
+                heap.push(Reverse((k.0, k.1, q)));
+            }
+        }
+    }
+    None
 }
 
 /// Sizes (element counts) of the fragments: elements joined through a shared cluster.

@@ -22,7 +22,7 @@
 //!    measured from the crack's direction at the tip; the crack is to follow the line through
 //!    the tip at that angle. A closed tip (`K_I < 0`) is not cut. A tip grown along such a
 //!    line keeps to it (aiming one element size ahead on it) until the crack behind it is
-//!    straight over `every` domain radii (default 2); then the factors are evaluated again (on
+//!    straight over `every` domain radii (default 1; 2 before session 17); then the factors are evaluated again (on
 //!    `reradius` times the domain) and a new line starts there (a curved path as a chain of
 //!    straight pieces). A tip at most `staircase h` off its line (partial moves: quads, a
 //!    structured grid) counts as on it, and is evaluated in the line's frame with the faces
@@ -51,7 +51,11 @@
 //! default 0.5), `route` (element sizes, default 3), `relocate` (default true; false: the
 //! direction only, cut along the nearest link), `cap_unsplit_boundary` (as `sigma1_nearest`),
 //! `staircase` (element sizes, default 0.5; 0: a tip must be on its line to 1e-6 h), `every`
-//! (domain radii, default 2), `reradius` (fraction of `radius`, default 1). All ours.
+//! (domain radii, default 1), `reradius` (fraction of `radius`, default 1), `shrink` (element
+//! sizes, default 2; 0: off) and `slide` (default true), session 17: near the boundary, a
+//! re-evaluation whose domain leaves the body uses the largest smaller one down to `shrink h`,
+//! and the last link's node on a straight stretch of the boundary slides along it to where the
+//! line meets it (the crack leaves the body there, not at the nearest boundary node). All ours.
 //!
 //! ```toml
 //! [cracking.separation]
@@ -60,15 +64,17 @@
 //! max_move = 0.5
 //! route = 3.0
 //! staircase = 0.5
-//! every = 2.0
+//! every = 1.0
 //! reradius = 1.0
+//! shrink = 2.0
+//! slide = true
 //! ```
 use serde::{Deserialize, Serialize};
 
 use flem_core::plugin::traits::{FailureCheck, FanView, ParamError, Proposal, SeparationRule, TipContext, TipPlan};
 
 use super::sigma1_nearest::propose_along;
-use crate::check::sif::{domain_sif, domain_sif_tol, mts_angle, CrackTip};
+use crate::check::sif::{domain_sif, domain_sif_tol, mts_angle, CrackTip, SifError};
 
 fn four() -> f64 {
     4.0
@@ -108,17 +114,30 @@ pub struct TipMts {
     #[serde(default = "half")]
     pub staircase: f64,
     /// A tip grown along a line is evaluated again once the crack behind it is straight over
-    /// this many domain radii (ours).
-    #[serde(default = "two")]
+    /// this many domain radii (ours; default 1 since session 17, was 2).
+    #[serde(default = "one")]
     pub every: f64,
     /// The domain of a re-evaluation along a line, as a fraction of `radius` (ours).
     #[serde(default = "one")]
     pub reradius: f64,
+    /// Near the boundary (ours, session 17): when a re-evaluation's domain leaves the body, the
+    /// largest smaller domain (`0.8^k` of it) down to `shrink` element sizes that stays inside
+    /// is used, once the crack is straight over `every` of *its* radii. 0: off (the tip keeps
+    /// to its line up to the boundary, as before). Default 2 (session 17).
+    #[serde(default = "two")]
+    pub shrink: f64,
+    /// Ours (session 17): the last link's far node, when it lies on a straight stretch of the
+    /// outer boundary, slides along it towards where the line meets the boundary (at most
+    /// `max_move` of the link's length; `path::slides_along_boundary`). false: a boundary node
+    /// never moves (the crack leaves the body at the nearest node, as before). Default true
+    /// (session 17).
+    #[serde(default = "yes")]
+    pub slide: bool,
 }
 
 impl Default for TipMts {
     fn default() -> Self {
-        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 2.0, reradius: 1.0 }
+        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 1.0, reradius: 1.0, shrink: 2.0, slide: true }
     }
 }
 
@@ -191,6 +210,10 @@ impl TipMts {
                 return Some((xq, dir, dir));
             }
         }
+        if let Some(th) = self.near_boundary_kink(ctx, &tip, frame.is_some(), straight) {
+            let dir = angle_of(e1) + th?;
+            return Some((xq, dir, dir));
+        }
         if let Some((o, dir)) = ctx.planned {
             let dh = [dir.cos(), dir.sin()];
             let s = (xq[0] - o[0]) * dh[0] + (xq[1] - o[1]) * dh[1];
@@ -199,6 +222,66 @@ impl TipMts {
         }
         let dir = angle_of(e1);
         Some((xq, dir, dir))
+    }
+}
+
+impl TipMts {
+    /// `shrink` (ours, session 17): the kink angle on the largest domain `0.8^k reradius radius h`
+    /// (k >= 1, down to `shrink h`) that stays inside the body, when the re-evaluation's own
+    /// domain leaves it and the crack is straight over `every` of the smaller radii behind the
+    /// tip. `None`: not used (off, a first evaluation, the full domain not refused for the
+    /// boundary, or no smaller domain fits); `Some(None)`: a closed tip.
+    fn near_boundary_kink(&self, ctx: &TipContext, tip: &CrackTip, staircase: bool, straight: f64) -> Option<Option<f64>> {
+        if self.shrink <= 0.0 || ctx.planned.is_none() {
+            return None;
+        }
+        let m = ctx.model;
+        let tol = 2.0 * self.staircase * ctx.h;
+        let eval = |r: f64| if staircase { domain_sif_tol(m, ctx.u, &[], &[], tip, 0.5 * r, r, tol) } else { domain_sif(m, ctx.u, &[], &[], tip, 0.5 * r, r) };
+        let full = self.reradius * self.radius * ctx.h;
+        if self.every * full > straight || !matches!(eval(full), Err(SifError::DomainLeavesBody { .. })) {
+            return None;
+        }
+        let mut r = 0.8 * full;
+        while r >= self.shrink * ctx.h && self.every * r <= straight {
+            match eval(r) {
+                Ok(d) => return Some(kink_angle(d.k1, d.k2)),
+                Err(SifError::DomainLeavesBody { .. }) => r *= 0.8,
+                Err(_) => return None,
+            }
+        }
+        None
+    }
+}
+
+impl TipMts {
+    /// `slide` (ours, session 17): the target of the boundary node `r` sliding along its straight
+    /// boundary stretch towards where the line (`origin`, direction `dh`) meets it, at most
+    /// `max_move` link lengths, and the slide's length. `None`: off, `r` interior, at a corner,
+    /// or the line parallel to the boundary.
+    fn boundary_slide(&self, ctx: &TipContext, r: flem_core::ids::PointId, origin: [f64; 2], dh: [f64; 2], len: f64) -> Option<([f64; 2], f64)> {
+        if !self.slide {
+            return None;
+        }
+        let topo = &ctx.model.topo;
+        let x = &ctx.model.mesh.points;
+        let xr = x[r.idx()];
+        let ends: Vec<[f64; 2]> = topo.point_edges.row(r.idx()).iter().filter(|&&e| topo.edges[e.idx()].sides[1].is_none()).map(|&e| x[topo.other_end(e, r).idx()]).collect();
+        if ends.len() != 2 {
+            return None;
+        }
+        let a = [ends[0][0] - xr[0], ends[0][1] - xr[1]];
+        let la = a[0].hypot(a[1]);
+        let b = [a[0] / la, a[1] / la];
+        let den = b[0] * dh[1] - b[1] * dh[0];
+        if den.abs() < 1e-6 {
+            return None;
+        }
+        // origin + s dh = xr + t b  =>  t = cross(origin - xr, dh) / cross(b, dh).
+        let w = [origin[0] - xr[0], origin[1] - xr[1]];
+        let t = (w[0] * dh[1] - w[1] * dh[0]) / den;
+        let t = t.clamp(-self.max_move * len, self.max_move * len);
+        Some(([xr[0] + t * b[0], xr[1] + t * b[1]], t.abs()))
     }
 }
 
@@ -219,6 +302,9 @@ impl SeparationRule for TipMts {
         }
         if !(self.reradius.is_finite() && (0.25..=1.0).contains(&self.reradius) && self.reradius * self.radius >= 1.0) {
             return Err(ParamError::new("reradius", format!("= {} is incorrect; it must be in [0.25, 1], with reradius * radius >= 1", self.reradius)));
+        }
+        if !(self.shrink.is_finite() && (self.shrink == 0.0 || (1.0..=self.radius).contains(&self.shrink))) {
+            return Err(ParamError::new("shrink", format!("= {} is incorrect; it must be 0 (off) or in [1, radius] (element sizes)", self.shrink)));
         }
         if !(self.every.is_finite() && (1.0..=10.0).contains(&self.every)) {
             return Err(ParamError::new("every", format!("= {} is incorrect; it must be in [1, 10] (domain radii)", self.every)));
@@ -281,6 +367,10 @@ impl SeparationRule for TipMts {
         // steps are at most `(1 - max_move)` link lengths off it).
         let f = if mv > self.max_move * len { self.max_move * len / mv } else { 1.0 };
         let to = [xr[0] + f * (foot[0] - xr[0]), xr[1] + f * (foot[1] - xr[1])];
+        let (to, mv) = match self.boundary_slide(ctx, r, origin, dh, len) {
+            Some((t, d)) => (t, d),
+            None => (to, mv),
+        };
         let relocate = (self.relocate && a > 1e-6 && s - sq > 0.25 * len && mv > 1e-9 * len).then_some((r, to));
         Some(TipPlan { edges: vec![edge, ctx.face], relocate, origin, direction: dir })
     }
