@@ -968,9 +968,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     }
 
     /// The never-yielded packs (`PASS_TOTAL`) compiled for AVX-512 (8 f64 per instruction:
-    /// one pack per register, 32 registers; the same bits as `packs`, see `packs_avx2`). Only
-    /// this pass: it runs about 1.5 times faster than with AVX2, while the stored path ran
-    /// slower with AVX-512 than with AVX2 on this machine (session 10, docs/perf/README.md).
+    /// one pack per register, 32 registers; the same bits as `packs`, see `packs_avx2`): it
+    /// runs about 1.5 times faster than with AVX2. The stored pass: `packs_stored_avx512`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
     #[allow(clippy::too_many_arguments)]
@@ -987,6 +986,30 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         yl: &mut [bool],
     ) {
         self.packs::<PASS_TOTAL>(e0, e1, u, f, st, hs, up, wk, yl)
+    }
+
+    /// The stored packs (`PASS_STORED`) compiled for AVX-512 (the same bits, as
+    /// `packs_total_avx512`). Session 10 found this pass slower with AVX-512 than with AVX2;
+    /// since the stored stress and last displacements are kept by pack (session 17: whole
+    /// registers loaded and stored instead of a lane-by-lane gather), it is as fast in the
+    /// never-yielding stored case and 5-10 % faster in the yielding ones (`flem bench laws`,
+    /// docs/materials.md).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    #[allow(clippy::too_many_arguments)]
+    fn packs_stored_avx512(
+        &self,
+        e0: usize,
+        e1: usize,
+        u: &[[f64; 2]],
+        f: SharedForces,
+        st: &mut [[[f64; LANES]; 4]],
+        hs: &mut [f64],
+        up: &mut [[[[f64; LANES]; 2]; N]],
+        wk: &mut [f64],
+        yl: &mut [bool],
+    ) {
+        self.packs::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl)
     }
 
     /// `packs` compiled for AVX2 (4 f64 per instruction instead of SSE2's 2), chosen at run
@@ -1031,7 +1054,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                         self.packs_total_avx512(e0, e1, u, f, st, hs, up, wk, yl);
                         fence();
                     }
-                    self.packs_avx2::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
+                    self.packs_stored_avx512(e0, e1, u, f, st, hs, up, wk, yl);
                 }
                 return;
             }
