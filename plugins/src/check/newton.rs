@@ -31,7 +31,10 @@
 //! Cholesky (`factor.rs`, nested-dissection ordering and symbolic analysis made once per
 //! stage's fixities); a non-symmetric one (`psi < phi`), or one that is not positive definite
 //! (a softening branch; at the limit load), by faer's sparse LU (`sp_lu`). Both are counted
-//! in the stage's report.
+//! in the stage's report. Ours, off by default (`NewtonCheck::shift`, session 17): at a
+//! non-positive pivot, a Cholesky of `K + shift |diag K|` first (the Tresca footing's edge
+//! points make the tangent singular but for round-off; docs/materials.md, "Speed of plastic
+//! scenes").
 use std::sync::Arc;
 
 use faer::prelude::*;
