@@ -48,6 +48,11 @@ pub struct Args {
     /// The folder of the scenes (strip_footing.toml, strip_footing_phi30.toml, slope.toml).
     #[arg(long, default_value = "configs/verification")]
     pub dir: PathBuf,
+    /// Ours (issue 37): also the Tresca footing by Newton with `NewtonCheck::shift` = 1e-8
+    /// (a shifted Cholesky instead of LU at non-positive pivots) and 16 iterations per
+    /// increment before a halving (instead of 25).
+    #[arg(long)]
+    pub newton_shift: bool,
     /// Output folder for answer.json and the chart.
     #[arg(long, default_value = "out/bench_answer")]
     pub out: PathBuf,
@@ -122,7 +127,7 @@ fn footing_explicit(path: &Path, k: f64) -> Result<(f64, f64)> {
 }
 
 /// The footing by Newton: the explicit run's final settlement in `inc` increments from rest.
-fn footing_implicit(path: &Path, inc: usize) -> Result<(f64, f64)> {
+fn footing_implicit(path: &Path, inc: usize, shifted: bool) -> Result<(f64, f64)> {
     let (text, base) = load(path)?;
     let t0 = Instant::now();
     let mut s = Simulation::new(Scene::from_str(&text, path, &base)?)?;
@@ -138,6 +143,9 @@ fn footing_implicit(path: &Path, inc: usize) -> Result<(f64, f64)> {
     }
     let zero = vec![[0.0; 2]; nc];
     let mut newton = flem_plugins::check::newton::NewtonCheck::new();
+    if shifted {
+        (newton.shift, newton.max_iter) = (1e-8, 16);
+    }
     let st = newton.advance(&s.model, &s.state.fix.clone(), &zero, &up, inc)?;
     eprintln!("bench answer: {}: Newton {} increments, {} iterations, {} halvings, {}", path.display(), st.increments, st.iterations, st.bisections, st.factorisation);
     let q = foot.iter().map(|&c| newton.internal_force()[c][1]).sum::<f64>().abs();
@@ -191,7 +199,16 @@ pub fn run(a: &Args) -> Result<()> {
     }
     for &n in &a.increments {
         let p = tresca.clone();
-        vs.push(Variant { scene: "footing, Tresca", method: format!("implicit, {n} increments"), reference: PRANDTL, run: Box::new(move || footing_implicit(&p, n)) });
+        vs.push(Variant { scene: "footing, Tresca", method: format!("implicit, {n} increments"), reference: PRANDTL, run: Box::new(move || footing_implicit(&p, n, false)) });
+        if a.newton_shift {
+            let p = tresca.clone();
+            vs.push(Variant {
+                scene: "footing, Tresca",
+                method: format!("implicit, {n} increments, shifted pivots, 16 iterations (ours)"),
+                reference: PRANDTL,
+                run: Box::new(move || footing_implicit(&p, n, true)),
+            });
+        }
     }
     for &k in &a.faster {
         if !a.quick || k > 2.0 {
@@ -201,7 +218,7 @@ pub fn run(a: &Args) -> Result<()> {
     }
     for &n in &a.increments {
         let p = phi30.clone();
-        vs.push(Variant { scene: "footing, phi = 30", method: format!("implicit, {n} increments"), reference: nc30, run: Box::new(move || footing_implicit(&p, n)) });
+        vs.push(Variant { scene: "footing, phi = 30", method: format!("implicit, {n} increments"), reference: nc30, run: Box::new(move || footing_implicit(&p, n, false)) });
     }
     let p = slope.clone();
     vs.push(Variant { scene: "slope, fos", method: "explicit".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, false)) });

@@ -72,10 +72,15 @@ pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
     pub elems: Vec<ElemId>,
     pub x: Vec<[[f64; 2]; N]>,
     pub conn: Vec<[u32; N]>,
-    /// Element displacements at the last update.
-    u_prev: Vec<[[f64; 2]; N]>,
-    /// Stress `[sxx, syy, sxy, szz]` of each Gauss point (element-major).
-    stress: Vec<[f64; 4]>,
+    /// Element displacements at the last update, by pack of `LANES` elements
+    /// (`u_prev[p][a][dim][lane]`, structure of arrays; the lanes past the block's end stay
+    /// zero).
+    u_prev: Vec<[[[f64; LANES]; 2]; N]>,
+    /// Stress `[sxx, syy, sxy, szz]` of each Gauss point, by pack and point
+    /// (`stress[p * ng + k][component][lane]`, structure of arrays: the stored path reads and
+    /// writes a point of a whole pack without a gather; ours, issue 37). Checkpoints keep the
+    /// element-major order (`save_state`).
+    stress: Vec<[[f64; LANES]; 4]>,
     /// `law.n_state()` f64 per Gauss point.
     hist: Vec<f64>,
     /// Internal work of each element so far.
@@ -265,40 +270,25 @@ fn force_lane<const N: usize, const BBAR: bool>(fe: &mut [[[f64; LANES]; 2]; N],
     }
 }
 
-/// The stress of Gauss point `k` of the pack's first `n` elements (stored element-major, `ng`
-/// points each) into lanes ([`store_lanes`]: back).
+/// `up = ul`: the last displacements of a never-yielded pack, written with non-temporal
+/// stores on x86-64 (`movnti`, SSE2: the line goes to memory without being read first, half
+/// the traffic of a plain store; nothing reads it before the pack leaves the shortcut or an
+/// output asks). The chunk ends its never-yielded pass with [`fence`].
 #[inline(always)]
-fn load_lanes(s: &mut [[f64; LANES]; 4], st: &[[f64; 4]], ng: usize, k: usize, n: usize) {
-    for l in 0..n {
-        let x = st[l * ng + k];
-        (s[0][l], s[1][l], s[2][l], s[3][l]) = (x[0], x[1], x[2], x[3]);
-    }
-}
-
-#[inline(always)]
-fn store_lanes(s: &[[f64; LANES]; 4], st: &mut [[f64; 4]], ng: usize, k: usize, n: usize) {
-    for l in 0..n {
-        st[l * ng + k] = [s[0][l], s[1][l], s[2][l], s[3][l]];
-    }
-}
-
-/// `up = ul[..][..][l]`: the last displacements of a never-yielded element, written with
-/// non-temporal stores on x86-64 (`movnti`, SSE2: the line goes to memory without being read
-/// first, half the traffic of a plain store; nothing reads it before the pack leaves the
-/// shortcut or an output asks). The chunk ends its never-yielded pass with [`fence`].
-#[inline(always)]
-fn store_streaming<const N: usize>(up: &mut [[f64; 2]; N], ul: &[[[f64; LANES]; 2]; N], l: usize) {
+fn store_streaming<const N: usize>(up: &mut [[[f64; LANES]; 2]; N], ul: &[[[f64; LANES]; 2]; N]) {
     #[cfg(target_arch = "x86_64")]
     for a in 0..N {
         for d in 0..2 {
-            // SAFETY: a valid, 8-byte aligned f64 slot (`movnti` needs natural alignment only);
-            // SSE2 is part of x86-64.
-            unsafe { std::arch::x86_64::_mm_stream_si64(&mut up[a][d] as *mut f64 as *mut i64, ul[a][d][l].to_bits() as i64) };
+            for l in 0..LANES {
+                // SAFETY: a valid, 8-byte aligned f64 slot (`movnti` needs natural alignment
+                // only); SSE2 is part of x86-64.
+                unsafe { std::arch::x86_64::_mm_stream_si64(&mut up[a][d][l] as *mut f64 as *mut i64, ul[a][d][l].to_bits() as i64) };
+            }
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    for a in 0..N {
-        up[a] = [ul[a][0][l], ul[a][1][l]];
+    {
+        *up = *ul;
     }
 }
 
@@ -455,12 +445,12 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let ng = S::GAUSS.len();
         if self.elems.len() % LANES == 0 {
             self.yielded.push(false);
+            self.u_prev.push([[[0.0; LANES]; 2]; N]);
+            self.stress.extend(std::iter::repeat_n([[0.0; LANES]; 4], ng));
         }
         self.elems.push(e);
         self.x.push(x);
         self.conn.push(conn);
-        self.u_prev.push([[0.0; 2]; N]);
-        self.stress.extend(std::iter::repeat_n([0.0; 4], ng));
         self.hist.extend(std::iter::repeat_n(0.0, ng * self.law.n_state()));
         self.work.push(0.0);
         self.omega_bound = std::sync::OnceLock::new();
@@ -483,9 +473,9 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// runs after the node update). `_u`: kept for the callers' symmetry.
     fn stress4(&self, i: usize, k: usize, _u: &[[f64; 2]]) -> [f64; 4] {
         if self.stored(i) {
-            return self.stress[i * S::GAUSS.len() + k];
+            return self.stored4(i, k);
         }
-        let ue = self.u_prev[i];
+        let ue = self.up_at(i);
         let gbi = self.gbar_at(i);
         let e = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &ue);
         let mut el = [[0.0; LANES]; 4];
@@ -493,6 +483,21 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let mut s = [[0.0; LANES]; 4];
         self.law.initial_lanes(&el, &mut s);
         [s[0][0], s[1][0], s[2][0], s[3][0]]
+    }
+
+    /// The stored stress of point `k` of element `i` (the raw array: zero for a pack that
+    /// never yielded).
+    #[inline(always)]
+    fn stored4(&self, i: usize, k: usize) -> [f64; 4] {
+        let (s, l) = (&self.stress[(i / LANES) * S::GAUSS.len() + k], i % LANES);
+        [s[0][l], s[1][l], s[2][l], s[3][l]]
+    }
+
+    /// The displacements of element `i` at the last element pass.
+    #[inline(always)]
+    fn up_at(&self, i: usize) -> [[f64; 2]; N] {
+        let (v, l) = (&self.u_prev[i / LANES], i % LANES);
+        std::array::from_fn(|a| [v[a][0][l], v[a][1][l]])
     }
 
     #[inline(always)]
@@ -663,22 +668,31 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// element.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn update_pack<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], f: SharedForces) {
+    fn update_pack<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], st: &mut [[[f64; LANES]; 4]], hs: &mut [f64], up: &mut [[[f64; LANES]; 2]; N], wk: &mut [f64], f: SharedForces) {
         let ng = S::GAUSS.len();
         let ns = self.law.n_state();
         let i0 = p * LANES;
         let conn = &self.conn[i0..i0 + n];
-        let (st, up, wk) = (&mut st[..n * ng], &mut up[..n], &mut wk[..n]);
-        // Displacement increments since the last update, by lane.
-        let mut du = [[[0.0; LANES]; 2]; N];
-        for l in 0..n {
+        let (st, wk) = (&mut st[..ng], &mut wk[..n]);
+        // Displacement increments since the last update, by lane (the lanes past the block's
+        // end: zero displacements, zero increments).
+        let mut ul = [[[0.0; LANES]; 2]; N];
+        for (l, c) in conn.iter().enumerate() {
             for a in 0..N {
-                let v = u[conn[l][a] as usize];
-                du[a][0][l] = v[0] - up[l][a][0];
-                du[a][1][l] = v[1] - up[l][a][1];
-                up[l][a] = v;
+                let v = u[c[a] as usize];
+                ul[a][0][l] = v[0];
+                ul[a][1][l] = v[1];
             }
         }
+        let mut du = [[[0.0; LANES]; 2]; N];
+        for a in 0..N {
+            for d in 0..2 {
+                for l in 0..LANES {
+                    du[a][d][l] = ul[a][d][l] - up[a][d][l];
+                }
+            }
+        }
+        *up = ul;
         let gb = &self.gbar[p];
         // B-bar: the element's mean volumetric strain increment (the same at every point).
         let ev = if BBAR { volumetric_lanes(gb, &du) } else { [0.0; LANES] };
@@ -691,11 +705,10 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             for l in 0..LANES {
                 (de[0][l], de[1][l], de[2][l]) = strain_lane::<N, BBAR>(g, &du, ev[l], l);
             }
-            let mut s = [[0.0; LANES]; 4];
-            load_lanes(&mut s, st, ng, k, n);
+            let mut s = st[k];
             let old = s;
             self.law.update_lanes(&mut s, &de, &mut hs[k * ns..], ng * ns, n);
-            store_lanes(&s, st, ng, k, n);
+            st[k] = s;
             for l in 0..LANES {
                 let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
                 w_acc[l] += c[l] * 0.5 * ((old[0][l] + s0) * de[0][l] + (old[1][l] + s1) * de[1][l] + (old[2][l] + s2) * de[2][l]);
@@ -716,7 +729,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// yielded and runs the stored path: the increment from the last step on, as if the pack
     /// had been stored from the start).
     #[inline(always)]
-    fn update_pack_total<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], f: SharedForces, up: &mut [[[f64; 2]; N]]) -> bool {
+    fn update_pack_total<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], f: SharedForces, up: &mut [[[f64; LANES]; 2]; N]) -> bool {
         let ng = S::GAUSS.len();
         let t = self.mat.thickness;
         let i0 = p * LANES;
@@ -759,8 +772,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
                 unsafe { f.add(c[a] as usize, [fe[a][0][l], fe[a][1][l]]) };
             }
-            store_streaming(&mut up[l], &ul, l);
         }
+        store_streaming(up, &ul);
         true
     }
 
@@ -811,15 +824,10 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// `1/2 sigma : eps` of its points (what the increments' work adds up to). History stays
     /// initial. `st`, `up`, `wk` start at the pack's first element. Runs once per pack.
     #[inline(never)]
-    fn seed_pack<const BBAR: bool>(&self, p: usize, n: usize, st: &mut [[f64; 4]], up: &[[[f64; 2]; N]], wk: &mut [f64]) {
+    fn seed_pack<const BBAR: bool>(&self, p: usize, n: usize, st: &mut [[[f64; LANES]; 4]], up: &[[[f64; LANES]; 2]; N], wk: &mut [f64]) {
         let ng = S::GAUSS.len();
-        let mut ul = [[[0.0; LANES]; 2]; N];
-        for l in 0..n {
-            for a in 0..N {
-                ul[a][0][l] = up[l][a][0];
-                ul[a][1][l] = up[l][a][1];
-            }
-        }
+        // The lanes past the block's end hold zero displacements.
+        let ul = *up;
         let ev = if BBAR { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
         let mut w_acc = [0.0; LANES];
         for k in 0..ng {
@@ -830,7 +838,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             }
             let mut s = [[0.0; LANES]; 4];
             self.law.initial_lanes(&e, &mut s);
-            store_lanes(&s, st, ng, k, n);
+            st[k] = s;
             for l in 0..LANES {
                 w_acc[l] += c[l] * 0.5 * (s[0][l] * e[0][l] + s[1][l] * e[1][l] + s[2][l] * e[2][l]);
             }
@@ -843,7 +851,18 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// fails in `PASS_TOTAL` is marked yielded and left to `PASS_STORED`.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn packs<const PASS: u8>(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], yl: &mut [bool]) {
+    fn packs<const PASS: u8>(
+        &self,
+        e0: usize,
+        e1: usize,
+        u: &[[f64; 2]],
+        f: SharedForces,
+        st: &mut [[[f64; LANES]; 4]],
+        hs: &mut [f64],
+        up: &mut [[[[f64; LANES]; 2]; N]],
+        wk: &mut [f64],
+        yl: &mut [bool],
+    ) {
         let (ng, ns) = (S::GAUSS.len(), self.law.n_state());
         let bbar = self.bbar();
         let p0 = e0 / LANES;
@@ -853,7 +872,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                 if PASS == PASS_STORED {
                     continue;
                 }
-                let (st, up, wk) = (&mut st[j * ng..], &mut up[j..], &mut wk[j..]);
+                let (st, up, wk) = (&mut st[(p - p0) * ng..], &mut up[p - p0], &mut wk[j..]);
                 let done = if bbar { self.update_pack_total::<true>(p, n, u, f, up) } else { self.update_pack_total::<false>(p, n, u, f, up) };
                 if done {
                     continue;
@@ -868,7 +887,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             if PASS == PASS_TOTAL {
                 continue;
             }
-            let (st, hs, up, wk) = (&mut st[j * ng..], &mut hs[j * ng * ns..], &mut up[j..], &mut wk[j..]);
+            let (st, hs, up, wk) = (&mut st[(p - p0) * ng..], &mut hs[j * ng * ns..], &mut up[p - p0], &mut wk[j..]);
             match (self.opts.large_strain, bbar) {
                 (false, true) => self.update_pack::<true>(p, n, u, st, hs, up, wk, f),
                 (false, false) => self.update_pack::<false>(p, n, u, st, hs, up, wk, f),
@@ -883,13 +902,13 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     /// elements computed together (`geometry_lanes`).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn update_pack_large<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], f: SharedForces) {
+    fn update_pack_large<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], st: &mut [[[f64; LANES]; 4]], hs: &mut [f64], up: &mut [[[f64; LANES]; 2]; N], wk: &mut [f64], f: SharedForces) {
         let ng = S::GAUSS.len();
         let ns = self.law.n_state();
         let t = self.mat.thickness;
         let i0 = p * LANES;
         let conn = &self.conn[i0..i0 + n];
-        let (st, up, wk) = (&mut st[..n * ng], &mut up[..n], &mut wk[..n]);
+        let (st, wk) = (&mut st[..ng], &mut wk[..n]);
         let mut du = [[[0.0; LANES]; 2]; N];
         let (mut xm, mut xe) = ([[[0.0; LANES]; 2]; N], [[[0.0; LANES]; 2]; N]);
         for l in 0..LANES {
@@ -897,7 +916,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             let (x0, lu) = (&self.x[i0 + if l < n { l } else { 0 }], if l < n { l } else { 0 });
             for a in 0..N {
                 let v = u[conn[lu][a] as usize];
-                let o = up[lu][a];
+                let o = [up[a][0][lu], up[a][1][lu]];
                 for d in 0..2 {
                     du[a][d][l] = if l < n { v[d] - o[d] } else { 0.0 };
                     xm[a][d][l] = x0[a][d] + 0.5 * (o[d] + v[d]);
@@ -907,7 +926,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         }
         for l in 0..n {
             for a in 0..N {
-                up[l][a] = u[conn[l][a] as usize];
+                let v = u[conn[l][a] as usize];
+                (up[a][0][l], up[a][1][l]) = (v[0], v[1]);
             }
         }
         let (mut gm, mut wm) = ([[[[0.0; LANES]; 2]; N]; MAXG], [[0.0; LANES]; MAXG]);
@@ -920,8 +940,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         for k in 0..ng {
             let (g, h) = (&gm[k], &ge[k]);
             let mut de = [[0.0; LANES]; 4];
-            let mut s = [[0.0; LANES]; 4];
-            load_lanes(&mut s, st, ng, k, n);
+            let mut s = st[k];
             for l in 0..LANES {
                 (de[0][l], de[1][l], de[2][l]) = strain_lane::<N, BBAR>(g, &du, ev[l], l);
                 let mut om = 0.0;
@@ -938,7 +957,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             }
             let old = s;
             self.law.update_lanes(&mut s, &de, &mut hs[k * ns..], ng * ns, n);
-            store_lanes(&s, st, ng, k, n);
+            st[k] = s;
             for l in 0..LANES {
                 let (s0, s1, s2) = (s[0][l], s[1][l], s[2][l]);
                 w_acc[l] += wm[k][l] * t * 0.5 * ((old[0][l] + s0) * de[0][l] + (old[1][l] + s1) * de[1][l] + (old[2][l] + s2) * de[2][l]);
@@ -949,14 +968,48 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     }
 
     /// The never-yielded packs (`PASS_TOTAL`) compiled for AVX-512 (8 f64 per instruction:
-    /// one pack per register, 32 registers; the same bits as `packs`, see `packs_avx2`). Only
-    /// this pass: it runs about 1.5 times faster than with AVX2, while the stored path ran
-    /// slower with AVX-512 than with AVX2 on this machine (session 10, docs/perf/README.md).
+    /// one pack per register, 32 registers; the same bits as `packs`, see `packs_avx2`): it
+    /// runs about 1.5 times faster than with AVX2. The stored pass: `packs_stored_avx512`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
     #[allow(clippy::too_many_arguments)]
-    fn packs_total_avx512(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], yl: &mut [bool]) {
+    fn packs_total_avx512(
+        &self,
+        e0: usize,
+        e1: usize,
+        u: &[[f64; 2]],
+        f: SharedForces,
+        st: &mut [[[f64; LANES]; 4]],
+        hs: &mut [f64],
+        up: &mut [[[[f64; LANES]; 2]; N]],
+        wk: &mut [f64],
+        yl: &mut [bool],
+    ) {
         self.packs::<PASS_TOTAL>(e0, e1, u, f, st, hs, up, wk, yl)
+    }
+
+    /// The stored packs (`PASS_STORED`) compiled for AVX-512 (the same bits, as
+    /// `packs_total_avx512`). Session 10 found this pass slower with AVX-512 than with AVX2;
+    /// since the stored stress and last displacements are kept by pack (session 17: whole
+    /// registers loaded and stored instead of a lane-by-lane gather), it is as fast in the
+    /// never-yielding stored case and 5-10 % faster in the yielding ones (`flem bench laws`,
+    /// docs/materials.md).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    #[allow(clippy::too_many_arguments)]
+    fn packs_stored_avx512(
+        &self,
+        e0: usize,
+        e1: usize,
+        u: &[[f64; 2]],
+        f: SharedForces,
+        st: &mut [[[f64; LANES]; 4]],
+        hs: &mut [f64],
+        up: &mut [[[[f64; LANES]; 2]; N]],
+        wk: &mut [f64],
+        yl: &mut [bool],
+    ) {
+        self.packs::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl)
     }
 
     /// `packs` compiled for AVX2 (4 f64 per instruction instead of SSE2's 2), chosen at run
@@ -965,18 +1018,30 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments)]
-    fn packs_avx2<const PASS: u8>(&self, e0: usize, e1: usize, u: &[[f64; 2]], f: SharedForces, st: &mut [[f64; 4]], hs: &mut [f64], up: &mut [[[f64; 2]; N]], wk: &mut [f64], yl: &mut [bool]) {
+    fn packs_avx2<const PASS: u8>(
+        &self,
+        e0: usize,
+        e1: usize,
+        u: &[[f64; 2]],
+        f: SharedForces,
+        st: &mut [[[f64; LANES]; 4]],
+        hs: &mut [f64],
+        up: &mut [[[[f64; LANES]; 2]; N]],
+        wk: &mut [f64],
+        yl: &mut [bool],
+    ) {
         self.packs::<PASS>(e0, e1, u, f, st, hs, up, wk, yl)
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces, st: Raw<[f64; 4]>, hs: Raw<f64>, up: Raw<[[f64; 2]; N]>, wk: Raw<f64>, yl: Raw<bool>) {
+    fn run_chunk(&self, k: usize, u: &[[f64; 2]], f: SharedForces, st: Raw<[[f64; LANES]; 4]>, hs: Raw<f64>, up: Raw<[[[f64; LANES]; 2]; N]>, wk: Raw<f64>, yl: Raw<bool>) {
         let ce = self.sched.chunk_packs * LANES;
         let (e0, e1) = (k * ce, ((k + 1) * ce).min(self.len()));
         let (ng, ns) = (S::GAUSS.len(), self.law.n_state());
         // SAFETY: chunks are disjoint element ranges (and so disjoint pack ranges: a chunk is
         // whole packs); one chunk runs on one thread.
-        let (st, hs, up, wk, yl) = unsafe { (st.range(e0 * ng, e1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(e0, e1), wk.range(e0, e1), yl.range(e0 / LANES, e1.div_ceil(LANES))) };
+        let (p0, p1) = (e0 / LANES, e1.div_ceil(LANES));
+        let (st, hs, up, wk, yl) = unsafe { (st.range(p0 * ng, p1 * ng), hs.range(e0 * ng * ns, e1 * ng * ns), up.range(p0, p1), wk.range(e0, e1), yl.range(p0, p1)) };
         if self.enh.is_empty() {
             #[cfg(target_arch = "x86_64")]
             if crate::element::block::Simd::best() == crate::element::block::Simd::Avx512 && crate::element::block::Simd::Avx2.detected() {
@@ -989,7 +1054,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                         self.packs_total_avx512(e0, e1, u, f, st, hs, up, wk, yl);
                         fence();
                     }
-                    self.packs_avx2::<PASS_STORED>(e0, e1, u, f, st, hs, up, wk, yl);
+                    self.packs_stored_avx512(e0, e1, u, f, st, hs, up, wk, yl);
                 }
                 return;
             }
@@ -1010,9 +1075,23 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             return;
         }
         for i in e0..e1 {
-            let j = i - e0;
+            let (j, q, l) = (i - e0, i / LANES - p0, i % LANES);
             let ue = self.gather(i, u);
-            let fe = self.update_elem(i, &ue, &mut st[j * ng..(j + 1) * ng], &mut hs[j * ng * ns..(j + 1) * ng * ns], &mut up[j], &mut wk[j]);
+            // The element's points and last displacements out of the packs and back.
+            let mut se = [[0.0; 4]; MAXG];
+            for kk in 0..ng {
+                let v = &st[q * ng + kk];
+                se[kk] = [v[0][l], v[1][l], v[2][l], v[3][l]];
+            }
+            let mut upe: [[f64; 2]; N] = std::array::from_fn(|a| [up[q][a][0][l], up[q][a][1][l]]);
+            let fe = self.update_elem(i, &ue, &mut se[..ng], &mut hs[j * ng * ns..(j + 1) * ng * ns], &mut upe, &mut wk[j]);
+            for kk in 0..ng {
+                let v = &mut st[q * ng + kk];
+                (v[0][l], v[1][l], v[2][l], v[3][l]) = (se[kk][0], se[kk][1], se[kk][2], se[kk][3]);
+            }
+            for a in 0..N {
+                (up[q][a][0][l], up[q][a][1][l]) = (upe[a][0], upe[a][1]);
+            }
             let c = &self.conn[i];
             for a in 0..N {
                 // SAFETY: chunks of one colour write disjoint clusters (Schedule::build).
@@ -1161,9 +1240,10 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
     fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
         self.elems.capacity() * size_of::<ElemId>()
-            + (self.x.capacity() + self.u_prev.capacity()) * size_of::<[[f64; 2]; N]>()
+            + self.x.capacity() * size_of::<[[f64; 2]; N]>()
+            + self.u_prev.capacity() * size_of::<[[[f64; LANES]; 2]; N]>()
             + self.conn.capacity() * size_of::<[u32; N]>()
-            + self.stress.capacity() * 32
+            + self.stress.capacity() * size_of::<[[f64; LANES]; 4]>()
             + (self.hist.capacity() + self.work.capacity()) * 8
             + (self.gp.capacity() + self.gbar.capacity()) * size_of::<[[[f64; LANES]; 2]; N]>()
             + self.gw.capacity() * size_of::<[f64; LANES]>()
@@ -1285,7 +1365,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
                     let mut el = [[0.0; LANES]; 4];
                     for i in i0..i1 {
                         let gbi = self.gbar_at(i);
-                        let ep = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &self.u_prev[i]);
+                        let ep = strain_bar(&self.g_at(i, k), self.bbar().then_some(&gbi), &self.up_at(i));
                         (el[0][i - i0], el[1][i - i0], el[2][i - i0]) = (ep[0], ep[1], ep[2]);
                     }
                     let mut s = [[0.0; LANES]; 4];
@@ -1307,11 +1387,13 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         self.enh_fn.is_none()
     }
     fn state_len(&self) -> usize {
-        self.u_prev.len() * 2 * N + self.stress.len() * 4 + self.hist.len() + self.work.len() + self.yielded.len()
+        self.len() * (2 * N + 4 * S::GAUSS.len()) + self.hist.len() + self.work.len() + self.yielded.len()
     }
+    /// Element-major, as before the packs' layout (session 17): the last displacements of each
+    /// element, the stress of each point, then history, work and the packs' flags.
     fn save_state(&self, out: &mut Vec<f64>) {
-        out.extend(self.u_prev.iter().flat_map(|e| e.iter().flatten().copied()));
-        out.extend(self.stress.iter().flatten().copied());
+        out.extend((0..self.len()).flat_map(|i| self.up_at(i).into_iter().flatten()));
+        out.extend((0..self.len()).flat_map(|i| (0..S::GAUSS.len()).flat_map(move |k| self.stored4(i, k))));
         out.extend_from_slice(&self.hist);
         out.extend_from_slice(&self.work);
         out.extend(self.yielded.iter().map(|&y| if y { 1.0 } else { 0.0 }));
@@ -1321,13 +1403,22 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
             return false;
         }
         let mut it = s.iter().copied();
-        for e in self.u_prev.iter_mut() {
-            for v in e.iter_mut().flatten() {
-                *v = it.next().unwrap_or(0.0);
+        for i in 0..self.len() {
+            let (p, l) = (i / LANES, i % LANES);
+            for a in 0..N {
+                for d in 0..2 {
+                    self.u_prev[p][a][d][l] = it.next().unwrap_or(0.0);
+                }
             }
         }
-        for v in self.stress.iter_mut().flatten() {
-            *v = it.next().unwrap_or(0.0);
+        let ng = S::GAUSS.len();
+        for i in 0..self.len() {
+            let (p, l) = (i / LANES, i % LANES);
+            for k in 0..ng {
+                for c in 0..4 {
+                    self.stress[p * ng + k][c][l] = it.next().unwrap_or(0.0);
+                }
+            }
         }
         for v in self.hist.iter_mut().chain(self.work.iter_mut()) {
             *v = it.next().unwrap_or(0.0);

@@ -31,7 +31,10 @@
 //! Cholesky (`factor.rs`, nested-dissection ordering and symbolic analysis made once per
 //! stage's fixities); a non-symmetric one (`psi < phi`), or one that is not positive definite
 //! (a softening branch; at the limit load), by faer's sparse LU (`sp_lu`). Both are counted
-//! in the stage's report.
+//! in the stage's report. Ours, off by default (`NewtonCheck::shift`, session 17): at a
+//! non-positive pivot, a Cholesky of `K + shift |diag K|` first (the Tresca footing's edge
+//! points make the tangent singular but for round-off; docs/materials.md, "Speed of plastic
+//! scenes").
 use std::sync::Arc;
 
 use faer::prelude::*;
@@ -73,7 +76,16 @@ pub struct NewtonCheck {
     pub tol: f64,
     pub max_iter: usize,
     pub max_tries: usize,
-    counts: (usize, usize),
+    /// Ours (issue 37, default 0: off): when Cholesky meets a non-positive pivot, factorise
+    /// `K + shift |diag K|` by Cholesky before falling back to LU. A Tresca point returned
+    /// to an edge keeps only the bulk modulus of its principal stiffness (two active planes
+    /// fix both principal differences), so a plastic zone of edge points makes the tangent
+    /// singular but for round-off; the shift gives that null space a small stiffness. The
+    /// step is then no longer the exact Newton step, but the convergence test (the residual)
+    /// is the same, so a converged increment meets the same tolerance.
+    pub shift: f64,
+    /// Solves: Cholesky, LU, shifted Cholesky.
+    counts: (usize, usize, usize),
 }
 
 /// The free dofs of an element's `2N` dofs (`eq[2 c + d]`).
@@ -115,6 +127,7 @@ impl NewtonCheck {
             tol: self.tol,
             max_iter: self.max_iter,
             max_tries: self.max_tries,
+            shift: self.shift,
             ..Default::default()
         };
         Ok(())
@@ -168,7 +181,8 @@ impl NewtonCheck {
         }
     }
 
-    /// `K du = r`: Cholesky on the kept analysis, else (or when it fails) faer's LU.
+    /// `K du = r`: Cholesky on the kept analysis, else (or when it fails) the shifted
+    /// Cholesky when `shift > 0`, else faer's LU.
     fn solve(&mut self, k: &SparseColMat<usize, f64>, r: &[f64], symmetric: bool) -> Option<Vec<f64>> {
         if symmetric {
             let (_, sym) = self.sym.as_ref().expect("made before");
@@ -177,6 +191,16 @@ impl NewtonCheck {
                 if x.iter().all(|v| v.is_finite()) {
                     self.counts.0 += 1;
                     return Some(x);
+                }
+            }
+            if self.shift > 0.0 {
+                let ks = shifted(k, self.shift);
+                if let Ok(l) = factor::Factor::new(sym.clone(), &ks, factor::par(r.len())) {
+                    let x = l.solve(r, factor::par(r.len()));
+                    if x.iter().all(|v| v.is_finite()) {
+                        self.counts.2 += 1;
+                        return Some(x);
+                    }
                 }
             }
         }
@@ -247,6 +271,21 @@ impl NewtonCheck {
     }
 }
 
+/// `K + shift diag(K)` of a matrix stored as its lower triangle (ours).
+fn shifted(k: &SparseColMat<usize, f64>, shift: f64) -> SparseColMat<usize, f64> {
+    let mut ks = k.clone();
+    let (cp, ri) = (k.symbolic().col_ptr().to_vec(), k.symbolic().row_idx().to_vec());
+    let v = ks.val_mut();
+    for j in 0..k.ncols() {
+        for p in cp[j]..cp[j + 1] {
+            if ri[p] == j {
+                v[p] += shift * v[p].abs();
+            }
+        }
+    }
+    ks
+}
+
 /// The current connectivity of a block, element after element.
 fn conn_of(b: &dyn flem_core::element::block::Block) -> Vec<u32> {
     (0..b.len()).flat_map(|i| b.conn(i).iter().copied()).collect()
@@ -287,7 +326,7 @@ impl PlasticCheck for NewtonCheck {
             self.sym = Some((pat, sym));
             self.lu_sym = None;
         }
-        self.counts = (0, 0);
+        self.counts = (0, 0, 0);
         let (u0, f0) = (self.u.clone(), self.f_ext.clone());
         let at = |lam: f64, a: &[[f64; 2]], b: &[[f64; 2]]| -> Vec<[f64; 2]> { a.iter().zip(b).map(|(x, y)| [x[0] + lam * (y[0] - x[0]), x[1] + lam * (y[1] - x[1])]).collect() };
         let mut st = PlasticStage::default();
@@ -327,8 +366,9 @@ impl PlasticCheck for NewtonCheck {
         let elastic: Vec<String> = model.blocks.iter().zip(&self.blocks).filter(|(_, ib)| ib.tangent() == TangentKind::Elastic).map(|(b, _)| format!("region \"{}\"", b.region())).collect();
         st.tangent = if elastic.is_empty() { "consistent".into() } else { format!("elastic (the law has no consistent tangent) in {}; consistent elsewhere", elastic.join(", ")) };
         st.factorisation = match self.counts {
-            (c, 0) => format!("{c} Cholesky (factor.rs)"),
-            (c, l) => format!("{c} Cholesky (factor.rs), {l} LU (faer; {})", if symmetric { "a non-positive pivot in Cholesky" } else { "non-symmetric tangent" }),
+            (c, 0, 0) => format!("{c} Cholesky (factor.rs)"),
+            (c, l, 0) => format!("{c} Cholesky (factor.rs), {l} LU (faer; {})", if symmetric { "a non-positive pivot in Cholesky" } else { "non-symmetric tangent" }),
+            (c, l, s) => format!("{c} Cholesky (factor.rs), {s} shifted Cholesky, {l} LU (faer)"),
         };
         Ok(st)
     }

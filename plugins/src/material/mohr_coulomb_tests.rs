@@ -627,3 +627,99 @@ fn xorshift(seed: u64) -> impl FnMut() -> f64 {
         (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 }
+
+/// The stored state kept by pack (session 17: stress and last displacements as structure of
+/// arrays, `element/stateful.rs`): a block of 19 distorted Q4 (two whole packs and a part pack
+/// of 3), B-bar on and off, the shortcut on and off, a field raised past the first yield in
+/// 30 steps. Reference: the checkpoint format of before the change and the block itself.
+/// (1) `save_state` writes the element-major order: the last displacements element by element
+/// (equal to the displacements given at the last step), then each point's stress `[sxx, syy,
+/// sxy, szz]` (equal to `point_stress` on the stored path); (2) `load_state` then `save_state`
+/// gives the same vector; (3) a block restored from it and the original continue for 15 more
+/// steps with every force, stress and plastic state equal. Tolerance 0 (bits): only the
+/// memory layout changed, not one operation.
+#[test]
+fn packed_state_checkpoints_element_major_and_resumes_bit_for_bit() {
+    use flem_core::element::law::{LawCfg, RegionElems, StatefulOpts};
+    use flem_core::ids::ElemId;
+    let (nx, ny) = (19usize, 1usize);
+    let xy = |i: usize, j: usize| {
+        let (x, y) = (i as f64, j as f64);
+        [x + 0.2 * (0.7 * y + 0.3 * x).sin(), y + 0.15 * (0.9 * x).cos()]
+    };
+    let nodes: Vec<[f64; 2]> = (0..=ny).flat_map(|j| (0..=nx).map(move |i| (i, j))).map(|(i, j)| xy(i, j)).collect();
+    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+    let mut elems = RegionElems { q4_kind: "q4", ..Default::default() };
+    for j in 0..ny {
+        for i in 0..nx {
+            let c = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+            elems.q4.push((ElemId::new(j * nx + i), c.map(|k| nodes[k as usize]), c));
+        }
+    }
+    let nn = nodes.len();
+    let field = |a: f64| -> Vec<[f64; 2]> { nodes.iter().map(|p| [a * (0.02 * p[1] * p[1] - 0.01 * p[0] + 0.003 * p[0] * p[1]), a * (-0.015 * p[1] + 0.004 * p[0] * p[1])]).collect() };
+    let cfg = |c: f64| MohrCoulombCfg { cohesion: c, friction_angle_deg: 30.0, dilation_angle_deg: 5.0, tension_cutoff: None, softening: None };
+    let block = |c: f64, bbar: bool, shortcut: bool| {
+        let mut b = cfg(c).build("r", mat(), StatefulOpts { bbar, large_strain: false, elastic_shortcut: shortcut }, &elems).pop().unwrap();
+        b.prepare(nn);
+        b
+    };
+    for bbar in [true, false] {
+        let mut probe = block(1e9, bbar, false);
+        let mut f = vec![[0.0; 2]; nn];
+        let u1 = field(1.0);
+        probe.update_internal_forces(&u1, &mut f, None);
+        let c = median_cohesion_needed(&probe.point_stress(&u1).unwrap(), 30.0);
+        for shortcut in [false, true] {
+            let mut a = block(c, bbar, shortcut);
+            let ne = a.len();
+            assert_eq!(ne, 19);
+            let mut f = vec![[0.0; 2]; nn];
+            let mut u = field(0.0);
+            for step in 1..=30 {
+                u = field(step as f64 / 30.0);
+                a.update_internal_forces(&u, &mut f, None);
+            }
+            let mut saved = Vec::new();
+            a.save_state(&mut saved);
+            assert_eq!(saved.len(), a.state_len());
+            // (1) Element-major: the last displacements, then each point's stress.
+            for i in 0..ne {
+                let c = a.conn(i).to_vec();
+                for (k, &n) in c.iter().enumerate() {
+                    for d in 0..2 {
+                        assert_eq!(saved[i * 8 + 2 * k + d].to_bits(), u[n as usize][d].to_bits(), "bbar {bbar} shortcut {shortcut}: u_prev of element {i}");
+                    }
+                }
+            }
+            if !shortcut {
+                let ps = a.point_stress(&u).unwrap();
+                for (j, s) in ps.iter().enumerate() {
+                    for c in 0..4 {
+                        assert_eq!(saved[ne * 8 + 4 * j + c].to_bits(), s[c].to_bits(), "bbar {bbar}: stress of point {j}");
+                    }
+                }
+            }
+            // (2) Restored and continued.
+            let mut b = block(c, bbar, shortcut);
+            assert!(b.load_state(&saved));
+            let mut again = Vec::new();
+            b.save_state(&mut again);
+            assert!(saved.iter().zip(&again).all(|(x, y)| x.to_bits() == y.to_bits()), "bbar {bbar} shortcut {shortcut}: load_state then save_state");
+            for step in 31..=45 {
+                let u = field(step as f64 / 30.0);
+                let (mut fa, mut fb) = (vec![[0.0; 2]; nn], vec![[0.0; 2]; nn]);
+                a.update_internal_forces(&u, &mut fa, None);
+                b.update_internal_forces(&u, &mut fb, None);
+                assert!(fa.iter().flatten().zip(fb.iter().flatten()).all(|(x, y)| x.to_bits() == y.to_bits()), "bbar {bbar} shortcut {shortcut} step {step}: forces");
+                let (sa, sb) = (a.point_stress(&u).unwrap(), b.point_stress(&u).unwrap());
+                assert!(sa.iter().flatten().zip(sb.iter().flatten()).all(|(x, y)| x.to_bits() == y.to_bits()), "bbar {bbar} shortcut {shortcut} step {step}: stress");
+                for i in 0..ne {
+                    assert_eq!(a.plastic(i), b.plastic(i));
+                }
+            }
+            let plastic = (0..ne).filter(|&i| a.plastic(i).unwrap().1 > 0).count();
+            assert!(plastic > 0 && plastic < ne, "bbar {bbar}: {plastic} of {ne} elements plastic: the test needs both kinds");
+        }
+    }
+}
