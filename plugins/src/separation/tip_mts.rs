@@ -388,5 +388,8 @@ mod tests {
         assert!(format!("{e:?}").contains("radius"), "{e:?}");
         let e = TipMts { max_move: 0.9, ..TipMts::default() }.validate().unwrap_err();
         assert!(format!("{e:?}").contains("max_move"), "{e:?}");
+        let e = TipMts { shrink: 0.5, ..TipMts::default() }.validate().unwrap_err();
+        assert!(format!("{e:?}").contains("shrink"), "{e:?}");
+        assert!(TipMts { shrink: 0.0, slide: false, every: 2.0, ..TipMts::default() }.validate().is_ok());
     }
 }
