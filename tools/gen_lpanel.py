@@ -153,7 +153,7 @@ def scene(kind, i, ne, h):
     t += '[cracking.criterion]\ntype = "rankine"\ntensile_strength = 2.7e6\n\n'
     t += '[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\n\n'
     t += '[output]\nhistory_every = 5000\nreactions = ["lift"]\n\n'
-    levels = [round(0.025 * k, 3) for k in range(1, 5)] + [round(0.1 + 0.02 * k, 3) for k in range(1, 11)] + [0.35, 0.4, 0.5]
+    levels = [round(0.025 * k, 3) for k in range(1, 5)] + [round(0.1 + 0.02 * k, 3) for k in range(1, 11)] + [0.35, 0.4]
     for k, v in enumerate(levels):
         t += f'[[stage]]\nname = "u{k + 1}"\nlevels = {{ lift = {v} }}\nmax_steps = 200000\n\n'
     with open(os.path.join(HERE, name + ".toml"), "w") as f:

@@ -1,6 +1,6 @@
 """Winkler's L-panel runs (docs/paths.md, section "Winkler's L-panel"): tables and figures.
 
-    python3 tools/lpanel.py OUT.json RUN_DIR... [--png-paths FILE] [--png-load FILE] [--title T]
+    python3 tools/lpanel.py OUT.json RUN_DIR... [--png-paths FILE] [--png-load FILE] [--png-faces FILE] [--title T]
 
 (/work/main/.venv: numpy, meshio, matplotlib). For each `flem run` folder of a
 configs/lpanel/ scene:
@@ -154,6 +154,40 @@ def band():
     return np.array([[float(r["U_mm"]), float(r["F_lb_kN"]), float(r["F_ub_kN"])] for r in rd])
 
 
+def faces_figure(dirs, png, title):
+    """Every run's crack faces (red: separated at both ends, orange: at one end) on the panel,
+    one panel per run, three per row."""
+    import meshio
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(dirs)
+    cols = min(3, n)
+    rows = (n + cols - 1) // cols
+    fig, axs = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
+    L = np.array([[0, 0], [250, 0], [250, 250], [500, 250], [500, 500], [0, 500], [0, 0]])
+    for ax in axs.flat:
+        ax.set_axis_off()
+    for ax, d in zip(axs.flat, dirs):
+        snaps = sorted(glob.glob(os.path.join(d, "snapshot_*.vtu")))
+        ax.plot(L[:, 0], L[:, 1], "k-", lw=0.5)
+        ax.plot([470, 500], [250, 250], "b-", lw=2)
+        if snaps:
+            m = meshio.read(snaps[-1])
+            P = m.points[:, :2] * 1e3
+            for blk, c in zip(m.cells, m.cell_data["crack"]):
+                if blk.type == "line":
+                    for e, st in zip(blk.data.astype(int), c):
+                        if st > 0:
+                            ax.plot(P[e, 0], P[e, 1], color="red" if st == 2 else "orange", lw=1)
+        ax.set_aspect("equal")
+        ax.set_title(os.path.basename(os.path.normpath(d)), fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    fig.savefig(png, dpi=110, bbox_inches="tight")
+
+
 def main(argv):
     args, opts = [], {}
     it = iter(argv)
@@ -192,6 +226,8 @@ def main(argv):
             v = H.get(f"{a}|{b}", H.get(f"{b}|{a}"))
             cells.append("-" if a == b else ("n/a" if v is None else f"{v:.1f}"))
         print(f"| {a} | " + " | ".join(cells) + " |")
+    if "png-faces" in opts:
+        faces_figure(dirs, opts["png-faces"], opts.get("title", "L-panel crack faces"))
     if "png-paths" in opts or "png-load" in opts:
         import matplotlib
 
