@@ -201,9 +201,14 @@ def main(argv):
     for d in dirs:
         name = os.path.basename(os.path.normpath(d))
         curve = load_curve(d)
+        if not os.path.exists(os.path.join(d, "summary.json")) and len(curve) > 1:
+            curve = curve[:-1]  # a run still going (or stopped): its last level's row is mid-stage
         k = max(range(len(curve)), key=lambda i: curve[i][1])
         c = crack(d) or {}
-        runs.append({"run": name, "curve": curve, "peak_kN": curve[k][1], "u_peak_mm": curve[k][0], **c})
+        sm = os.path.join(d, "summary.json")
+        summ = json.load(open(sm)) if os.path.exists(sm) else {}
+        extra = {"finished": bool(summ), "splits": summ.get("splits"), "beyond_criterion": summ.get("beyond_criterion"), "wall_seconds": summ.get("wall_seconds"), "u_last_mm": curve[-1][0]}
+        runs.append({"run": name, "curve": curve, "peak_kN": curve[k][1], "u_peak_mm": curve[k][0], **c, **extra})
     names = [r["run"] for r in runs]
     H = {}
     for i, a in enumerate(runs):
@@ -211,12 +216,13 @@ def main(argv):
             if a.get("path") and b.get("path") and len(a["path"]) > 1 and len(b["path"]) > 1:
                 H[f'{a["run"]}|{b["run"]}'] = 100 * hausdorff(a["path"], b["path"]) / SIZE
     json.dump({"runs": runs, "hausdorff_percent": H}, open(out, "w"), indent=1, default=float)
-    print("| run | peak (kN) | u at peak (mm) | path end (mm) | reached boundary | crack faces | branch points | fragments < 3 el. |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| run | peak (kN) | u at peak (mm) | last stage (mm) | path end (mm) | reached boundary | crack faces | branch points | fragments < 3 el. | splits | failed points left uncut |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in runs:
         e = r.get("end")
         es = f"({1e3 * e[0]:.0f}, {1e3 * e[1]:.0f})" if e else "-"
-        print(f'| {r["run"]} | {r["peak_kN"]:.2f} | {r["u_peak_mm"]:.3f} | {es} | {r.get("reached")} | {r.get("segments")} | {r.get("branch_points")} | {len(r.get("small_fragments", []))} |')
+        last = f'{r["u_last_mm"]:.2f}' + ("" if r["finished"] else " (stopped)")
+        print(f'| {r["run"]} | {r["peak_kN"]:.2f} | {r["u_peak_mm"]:.3f} | {last} | {es} | {r.get("reached")} | {r.get("segments")} | {r.get("branch_points")} | {len(r.get("small_fragments", []))} | {r.get("splits")} | {r.get("beyond_criterion")} |')
     print()
     print("| | " + " | ".join(names) + " |")
     print("|---" * (len(names) + 1) + "|")
@@ -243,6 +249,10 @@ def main(argv):
             ref = next((p for p in parts if p in styles), "3")
             return colours[kind], styles[ref]
 
+        def extra(n):
+            # the edge rule's runs (folder names starting "lpe"): thin, crosses
+            return {"lw": 0.8, "marker": "x", "ms": 3, "alpha": 0.7} if os.path.basename(n).startswith("lpe") else {"lw": 1.5}
+
         if "png-paths" in opts:
             fig, ax = plt.subplots(figsize=(6, 6))
             L = np.array([[0, 0], [250, 0], [250, 250], [500, 250], [500, 500], [0, 500], [0, 0]])
@@ -252,7 +262,9 @@ def main(argv):
                 if r.get("path"):
                     p = 1e3 * np.array(r["path"])
                     c, s = style(r["run"])
-                    ax.plot(p[:, 0], p[:, 1], color=c, ls=s, lw=1.5, label=r["run"])
+                    kw = extra(r["run"])
+                    kw.pop("marker", None), kw.pop("ms", None)
+                    ax.plot(p[:, 0], p[:, 1], color=c, ls=s, label=r["run"], **kw)
             ax.set_aspect("equal")
             ax.set_xlabel("x (mm)")
             ax.set_ylabel("y (mm)")
@@ -266,7 +278,8 @@ def main(argv):
             for r in runs:
                 cu = np.array(r["curve"])
                 c, s = style(r["run"])
-                ax.plot(cu[:, 0], cu[:, 1], color=c, ls=s, marker=".", ms=3, label=r["run"])
+                kw = {"marker": ".", "ms": 3, **extra(r["run"])}
+                ax.plot(cu[:, 0], cu[:, 1], color=c, ls=s, label=r["run"], **kw)
             ax.set_xlabel("u (mm)")
             ax.set_ylabel("F (kN)")
             ax.set_xlim(0, 0.75)
