@@ -149,7 +149,7 @@ def scene(kind, i, ne, h):
     t += '[[support]]\nnodes = "bottom"\nfix = "xy"\n\n'
     t += '[[load]]\nname = "lift"\ntype = "displacement"\nnodes = "lift"\ny = 1e-3   # m per unit level: level 0.2 = 0.2 mm\n\n'
     t += f'[contact]\nlaw = {{ type = "cohesive", normal_stiffness = {kn:.4e}, shear_stiffness = {kn:.4e}, tensile_strength = 2.7e6, fracture_energy = 90.0, friction = 0.0 }}\n\n'
-    t += "[cracking]\n# Checks during the march (the paper's at_equilibrium = false), every 100 steps: with cohesive\n# faces softening, the relaxation to 1e-4 often ends at the step limit, and checks at rest would\n# then never run in that stage (docs/paths.md).\nat_equilibrium = false\ncheck_every = 100\nmax_splits_per_check = 1\n\n"
+    t += "[cracking]\n# Checks at rest (at_equilibrium, the default), and also when the relaxation stalls (its best\n# unbalanced ratio not halved in 30 000 steps): with cohesive faces softening, a stage often never\n# comes to rest to 1e-4, and without stall_steps its checks would never run (docs/paths.md).\nstall_steps = 30000\nmax_splits_per_check = 1\n\n"
     t += '[cracking.criterion]\ntype = "rankine"\ntensile_strength = 2.7e6\n\n'
     t += '[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\n\n'
     t += '[output]\nhistory_every = 5000\nreactions = ["lift"]\n\n'
