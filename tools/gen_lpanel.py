@@ -123,9 +123,10 @@ HEADER = """# Winkler's L-shaped panel (issue 34 must-show 3, second half; docs/
 # reaction): nodes split by Rankine at f_t = 2.7 MPa; the new faces carry the `cohesive` contact
 # law (ours: linear softening, G_f = G_c = 90 N/m, frictionless; k_n = k_s = 10 E / h, ours);
 # explicit march, adaptive dynamic relaxation (the default damping), displacement in stages
-# (the ramp below), cracking checked at rest (the paper's at_equilibrium).
-# Separation rule: `tip_mts` (ours, issue 34); `flem paths --separation sigma1_nearest` or the
-# `_edge` runs of docs/paths.md give the paper's edge rule. Density 2400 kg/m^3 (only the
+# (the ramp below), cracking checked at rest (at_equilibrium, FLEM's default, ours) and when the
+# relaxation stalls (stall_steps, below).
+# Separation rule: `tip_mts` (ours, issue 34); the same scene with type = "sigma1_nearest" is the
+# paper's edge rule (the `lpe_` runs of docs/paths.md). Density 2400 kg/m^3 (only the
 # explicit march's time scale; quasi-static).
 # Mesh: {mesh_doc}. Written by tools/gen_lpanel.py.
 """
