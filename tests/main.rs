@@ -19,6 +19,7 @@ mod fuzz;
 mod implicit_plastic;
 mod interop;
 mod layout;
+mod lpanel;
 mod march3;
 mod mesh3;
 mod nonlocal;

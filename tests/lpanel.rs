@@ -1,0 +1,148 @@
+//! Winkler's L-shaped panel (issue 34 must-show 3, second half; docs/paths.md, section
+//! "Winkler's L-panel"): the scenes of configs/lpanel/ are the experiment's specimen, and on a
+//! small mesh the crack starts at the re-entrant corner, as in the experiments.
+//!
+//! Reference: Winkler, Hofstetter & Niederwanger (2001), Proc. IMechE L 215, 75-86 (../shared/
+//! BENCHMARKS.md): panel 500 x 500 mm less a 250 x 250 mm cut-out, t = 100 mm; bottom of the leg
+//! fixed; upward displacement on 470-500 mm of the arm's underside; E = 25.85 GPa, nu = 0.18,
+//! G_c 89-95 N/m, f_t 2.65-2.7 MPa; peak 6.7-7.6 kN at u ~ 0.20 mm (configs/lpanel/
+//! winkler_band.csv); the crack starts at the re-entrant corner.
+use flem_core::solver::{Observer, Simulation};
+
+use crate::common::{root, sim};
+
+/// The scene `configs/lpanel/NAME.toml` as text for `common::sim` (paths against configs/).
+fn text(name: &str) -> String {
+    let t = std::fs::read_to_string(root().join(format!("configs/lpanel/{name}.toml"))).unwrap();
+    let mesh = format!("file = \"{name}.msh\"");
+    assert!(t.contains(&mesh), "{name}: the scene's mesh line changed: update the test");
+    t.replace(&mesh, &format!("file = \"lpanel/{name}.msh\""))
+}
+
+const KINDS: [&str; 3] = ["t3", "quad", "q4"];
+
+/// Every scene is the specimen: the mesh fills the L (area 0.5^2 - 0.25^2 m^2 to 1e-9, no
+/// point inside the cut-out), the load acts on the arm's underside at 470-500 mm, the support on
+/// the leg's bottom, plane stress, E and nu as published, the criterion's and the cohesive law's
+/// strength and the fracture energy inside the published ranges (f_t 2.65-2.7 MPa, G_c 89-95
+/// N/m). A scene with the load on the wrong edge, a cut-out on the wrong side or a strength off
+/// the published range fails here.
+#[test]
+fn lpanel_scenes_are_winklers_specimen() {
+    for kind in KINDS {
+        for i in 1..=3 {
+            let name = format!("lpanel_{kind}_{i}");
+            let t = text(&name);
+            let s = sim(&t);
+            let m = &s.model;
+            let pts = &m.mesh.points;
+            for x in pts {
+                assert!(x[0] > -1e-12 && x[0] < 0.5 + 1e-12 && x[1] > -1e-12 && x[1] < 0.5 + 1e-12, "{name}: point {x:?} outside the panel");
+                assert!(!(x[0] > 0.25 + 1e-9 && x[1] < 0.25 - 1e-9), "{name}: point {x:?} inside the cut-out");
+            }
+            let mut area = 0.0;
+            for cell in &m.mesh.cells {
+                let c = cell.corners();
+                for k in 0..c.len() {
+                    let (a, b) = (pts[c[k] as usize], pts[c[(k + 1) % c.len()] as usize]);
+                    area += 0.5 * (a[0] * b[1] - b[0] * a[1]);
+                }
+            }
+            assert!((area - 0.1875).abs() < 1e-9, "{name}: area {area}");
+            let lift = m.node_set("lift", "lift", &name).unwrap();
+            assert!(lift.len() >= 2);
+            for p in &lift {
+                let x = pts[p.idx()];
+                assert!((x[1] - 0.25).abs() < 1e-9 && x[0] >= 0.47 - 1e-6 && x[0] <= 0.5 + 1e-12, "{name}: load point {x:?}");
+            }
+            let bottom = m.node_set("bottom", "bottom", &name).unwrap();
+            for p in &bottom {
+                let x = pts[p.idx()];
+                assert!(x[1].abs() < 1e-12 && x[0] <= 0.25 + 1e-12, "{name}: support point {x:?}");
+            }
+            assert!(t.contains("plane = \"stress\""));
+            assert!(t.contains("young_modulus = 25.85e9\npoisson_ratio = 0.18\n"));
+            let num = |key: &str| -> f64 {
+                let i = t.find(key).unwrap_or_else(|| panic!("{name}: no {key}")) + key.len();
+                t[i..].split(|c: char| c == ',' || c == '\n' || c == ' ' || c == '}').find(|w| !w.is_empty()).unwrap().parse().unwrap()
+            };
+            let (ft, gc) = (num("tensile_strength = "), num("fracture_energy = "));
+            assert!((2.65e6..=2.7e6).contains(&ft) && (89.0..=95.0).contains(&gc), "{name}: f_t {ft}, G_c {gc}");
+            assert!(t.contains("type = \"cohesive\"") && t.contains("type = \"tip_mts\""));
+        }
+    }
+}
+
+/// The split points and the load's reaction at every stage end.
+#[derive(Default)]
+struct Log {
+    splits: Vec<[f64; 2]>,
+    force: Vec<(f64, f64)>,
+    lift: Vec<flem_core::ids::PointId>,
+}
+
+impl Observer for Log {
+    fn splits(&mut self, sim: &Simulation, _rec: &flem_core::mesh::topology::SplitRecord, events: &[flem_core::cracking::SplitEvent]) -> flem_core::error::Result<()> {
+        self.splits.extend(events.iter().map(|e| sim.model.mesh.points[e.point.idx()]));
+        Ok(())
+    }
+    fn stage_end(&mut self, sim: &Simulation, _stage: usize) -> flem_core::error::Result<()> {
+        // kN on the 100 mm thick panel against the load point's displacement in mm.
+        self.force.push((sim.levels[0], sim.reaction(&self.lift)[1].abs() * 0.1 / 1e3));
+        Ok(())
+    }
+}
+
+/// The small mesh (h = 25 mm, 435 triangles; tools/gen_lpanel.py) with the scene's stages up
+/// to `u_max` mm.
+fn small(u_max: f64) -> (Simulation, Log) {
+    let mut t = text("lpanel_t3_1").replace("file = \"lpanel/lpanel_t3_1.msh\"", "file = \"lpanel/lpanel_t3_test.msh\"");
+    let cut = t.find("[[stage]]").unwrap();
+    let stages = t.split_off(cut);
+    for st in stages.split("[[stage]]").filter(|s| !s.trim().is_empty()) {
+        let v: f64 = st.split("lift = ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        if v <= u_max + 1e-12 {
+            t += "[[stage]]";
+            t += st;
+        }
+    }
+    let mut s = sim(&t);
+    let lift = s.model.node_set("lift", "lift", "test").unwrap();
+    let mut log = Log { lift, ..Log::default() };
+    s.run(&mut log).unwrap();
+    (s, log)
+}
+
+/// Reference: the experiments (the crack starts at the re-entrant corner, Winkler 2001) and
+/// beam theory for its direction: the upward load F at x = 0.485 m bends the leg's top section
+/// (y = 0.25, lever 0.485 - 0.125 = 0.36 m) more than the arm's root section (x = 0.25, lever
+/// 0.235 m), both 0.25 m deep, so the vertical stress sigma_yy at the corner exceeds sigma_xx
+/// (ratio about 1.5) and the crack leaves the corner leftwards, nearer horizontal than vertical.
+/// Tolerances: the first split within 1.2 element sizes (h = 25 mm) of the corner (the corner
+/// point itself or the next point on the leg's face); the chord from it to the fourth split of
+/// that crack runs leftwards within 45 deg of the horizontal (measured: 152 deg from +x, 28 deg
+/// above the horizontal). With the load reversed (the arm pushed down, the corner in
+/// compression) nothing splits up to 0.1 mm (checked once by hand), and the test fails.
+#[test]
+fn lpanel_crack_starts_at_the_re_entrant_corner_and_runs_left() {
+    let (_s, log) = small(0.1);
+    assert!(log.splits.len() >= 4, "{} splits up to u = 0.1 mm: {:?}, forces {:?}", log.splits.len(), log.splits, log.force);
+    let first = log.splits[0];
+    let d = (first[0] - 0.25).hypot(first[1] - 0.25);
+    assert!(d <= 1.2 * 0.025, "first split at {first:?}, {d} m from the corner");
+    let last = log.splits[3];
+    let ang = (last[1] - first[1]).atan2(last[0] - first[0]).to_degrees();
+    assert!((135.0..=225.0).contains(&ang), "the crack from the corner runs at {ang:.1} deg from +x: {:?}", &log.splits[..4]);
+}
+
+/// Reference: the experiments' peak, 6.7-7.6 kN (configs/lpanel/winkler_band.csv). Not met
+/// (docs/paths.md, "Winkler's L-panel"): on this mesh the peak is 12.4 kN at 0.2 mm, 8.5 kN
+/// and more on the scenes' meshes; kept, ignored, as the record of the gap (run it with
+/// `cargo test --release -p flem --test flem-tests -- --ignored lpanel`).
+#[test]
+#[ignore = "not met: the peak is 8.5 kN and more against 6.7-7.6 kN (docs/paths.md, Winkler's L-panel)"]
+fn lpanel_peak_inside_the_experimental_band() {
+    let (_s, log) = small(0.4);
+    let peak = log.force.iter().map(|f| f.1).fold(0.0, f64::max);
+    assert!((6.7..=7.6).contains(&peak), "peak {peak:.2} kN: {:?}", log.force);
+}
