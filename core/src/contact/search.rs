@@ -470,15 +470,22 @@ impl Contact {
     }
 
     /// Restores the checkpointed bonds (after [`Contact::restore`]); their slaves are re-read
-    /// from the topology.
-    pub fn restore_bonds(&mut self, model: &Model, mut bonds: Vec<Bond>) {
-        for b in bonds.iter_mut() {
-            if let Some((s, _, _, _)) = bond_ends(&model.topo, b.edge, b.end) {
-                b.slave = s;
+    /// from the topology. A bond that names no cut edge end with two sides, or no crack face as
+    /// its master, or an area that is not finite and positive, is refused (a corrupt or foreign
+    /// checkpoint: the message names the bond), and nothing is restored.
+    pub fn restore_bonds(&mut self, model: &Model, mut bonds: Vec<Bond>) -> Result<(), String> {
+        for (i, b) in bonds.iter_mut().enumerate() {
+            let Some((s, _, _, _)) = bond_ends(&model.topo, b.edge, b.end) else {
+                return Err(format!("cohesive bond {i} names edge {} end {}, which is not an edge with two sides in this mesh", b.edge, b.end));
+            };
+            if self.face(b.master).is_none() || !(b.area.is_finite() && b.area > 0.0) {
+                return Err(format!("cohesive bond {i} (edge {} end {}) has master face {} and area {}: not a crack face of this run, or not a positive area", b.edge, b.end, b.master, b.area));
             }
+            b.slave = s;
         }
         self.bonds = bonds;
         self.refresh_bonded();
+        Ok(())
     }
 
     /// Whether crack faces carry cohesion per face end ([`Bond`]; the law has cohesion).

@@ -365,8 +365,14 @@ impl Checkpoint {
         match (sim.contact.as_mut(), self.section::<crate::contact::ContactHistory>("contact", 2)?) {
             (Some(c), Some(h)) => {
                 c.restore(&sim.model, h);
-                if let Some(b) = self.section::<Vec<crate::contact::Bond>>("contact_bonds", 1)? {
-                    c.restore_bonds(&sim.model, b);
+                // Cohesion per crack face (issue 36): the bonds must come with a law that has
+                // it, and such a law needs them (the cuts replayed above made fresh bonds, which
+                // would release the fracture energy of faces already open a second time).
+                match (c.per_face(), self.section::<Vec<crate::contact::Bond>>("contact_bonds", 1)?) {
+                    (true, Some(b)) => c.restore_bonds(&sim.model, b).map_err(bad)?,
+                    (false, None) => {}
+                    (true, None) => return Err(bad("the scene's contact law has cohesion per crack face and the checkpoint has no cohesive bonds (section contact_bonds; written before session 17?): resume it with the binary that wrote it, or run the scene afresh".into())),
+                    (false, Some(_)) => return Err(bad("the checkpoint has cohesive bonds (section contact_bonds) and the scene's contact law has no cohesion".into())),
                 }
                 if let Some(v) = self.section::<crate::contact::search::VerletState>("contact_verlet", 1)? {
                     c.restore_verlet(&sim.x0, v);
