@@ -383,22 +383,9 @@ fn update_lanes_edges_are_update_bit_for_bit() {
 #[test]
 fn never_yielded_shortcut_matches_the_stored_path() {
     use flem_core::element::block::Block;
-    use flem_core::element::law::{LawCfg, RegionElems, StatefulOpts};
-    use flem_core::ids::ElemId;
+    use flem_core::element::law::{LawCfg, StatefulOpts};
     let (nx, ny) = (6usize, 3usize);
-    let xy = |i: usize, j: usize| {
-        let (x, y) = (i as f64, j as f64);
-        [x + 0.2 * (0.7 * y + 0.3 * x).sin(), y + 0.15 * (0.9 * x).cos()]
-    };
-    let nodes: Vec<[f64; 2]> = (0..=ny).flat_map(|j| (0..=nx).map(move |i| (i, j))).map(|(i, j)| xy(i, j)).collect();
-    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-    let mut elems = RegionElems { q4_kind: "q4", ..Default::default() };
-    for j in 0..ny {
-        for i in 0..nx {
-            let c = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
-            elems.q4.push((ElemId::new(j * nx + i), c.map(|k| nodes[k as usize]), c));
-        }
-    }
+    let (nodes, elems) = distorted_q4(nx, ny);
     let field = |a: f64| -> Vec<[f64; 2]> { nodes.iter().map(|p| [a * (0.02 * p[1] * p[1] - 0.01 * p[0]), a * (-0.015 * p[1] + 0.004 * p[0] * p[1])]).collect() };
     let (steps, nn) = (40, nodes.len());
     let cfg = |c: f64| MohrCoulombCfg { cohesion: c, friction_angle_deg: 30.0, dilation_angle_deg: 5.0, tension_cutoff: None, softening: None };
@@ -640,22 +627,9 @@ fn xorshift(seed: u64) -> impl FnMut() -> f64 {
 /// memory layout changed, not one operation.
 #[test]
 fn packed_state_checkpoints_element_major_and_resumes_bit_for_bit() {
-    use flem_core::element::law::{LawCfg, RegionElems, StatefulOpts};
-    use flem_core::ids::ElemId;
+    use flem_core::element::law::{LawCfg, StatefulOpts};
     let (nx, ny) = (19usize, 1usize);
-    let xy = |i: usize, j: usize| {
-        let (x, y) = (i as f64, j as f64);
-        [x + 0.2 * (0.7 * y + 0.3 * x).sin(), y + 0.15 * (0.9 * x).cos()]
-    };
-    let nodes: Vec<[f64; 2]> = (0..=ny).flat_map(|j| (0..=nx).map(move |i| (i, j))).map(|(i, j)| xy(i, j)).collect();
-    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-    let mut elems = RegionElems { q4_kind: "q4", ..Default::default() };
-    for j in 0..ny {
-        for i in 0..nx {
-            let c = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
-            elems.q4.push((ElemId::new(j * nx + i), c.map(|k| nodes[k as usize]), c));
-        }
-    }
+    let (nodes, elems) = distorted_q4(nx, ny);
     let nn = nodes.len();
     let field = |a: f64| -> Vec<[f64; 2]> { nodes.iter().map(|p| [a * (0.02 * p[1] * p[1] - 0.01 * p[0] + 0.003 * p[0] * p[1]), a * (-0.015 * p[1] + 0.004 * p[0] * p[1])]).collect() };
     let cfg = |c: f64| MohrCoulombCfg { cohesion: c, friction_angle_deg: 30.0, dilation_angle_deg: 5.0, tension_cutoff: None, softening: None };
@@ -722,4 +696,23 @@ fn packed_state_checkpoints_element_major_and_resumes_bit_for_bit() {
             assert!(plastic > 0 && plastic < ne, "bbar {bbar}: {plastic} of {ne} elements plastic: the test needs both kinds");
         }
     }
+}
+
+/// An `nx` x `ny` grid of distorted Q4 (unit cells, each node moved by a smooth field: no two
+/// elements alike), as the block tests build it: the nodes and the region's elements.
+fn distorted_q4(nx: usize, ny: usize) -> (Vec<[f64; 2]>, flem_core::element::law::RegionElems) {
+    let xy = |i: usize, j: usize| {
+        let (x, y) = (i as f64, j as f64);
+        [x + 0.2 * (0.7 * y + 0.3 * x).sin(), y + 0.15 * (0.9 * x).cos()]
+    };
+    let nodes: Vec<[f64; 2]> = (0..=ny).flat_map(|j| (0..=nx).map(move |i| (i, j))).map(|(i, j)| xy(i, j)).collect();
+    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+    let mut elems = flem_core::element::law::RegionElems { q4_kind: "q4", ..Default::default() };
+    for j in 0..ny {
+        for i in 0..nx {
+            let c = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+            elems.q4.push((flem_core::ids::ElemId::new(j * nx + i), c.map(|k| nodes[k as usize]), c));
+        }
+    }
+    (nodes, elems)
 }
