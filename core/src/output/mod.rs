@@ -366,7 +366,7 @@ impl OutputWriter {
             "dt_over_dt_crit": sim.dt / sim.stable.dt_crit,
             "dt_element_bound": sim.stable.dt_element_bound,
             "stages": sim.stages_done,
-            "energy": {"external_work": l.external(), "kinetic": l.kinetic, "strain": l.strain, "damping": l.dissipated(), "contact_energy": l.contact_energy, "contact_dissipated": l.contact_dissipated, "fracture": l.fracture, "residual": l.residual(), "relative_residual": l.relative_residual()},
+            "energy": l.summary_json(),
             "splits": sim.cracking.as_ref().map(|c| c.n_splits).unwrap_or(0),
             "beyond_criterion": sim.cracking.as_ref().map(|c| c.beyond_criterion()).unwrap_or(0),
             "crack_faces": {"separated_one_end": one, "separated_both_ends": two},

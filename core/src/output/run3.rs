@@ -184,9 +184,12 @@ pub fn run3_with(scene: &mut Scene3, dir: &Path, resume: bool, stop: Option<Arc<
         "dt": m.dt,
         "warnings": m.warnings,
         "stages": stages,
-        "energy": { "external_work": m.ledger.external(), "kinetic": m.ledger.kinetic, "strain": m.ledger.strain, "damping": m.ledger.dissipated(), "contact_stored": m.ledger.contact_energy, "contact_dissipated": m.ledger.contact_dissipated, "contact_work": m.ledger.contact_work - m.ledger.pending_contact, "residual": m.ledger.residual(), "relative_residual": m.ledger.relative_residual() },
+        "energy": m.ledger.summary_json(),
         "wall_seconds": t0.elapsed().as_secs_f64(),
     });
+    // The work contact forces did on the nodes (beside what the law says it stored and
+    // dissipated: docs/3d.md, "3D scenes").
+    summary["energy"]["contact_work"] = serde_json::json!(m.ledger.contact_work - m.ledger.pending_contact);
     if let Some(rows) = compare {
         // The implicit check's verdict per stage (the figures are in compare.json).
         summary["compare"] = rows

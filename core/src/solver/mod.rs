@@ -136,6 +136,12 @@ impl Ledger {
     pub fn residual(&self) -> f64 {
         self.external() - (self.kinetic + self.strain + self.dissipated() + self.contact_energy + self.contact_dissipated)
     }
+    /// The ledger as `summary.json` writes it (2D and 3D runs): the terms of the balance, the
+    /// fracture part of `contact_dissipated`, the work contact forces did on the nodes, and the
+    /// residual, absolute and relative.
+    pub fn summary_json(&self) -> serde_json::Value {
+        serde_json::json!({"external_work": self.external(), "kinetic": self.kinetic, "strain": self.strain, "damping": self.dissipated(), "contact_energy": self.contact_energy, "contact_dissipated": self.contact_dissipated, "fracture": self.fracture, "residual": self.residual(), "relative_residual": self.relative_residual()})
+    }
     /// Residual relative to the largest term.
     pub fn relative_residual(&self) -> f64 {
         let scale = self.external().abs().max(self.kinetic.abs() + self.strain.abs() + self.dissipated().abs() + self.contact_energy.abs() + self.contact_dissipated.abs());
