@@ -1,5 +1,6 @@
 //! The one integration-test binary (cargo/ripgrep style: `autotests = false`, links once).
 //! Every verification test names its reference and tolerance.
+mod beam;
 mod brazilian3;
 mod cavity;
 mod charts;
