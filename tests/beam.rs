@@ -114,9 +114,10 @@ fn run(name: &str, events: u32) -> (Vec<[f64; 2]>, Simulation) {
 /// the path starts at the notch tip (4, 1), first meets a boundary on the middle hole's circle
 /// (within 1e-9 of radius 0.25 from (6, 4.75)), turns right of the notch's line (its end at
 /// x > 5.5) and stays below the middle hole's centre line plus a radius; no fragment below
-/// 3 elements (must-show 4). Without the holes, or with a straight mode-I path up from the
-/// notch, the path ends on the outer boundary instead and this fails. Measured (docs/paths.md):
-/// the nine meshes end on the middle hole within 2 % of 20 in of each other.
+/// 3 elements (must-show 4). A straight path up the notch's line (what the edge rule gives on
+/// the Q4 grids) ends on the top and fails; the edge rule on this mesh fails too (its path from
+/// the tip meets no boundary: docs/paths.md). Measured (docs/paths.md): the nine meshes end on
+/// the middle hole within 1.17 % of 20 in of each other.
 #[test]
 fn beam_crack_runs_from_the_notch_into_the_middle_hole() {
     let (path, s) = run("beam_t3_1", 70);
