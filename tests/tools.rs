@@ -27,8 +27,9 @@ use crate::common::root;
 
 /// Every scene of configs/ (TOML files with a `[mesh]` table), sorted; of the kink scenes of
 /// configs/paths/ (issue 34: 36 runs of three mesh kinds at three sizes, measured by
-/// `flem paths` and tests/paths.rs) and of Winkler's L-panel (configs/lpanel/, tests/lpanel.rs)
-/// only the coarsest size (`_1`), to keep the suite quick.
+/// `flem paths` and tests/paths.rs), of Winkler's L-panel (configs/lpanel/, tests/lpanel.rs) and
+/// of Bittencourt's beam (configs/beam/, tests/beam.rs) only the coarsest size (`_1`), to keep
+/// the suite quick.
 fn scenes() -> Vec<PathBuf> {
     let mut out = Vec::new();
     let mut dirs = vec![root().join("configs")];
@@ -38,7 +39,9 @@ fn scenes() -> Vec<PathBuf> {
             if p.is_dir() {
                 dirs.push(p);
             } else if p.extension().is_some_and(|x| x == "toml") && std::fs::read_to_string(&p).unwrap().contains("[mesh]") {
-                if p.parent().is_some_and(|d| d.ends_with("configs/paths") || d.ends_with("configs/lpanel")) && !p.file_stem().is_some_and(|s| s.to_string_lossy().ends_with("_1")) {
+                if p.parent().is_some_and(|d| d.ends_with("configs/paths") || d.ends_with("configs/lpanel") || d.ends_with("configs/beam"))
+                    && !p.file_stem().is_some_and(|s| s.to_string_lossy().ends_with("_1"))
+                {
                     continue;
                 }
                 out.push(p);
