@@ -152,10 +152,10 @@ fn footing_implicit(path: &Path, inc: usize, shifted: bool) -> Result<(f64, f64)
     Ok((q, t0.elapsed().as_secs_f64()))
 }
 
-fn fos_explicit(path: &Path, warm: bool, early: bool) -> Result<(f64, f64)> {
+fn fos_explicit(path: &Path, warm: bool, early: bool, trend: bool) -> Result<(f64, f64)> {
     let (text, base) = load(path)?;
     let t0 = Instant::now();
-    let o = FosOptions { warm, early, ..FosOptions::default() };
+    let o = FosOptions { warm, early, trend, ..FosOptions::default() };
     let r = factor_of_safety(&text, path, &base, &o, &mut |_| {})?;
     Ok((r.fos, t0.elapsed().as_secs_f64()))
 }
@@ -221,11 +221,13 @@ pub fn run(a: &Args) -> Result<()> {
         vs.push(Variant { scene: "footing, phi = 30", method: format!("implicit, {n} increments"), reference: nc30, run: Box::new(move || footing_implicit(&p, n, false)) });
     }
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, false)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, false, false)) });
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit, warm start (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, true, false)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit, warm start (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, true, false, false)) });
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit, early verdicts (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, true)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit, early verdicts (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, true, false)) });
+    let p = slope.clone();
+    vs.push(Variant { scene: "slope, fos", method: "explicit, early verdicts and trend search (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, true, true)) });
     if !a.quick {
         let p = slope.clone();
         vs.push(Variant { scene: "slope, fos", method: "implicit, 10 increments".into(), reference: BISHOP, run: Box::new(move || fos_implicit(&p)) });
