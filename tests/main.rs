@@ -22,6 +22,7 @@ mod interop;
 mod layout;
 mod lpanel;
 mod march3;
+mod mass_scaling;
 mod mesh3;
 mod nonlocal;
 mod paper;

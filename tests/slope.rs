@@ -260,3 +260,32 @@ fn fos_warm_start_and_early_verdicts_keep_the_factor_of_safety() {
     let steps = |r: &flem_core::solver::fos::FosResult| r.trials.iter().map(|t| t.steps).sum::<u64>();
     assert!(3 * steps(&early) <= 2 * steps(full), "early {} steps, full {}", steps(&early), steps(full));
 }
+
+/// The trend search (ours, `FosOptions::trend`, with early verdicts): on the coarse slope with
+/// the default bracket [0.5, 3] and 1 %, the factor of safety within 2 % of Bishop's simplified
+/// method (computed here; the full bisection is +0.5 % from it, the bracket itself 1 % wide),
+/// the bracket 1 % wide with its lower end a trial that stood and its upper end one that
+/// flowed, and after the two first trials (3 and the mid-point 1.75, far from the answer)
+/// every trial within 5 % of Bishop's factor: the extrapolated estimate, not bisection,
+/// placed them. A wrong estimate (say, the ratios not falling with F) would fall back to
+/// bisection and put trials at 1.1 and 1.3 (more than 5 % away).
+#[test]
+fn fos_trend_search_places_the_trials_near_the_factor_of_safety() {
+    flem_plugins::link();
+    use flem_core::solver::fos::{factor_of_safety, FosOptions};
+    let (fb, ..) = bishop_search(10.0, 20f64.to_radians().tan(), 20.0);
+    let scene = root().join("configs/verification/slope.toml");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let base = scene.parent().unwrap();
+    let r = factor_of_safety(&text, &scene, base, &FosOptions { early: true, trend: true, ..FosOptions::default() }, &mut |_| {}).unwrap();
+    let seq: Vec<(f64, bool, u64)> = r.trials.iter().map(|t| (t.f, t.flows, t.steps)).collect();
+    eprintln!("trend: {:.4} {:?}, Bishop {fb:.4}, trials {seq:?}", r.fos, r.bracket);
+    assert!(rel(r.fos, fb) < 0.02, "trend {} vs Bishop {fb}", r.fos);
+    let [lo, hi] = r.bracket;
+    assert!(hi - lo <= 0.01 * lo * (1.0 + 1e-9), "bracket {:?}", r.bracket);
+    assert!(r.trials.iter().any(|t| t.f == lo && !t.flows) && r.trials.iter().any(|t| t.f == hi && t.flows), "bracket ends not run: {seq:?}");
+    assert!(r.trials.len() <= 7, "{} trials: {seq:?}", r.trials.len());
+    for t in &r.trials[2..] {
+        assert!(rel(t.f, fb) < 0.05, "trial at {} far from the factor {fb}: {seq:?}", t.f);
+    }
+}

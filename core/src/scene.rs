@@ -114,6 +114,15 @@ pub struct SolverCfg {
     /// (`crate::element::stateful`); default false: small strain.
     #[serde(default)]
     pub large_strain: bool,
+    /// Mass scaling to a common stable step (ours, issue 37; off by default: it changes the
+    /// dynamics, so it is for stages that march to rest or push slowly, whose answer is the
+    /// state at rest): every node's lumped mass lowered to `G_i / max_j (G_j / m_j)`, `G_i` its
+    /// Gershgorin row sum of the elastic stiffness, so that every node has the highest node's
+    /// `G / m` (`Simulation::new`, docs/materials.md). The stable step is estimated on the scaled
+    /// masses. Refused with gravity (the body force would scale with the masses) and with
+    /// cracking or contact (splits recompute the masses).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub mass_scaling: bool,
     /// The stage solver: `"explicit"` (the paper's damped relaxation, the default) or
     /// `"events"` (ours, issue 19: one linear solve per crack event, `solver::events`,
     /// docs/events.md; scenes with cracking and linear elements; contact only for the
@@ -222,6 +231,7 @@ impl Default for SolverCfg {
             ratio_every: default_ratio_every(),
             threads: 1,
             large_strain: false,
+            mass_scaling: false,
             kind: SolverKind::Explicit,
             max_events: default_max_events(),
             refactor_every: default_refactor_every(),

@@ -104,7 +104,7 @@ impl Spread {
 /// CPU seconds used so far by every thread of this process (Linux `/proc/self/task/*/schedstat`,
 /// nanosecond resolution; 0 elsewhere). On a shared machine the wall time counts the time other
 /// processes hold the cores; the CPU time does not.
-fn cpu_seconds() -> f64 {
+pub(crate) fn cpu_seconds() -> f64 {
     let Ok(dir) = std::fs::read_dir("/proc/self/task") else { return 0.0 };
     dir.filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("schedstat")).ok()).filter_map(|s| s.split_whitespace().next()?.parse::<f64>().ok()).sum::<f64>() * 1e-9
 }

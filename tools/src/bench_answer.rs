@@ -53,6 +53,10 @@ pub struct Args {
     /// increment before a halving (instead of 25).
     #[arg(long)]
     pub newton_shift: bool,
+    /// Ours (issue 37): also the footings pushed at every `--faster` speed with
+    /// `[solver] mass_scaling = true` (every node's mass lowered to a common stable step).
+    #[arg(long)]
+    pub mass_scaling: bool,
     /// Output folder for answer.json and the chart.
     #[arg(long, default_value = "out/bench_answer")]
     pub out: PathBuf,
@@ -113,11 +117,21 @@ fn faster(text: &str, k: f64) -> Result<String> {
     Ok(toml::to_string(&v)?)
 }
 
+/// The scene with `[solver] mass_scaling = true` (ours).
+fn mass_scaled(text: &str) -> Result<String> {
+    let mut v: toml::Value = toml::from_str(text)?;
+    let t = v.as_table_mut().context("scene is not a table")?;
+    let s = t.entry("solver").or_insert_with(|| toml::Value::Table(Default::default()));
+    s.as_table_mut().context("[solver] is not a table")?.insert("mass_scaling".into(), toml::Value::Boolean(true));
+    Ok(toml::to_string(&v)?)
+}
+
 /// The footing explicit, pushed `k` times as fast as written (1: as written): (plateau, wall
 /// seconds).
-fn footing_explicit(path: &Path, k: f64) -> Result<(f64, f64)> {
+fn footing_explicit(path: &Path, k: f64, scaled: bool) -> Result<(f64, f64)> {
     let (text, base) = load(path)?;
     let text = if k == 1.0 { text } else { faster(&text, k)? };
+    let text = if scaled { mass_scaled(&text)? } else { text };
     let t0 = Instant::now();
     let mut s = Simulation::new(Scene::from_str(&text, path, &base)?)?;
     let pts = s.model.node_set("footing", "set", &path.display().to_string())?;
@@ -152,10 +166,10 @@ fn footing_implicit(path: &Path, inc: usize, shifted: bool) -> Result<(f64, f64)
     Ok((q, t0.elapsed().as_secs_f64()))
 }
 
-fn fos_explicit(path: &Path, warm: bool, early: bool) -> Result<(f64, f64)> {
+fn fos_explicit(path: &Path, warm: bool, early: bool, trend: bool) -> Result<(f64, f64)> {
     let (text, base) = load(path)?;
     let t0 = Instant::now();
-    let o = FosOptions { warm, early, ..FosOptions::default() };
+    let o = FosOptions { warm, early, trend, ..FosOptions::default() };
     let r = factor_of_safety(&text, path, &base, &o, &mut |_| {})?;
     Ok((r.fos, t0.elapsed().as_secs_f64()))
 }
@@ -195,7 +209,11 @@ pub fn run(a: &Args) -> Result<()> {
     let mut vs: Vec<Variant> = Vec::new();
     for &k in &a.faster {
         let p = tresca.clone();
-        vs.push(Variant { scene: "footing, Tresca", method: explicit_name(k), reference: PRANDTL, run: Box::new(move || footing_explicit(&p, k)) });
+        vs.push(Variant { scene: "footing, Tresca", method: explicit_name(k), reference: PRANDTL, run: Box::new(move || footing_explicit(&p, k, false)) });
+        if a.mass_scaling {
+            let p = tresca.clone();
+            vs.push(Variant { scene: "footing, Tresca", method: format!("{}, mass scaling (ours)", explicit_name(k)), reference: PRANDTL, run: Box::new(move || footing_explicit(&p, k, true)) });
+        }
     }
     for &n in &a.increments {
         let p = tresca.clone();
@@ -213,7 +231,11 @@ pub fn run(a: &Args) -> Result<()> {
     for &k in &a.faster {
         if !a.quick || k > 2.0 {
             let p = phi30.clone();
-            vs.push(Variant { scene: "footing, phi = 30", method: explicit_name(k), reference: nc30, run: Box::new(move || footing_explicit(&p, k)) });
+            vs.push(Variant { scene: "footing, phi = 30", method: explicit_name(k), reference: nc30, run: Box::new(move || footing_explicit(&p, k, false)) });
+        }
+        if a.mass_scaling {
+            let p = phi30.clone();
+            vs.push(Variant { scene: "footing, phi = 30", method: format!("{}, mass scaling (ours)", explicit_name(k)), reference: nc30, run: Box::new(move || footing_explicit(&p, k, true)) });
         }
     }
     for &n in &a.increments {
@@ -221,38 +243,57 @@ pub fn run(a: &Args) -> Result<()> {
         vs.push(Variant { scene: "footing, phi = 30", method: format!("implicit, {n} increments"), reference: nc30, run: Box::new(move || footing_implicit(&p, n, false)) });
     }
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, false)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, false, false)) });
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit, warm start (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, true, false)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit, warm start (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, true, false, false)) });
     let p = slope.clone();
-    vs.push(Variant { scene: "slope, fos", method: "explicit, early verdicts (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, true)) });
+    vs.push(Variant { scene: "slope, fos", method: "explicit, early verdicts (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, true, false)) });
+    let p = slope.clone();
+    vs.push(Variant { scene: "slope, fos", method: "explicit, early verdicts and trend search (ours)".into(), reference: BISHOP, run: Box::new(move || fos_explicit(&p, false, true, true)) });
     if !a.quick {
         let p = slope.clone();
         vs.push(Variant { scene: "slope, fos", method: "implicit, 10 increments".into(), reference: BISHOP, run: Box::new(move || fos_implicit(&p)) });
     }
     // Rounds: every variant once per round, interleaved.
-    let mut res: Vec<(f64, Vec<f64>)> = vec![(f64::NAN, Vec::new()); vs.len()];
+    let mut res: Vec<(f64, Vec<f64>, Vec<f64>)> = vec![(f64::NAN, Vec::new(), Vec::new()); vs.len()];
     for round in 0..a.repeat {
         for (v, r) in vs.iter().zip(res.iter_mut()) {
+            let c0 = crate::bench::cpu_seconds();
             let (ans, secs) = (v.run)().with_context(|| format!("{} by {}", v.scene, v.method))?;
-            eprintln!("bench answer: round {} {} by {}: {ans:.5} in {secs:.3} s", round + 1, v.scene, v.method);
+            let cpu = crate::bench::cpu_seconds() - c0;
+            eprintln!("bench answer: round {} {} by {}: {ans:.5} in {secs:.3} s ({cpu:.3} s CPU)", round + 1, v.scene, v.method);
             r.0 = ans;
             r.1.push(secs);
+            r.2.push(cpu);
         }
     }
     let explicit_of = |scene: &str| vs.iter().zip(&res).find(|(v, _)| v.scene == scene && v.method == "explicit").map(|(_, r)| r);
     let mut rows = Vec::new();
     let mut pts = Vec::new();
-    for (v, (ans, secs)) in vs.iter().zip(&res) {
+    for (v, (ans, secs, cpus)) in vs.iter().zip(&res) {
         let best = secs.iter().copied().fold(f64::INFINITY, f64::min);
+        let best_cpu = cpus.iter().copied().fold(f64::INFINITY, f64::min);
         let err = (ans - v.reference) / v.reference;
         let ex = explicit_of(v.scene);
         let vs_explicit = ex.map(|e| (ans - e.0) / e.0);
         let speedup = ex.map(|e| e.1.iter().copied().fold(f64::INFINITY, f64::min) / best);
-        rows.push(json!({"scene": v.scene, "method": v.method, "answer": ans, "reference": v.reference, "error": err, "vs_explicit": vs_explicit, "best_seconds": best, "seconds": secs, "explicit_over_this": speedup}));
-        pts.push(flem_plot::charts::ChartPoint { method: v.method.clone(), element: String::new(), mesh: v.scene.to_string(), wall_seconds: best, error: err.abs().max(1e-6), pareto: false });
+        let speedup_cpu = ex.map(|e| e.2.iter().copied().fold(f64::INFINITY, f64::min) / best_cpu);
+        rows.push(json!({"scene": v.scene, "method": v.method, "answer": ans, "reference": v.reference, "error": err, "vs_explicit": vs_explicit, "best_seconds": best, "seconds": secs, "explicit_over_this": speedup, "best_cpu_seconds": best_cpu, "cpu_seconds": cpus, "explicit_over_this_cpu": speedup_cpu}));
+        // The chart tells at most 8 methods apart: one class per kind of method.
+        let class = if v.method.starts_with("implicit") {
+            "implicit"
+        } else if v.method.contains("(ours)") {
+            "explicit, options of ours"
+        } else if v.method.contains("pushed") {
+            "explicit, pushed faster"
+        } else {
+            "explicit, as written"
+        };
+        pts.push(flem_plot::charts::ChartPoint { method: class.to_string(), element: String::new(), mesh: v.scene.to_string(), wall_seconds: best, error: err.abs().max(1e-6), pareto: false });
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot be created", a.out.display()))?;
+    // The table first, so that a chart that fails loses no measurement.
+    flem_core::output::atomic_write(&a.out.join("answer.json"), serde_json::to_string_pretty(&json!({"bench": "answer", "repeat": a.repeat, "rows": rows}))?.as_bytes())?;
     let files = flem_plot::charts::speed_accuracy(
         &a.out.join("answer"),
         "plastic scenes: time to answer (explicit beside implicit)",
@@ -260,7 +301,7 @@ pub fn run(a: &Args) -> Result<()> {
         &pts,
     )?;
     let j = json!({"bench": "answer", "repeat": a.repeat, "rows": rows, "pictures": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
-        "note": "wall time of model build and solve, best of the rounds, variants interleaved; the machine may be shared"});
+        "note": "wall and CPU time (every thread of the process) of model build and solve, best of the rounds, variants interleaved; the machine may be shared"});
     flem_core::output::atomic_write(&a.out.join("answer.json"), serde_json::to_string_pretty(&j)?.as_bytes())?;
     println!("{}", serde_json::to_string_pretty(&j)?);
     Ok(())

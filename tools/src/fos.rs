@@ -12,6 +12,8 @@
 //! bisection. No mechanism picture then (fos.json says so). `--early` (ours, off by default):
 //! the early verdicts of `flem_core::solver::fos` (a trial's last stage stopped once its largest
 //! displacement clearly accelerates or comes to rest; fos.json marks those trials `early`).
+//! `--trend` (ours, off by default): the trend search of `flem_core::solver::fos` (the next
+//! trial where the flowing trials' unbalanced-force ratios, extrapolated in 1 / F, vanish).
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
@@ -43,13 +45,18 @@ pub struct Args {
     pub warm: bool,
     /// Every trial by Newton (the implicit plastic check's solver) instead of the explicit
     /// march (ours; docs/materials.md).
-    #[arg(long, conflicts_with_all = ["warm", "early"])]
+    #[arg(long, conflicts_with_all = ["warm", "early", "trend"])]
     pub implicit: bool,
     /// Early verdicts (ours): a trial's last stage is stopped as soon as its largest
     /// displacement clearly accelerates (flows) or comes to rest (stands), judged at its history
     /// rows (fewer steps; a verdict may differ from the one at the step limit).
     #[arg(long)]
     pub early: bool,
+    /// Trend search (ours): the next trial where the unbalanced-force ratios of the trials that
+    /// flowed, extrapolated linearly in 1 / F, vanish, instead of the bracket's mid-point
+    /// (fewer trials far from the answer; another bracket of the same width).
+    #[arg(long)]
+    pub trend: bool,
     /// With --implicit: nominal load increments of the last stage's loads.
     #[arg(long, default_value_t = 10)]
     pub increments: usize,
@@ -85,7 +92,7 @@ pub fn implicit_trial(text: &str, scene: &std::path::Path, base: &std::path::Pat
 }
 
 fn run_implicit(a: &Args, text: &str, base: &std::path::Path, out: &std::path::Path) -> Result<()> {
-    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: false, early: false };
+    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: false, early: false, trend: false };
     let mut trials = Vec::new();
     let name = a.scene.display().to_string();
     let (fos, bracket, _, _) = flem_core::solver::fos::bisect(&name, &o, |f| {
@@ -137,7 +144,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.implicit {
         return run_implicit(&a, &text, &base, &out);
     }
-    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: a.warm, early: a.early };
+    let o = FosOptions { lo: a.lo, hi: a.hi, rel_tol: a.rel_tol, max_trials: a.max_trials, growth: a.growth, warm: a.warm, early: a.early, trend: a.trend };
     let mut show = |t: &Trial| {
         eprintln!(
             "F = {:.4}: {} (ratio {:.2e} after {} steps, {}; largest displacement {:.4e}, grew {:.1} % over the second half){} {:.1} s",
@@ -191,6 +198,9 @@ pub fn run(a: Args) -> Result<()> {
     if a.early {
         // Only when on: the default fos.json keeps its keys.
         json["criterion"]["early"] = serde_json::json!("ours: the last stage stopped at a history row once it flows (growth over the second half so far above 3 growth with the last 3 increments of the largest displacement increasing, or from 2/5 of the step limit above growth with the last 5 increasing) or stands (from half the step limit, growth at most `growth` with the last 4 increments decreasing)");
+    }
+    if a.trend {
+        json["criterion"]["trend"] = serde_json::json!("ours: the next F where the ratios of the two lowest F that flowed, linear in 1 / F, vanish (a trial at that estimate times 1 + rel_tol / 2, or the closing trial hi / (1 + rel_tol)); the mid-point without an estimate inside the bracket");
     }
     flem_core::output::atomic_write(&out.join("fos.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
     println!("factor of safety {:.4} (bracket [{:.4}, {:.4}], {} trials); {}", r.fos, r.bracket[0], r.bracket[1], r.trials.len(), out.join("fos.json").display());

@@ -48,6 +48,30 @@
 //! - it **stands**: from the tenth row (half the limit) on, it grew by at most `growth`
 //!   over the second half of the steps so far and the last four increments decrease.
 //!
+//! Trend search (ours, `FosOptions::trend`, `flem fos --trend`, off by default: another
+//! sequence of trials, so another bracket of the same width; the answer may move within it):
+//! a trial that flows ends with an unbalanced-force ratio that settles to a steady value, the
+//! net driving force of its mechanism. For a mechanism sliding as a body on its slip surface
+//! that force is `D - R / F` (the driving force less the strength divided by `F`, local
+//! damping only scaling it), linear in `1 / F` and zero at the factor of safety `R / D`. The
+//! search therefore extrapolates the ratios of the two lowest `F` that flowed, linearly in
+//! `1 / F`, to the estimate `F*` where the ratio vanishes (on the slope: 0.180 at F = 3, 0.067
+//! at 1.75, 0.043 at 1.6, 0.014 at 1.45: `F*` = 1.40 from the first two, against 1.384), and
+//! runs its next trials there instead of at the mid-point of the bracket:
+//! 1. `hi` (widened to `2 hi` while it stands, as the bisection does), then the mid-point of
+//!    `[lo, hi]` until two trials have flowed (`lo` is not run first: it is run only if the
+//!    bracket ends at it);
+//! 2. with an estimate `F*` strictly inside the bracket: a trial at `F* (1 + rel_tol / 2)`
+//!    (expected to flow, it becomes `hi`) while that lies below `c = hi / (1 + rel_tol)`; else
+//!    the closing trial `c` (expected to stand: then the bracket is `[c, hi]`, done). With an
+//!    estimate at or below a `lo` that stood (the ratios of trials stopped early near the
+//!    factor have not settled and put `F*` low), the closing trial from below, `lo (1 +
+//!    rel_tol)` (expected to flow: then `[lo, lo (1 + rel_tol)]`, done). Otherwise (fewer than
+//!    two flows, a ratio that does not fall with `F`), the mid-point. A trial the estimate got
+//!    wrong only narrows the bracket, as a bisection step does, and the next estimate uses it.
+//! It stops, as the bisection, when `hi - lo <= rel_tol lo` with `lo` a trial that stood, or
+//! after `max_trials` trials.
+//!
 //! On configs/verification/slope.toml every verdict is the one of the full trial (the
 //! standing trial nearest the factor, F = 1.3789, grows by at most 7 % over the second half
 //! of any prefix of its steps, and its increments stop increasing after the fifth row), in
@@ -76,11 +100,14 @@ pub struct FosOptions {
     /// Early verdicts (ours, off by default; module docs): a trial's last stage is judged at
     /// its history rows and stopped once it clearly flows or stands.
     pub early: bool,
+    /// Trend search (ours, off by default; module docs): the next `F` from the unbalanced-force
+    /// ratios of the trials that flowed, extrapolated linearly in `1 / F` to zero.
+    pub trend: bool,
 }
 
 impl Default for FosOptions {
     fn default() -> Self {
-        FosOptions { lo: 0.5, hi: 3.0, rel_tol: 0.01, max_trials: 16, growth: 0.1, warm: false, early: false }
+        FosOptions { lo: 0.5, hi: 3.0, rel_tol: 0.01, max_trials: 16, growth: 0.1, warm: false, early: false, trend: false }
     }
 }
 
@@ -343,6 +370,94 @@ pub fn bisect<T>(name: &str, o: &FosOptions, mut run: impl FnMut(f64) -> Result<
     Ok((0.5 * (lo + hi), [lo, hi], flow_keep, seen.len()))
 }
 
+/// The estimate `F*` of the trend search (module docs): the ratios `r` of the two lowest `F`
+/// that flowed, `r = a + b / F` through both, `F* = -b / a` where `r` vanishes; `None` when
+/// fewer than two flowed, or the ratio does not fall as `F` falls (`b <= 0`), or `F*` is not
+/// a positive finite number.
+pub fn trend_estimate(flows: &[(f64, f64)]) -> Option<f64> {
+    let mut v: Vec<(f64, f64)> = flows.iter().copied().filter(|p| p.0 > 0.0 && p.1.is_finite()).collect();
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    v.dedup_by(|a, b| a.0 == b.0);
+    let [(f1, r1), (f2, r2)] = [*v.first()?, *v.get(1)?];
+    let (x1, x2) = (1.0 / f1, 1.0 / f2);
+    // r = a + b x with x = 1 / F; the ratio falls as F falls when b < 0 (x grows).
+    let b = (r1 - r2) / (x1 - x2);
+    let a = r1 - b * x1;
+    if !(b < 0.0) || !(a > 0.0) {
+        return None;
+    }
+    let f = -b / a;
+    (f.is_finite() && f > 0.0).then_some(f)
+}
+
+/// The trend search of the module docs over a trial `run(F) -> (flows, unbalanced ratio at
+/// its end, what it keeps)`. Answers as [`bisect`] does.
+pub fn trend_search<T>(name: &str, o: &FosOptions, run: &mut dyn FnMut(f64) -> Result<(bool, f64, T)>) -> Result<(f64, [f64; 2], T, usize)> {
+    check_options(name, o)?;
+    let mut n = 0usize;
+    let mut flowed: Vec<(f64, f64)> = Vec::new();
+    let too_many = |lo: f64, hi: f64| FlemError::Other(format!("{name}: no bracket within {} trials (last [{lo}, {hi}])", o.max_trials));
+    let (mut lo, mut hi) = (o.lo, o.hi);
+    // `lo` stood in a trial (else it is only the lower end of the options' bracket).
+    let mut lo_stood = false;
+    let mut flow_keep: T;
+    loop {
+        if n >= o.max_trials {
+            return Err(too_many(lo, hi));
+        }
+        let (f, r, keep) = run(hi)?;
+        n += 1;
+        if f {
+            flowed.push((hi, r));
+            flow_keep = keep;
+            break;
+        }
+        (lo, hi, lo_stood) = (hi, 2.0 * hi, true);
+    }
+    loop {
+        if lo_stood && hi - lo <= o.rel_tol * lo {
+            break;
+        }
+        if n >= o.max_trials {
+            if lo_stood {
+                break;
+            }
+            return Err(too_many(lo, hi));
+        }
+        // (A hair inside, so that `[c, hi]` passes the test above despite rounding.)
+        let c = hi / (1.0 + o.rel_tol * (1.0 - 1e-9));
+        // The closing trial from below: `lo (1 + rel_tol)` (a hair inside), once `lo` stood.
+        let c_lo = lo * (1.0 + o.rel_tol * (1.0 - 1e-9));
+        let next = match trend_estimate(&flowed) {
+            // Closing from above: the estimate within half a tolerance of `hi`.
+            Some(e) if e > lo && e < hi && e * (1.0 + 0.5 * o.rel_tol) >= c && c > lo => c,
+            Some(e) if e > lo && e < hi && e * (1.0 + 0.5 * o.rel_tol) < hi => e * (1.0 + 0.5 * o.rel_tol),
+            // Closing from below: the estimate at or below a trial that stood (the ratios of
+            // trials stopped early near the factor have not settled yet and put the estimate
+            // low): the factor is just above `lo`.
+            Some(e) if lo_stood && e <= lo && c_lo < hi => c_lo,
+            // No estimate inside: the mid-point, or `lo` itself once the bracket is narrow
+            // but `lo` never ran.
+            _ if !lo_stood && hi - lo <= o.rel_tol * lo => lo,
+            _ => 0.5 * (lo + hi),
+        };
+        let (f, r, keep) = run(next)?;
+        n += 1;
+        if f {
+            flowed.push((next, r));
+            hi = next;
+            flow_keep = keep;
+            if next == lo {
+                // `lo` flowed: widen down as the bisection does.
+                lo *= 0.5;
+            }
+        } else {
+            (lo, lo_stood) = (next, true);
+        }
+    }
+    Ok((0.5 * (lo + hi), [lo, hi], flow_keep, n))
+}
+
 fn check_options(name: &str, o: &FosOptions) -> Result<()> {
     if !(o.lo > 0.0 && o.hi > o.lo && o.hi.is_finite()) {
         return Err(FlemError::config(name, "fos bracket", format!("[{}, {}] is incorrect; it must satisfy 0 < lo < hi", o.lo, o.hi)));
@@ -360,7 +475,7 @@ pub fn factor_of_safety(text: &str, path: &Path, base: &Path, o: &FosOptions, ea
     let mut trials = Vec::new();
     // The highest F that stood so far and its final state (warm start only).
     let mut stood: Option<(f64, WarmState)> = None;
-    let (fos, bracket, flow, _) = bisect(&name, o, |f| {
+    let mut search = |f: f64| -> Result<(bool, f64, Simulation)> {
         let start = stood.as_ref().filter(|s| o.warm && s.0 < f).map(|s| (s.0, &s.1));
         let (t, sim) = trial_from(text, path, base, f, o.growth, start, o.early)?;
         each(&t);
@@ -369,14 +484,47 @@ pub fn factor_of_safety(text: &str, path: &Path, base: &Path, o: &FosOptions, ea
         if o.warm && !flows && stood.as_ref().is_none_or(|s| s.0 < f) {
             stood = warm_state(&sim).map(|w| (f, w));
         }
-        Ok((flows, sim))
-    })?;
+        Ok((flows, trials.last().map_or(f64::NAN, |t| t.ratio), sim))
+    };
+    let (fos, bracket, flow, _) = if o.trend { trend_search(&name, o, &mut search)? } else { bisect(&name, o, |f| search(f).map(|(fl, _, s)| (fl, s)))? };
     Ok(FosResult { fos, bracket, trials, flow })
 }
 
 #[cfg(test)]
 mod tests {
-    use super::early_verdict;
+    use super::{early_verdict, trend_estimate, trend_search, FosOptions};
+
+    /// The trend estimate on the ratio of a sliding body, `r = D - R / F` (net driving force
+    /// of a mechanism whose strength is divided by `F`): from any two flowing trials it is the
+    /// limit-equilibrium factor `R / D` (1e-12); the two lowest `F` are used; none from fewer
+    /// than two flows or a ratio rising as `F` falls. And the search on that model (a trial
+    /// flows when `F > R / D`, its ratio `D - R / F`): a bracket of `rel_tol` around `R / D`
+    /// in 4 trials (`hi`, the mid-point, the estimate's flowing trial and the closing trial).
+    #[test]
+    fn trend_estimate_and_search_on_a_sliding_body() {
+        let (d, r) = (0.5, 0.69);
+        let ratio = |f: f64| d - r / f;
+        let fs = r / d;
+        for (a, b) in [(3.0, 1.75), (1.5, 2.0), (1.4, 10.0)] {
+            let e = trend_estimate(&[(a, ratio(a)), (b, ratio(b))]).unwrap();
+            assert!((e - fs).abs() <= 1e-12 * fs, "{a} {b}: {e} vs {fs}");
+        }
+        // The two lowest: a wrong third point far above does not enter.
+        let e = trend_estimate(&[(9.0, 0.0), (1.5, ratio(1.5)), (2.0, ratio(2.0))]).unwrap();
+        assert!((e - fs).abs() <= 1e-12 * fs);
+        assert_eq!(trend_estimate(&[(2.0, 0.1)]), None);
+        assert_eq!(trend_estimate(&[(2.0, 0.1), (1.5, 0.2)]), None, "ratio rising as F falls");
+        let o = FosOptions::default();
+        let mut n = 0;
+        let (f, [lo, hi], (), trials) = trend_search("model", &o, &mut |f| {
+            n += 1;
+            Ok((f > fs, if f > fs { ratio(f) } else { 0.0 }, ()))
+        })
+        .unwrap();
+        assert!(lo < fs && fs < hi && hi - lo <= o.rel_tol * lo, "[{lo}, {hi}] around {fs}");
+        assert!((f - fs).abs() <= 0.01 * fs);
+        assert_eq!((trials, n), (4, 4));
+    }
 
     /// Rows every 300 steps of a 6000-step stage (as a trial writes them).
     fn rows(u: impl Fn(f64) -> f64, n: usize) -> Vec<(u64, f64)> {
