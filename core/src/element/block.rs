@@ -301,6 +301,48 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     _s: PhantomData<S>,
 }
 
+/// The displacements of a full pack's corners into its lanes (`ug[a][dim][lane]`), for AVX-512:
+/// each corner's 8 `[ux, uy]` pairs loaded whole (16 bytes) into two registers, then split into
+/// x and y by two permutes, instead of 16 scalar loads and 16 inserts per corner (issue 42: in
+/// the Q4 kernel those inserts took a fifth of the FP ports' work). A copy of the same values
+/// (no arithmetic): the forces are the same bit for bit.
+///
+/// # Safety
+/// The CPU has AVX-512 F and DQ; `conn` holds `LANES` elements whose clusters index `u`. Call it
+/// only from a function compiled for AVX-512 (`run_chunk_avx512`), into which it is inlined
+/// (a function with `target_feature` cannot be `inline(always)`).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn gather_pack_avx512<const N: usize>(u: &[[f64; 2]], conn: &[[u32; N]], ug: &mut [[[f64; LANES]; 2]; N]) {
+    use std::arch::x86_64::*;
+    debug_assert_eq!(conn.len(), LANES);
+    let base = u.as_ptr() as *const f64;
+    let ix = _mm512_setr_epi64(0, 2, 4, 6, 8, 10, 12, 14);
+    let iy = _mm512_setr_epi64(1, 3, 5, 7, 9, 11, 13, 15);
+    for a in 0..N {
+        // SAFETY (all loads): the caller's contract, clusters in bounds of `u`.
+        let (c0, c1, c2, c3) = (conn[0][a], conn[1][a], conn[2][a], conn[3][a]);
+        let (c4, c5, c6, c7) = (conn[4][a], conn[5][a], conn[6][a], conn[7][a]);
+        let lo = unsafe {
+            let v = _mm512_castpd128_pd512(_mm_loadu_pd(base.add(2 * c0 as usize)));
+            let v = _mm512_insertf64x2::<1>(v, _mm_loadu_pd(base.add(2 * c1 as usize)));
+            let v = _mm512_insertf64x2::<2>(v, _mm_loadu_pd(base.add(2 * c2 as usize)));
+            _mm512_insertf64x2::<3>(v, _mm_loadu_pd(base.add(2 * c3 as usize)))
+        };
+        let hi = unsafe {
+            let v = _mm512_castpd128_pd512(_mm_loadu_pd(base.add(2 * c4 as usize)));
+            let v = _mm512_insertf64x2::<1>(v, _mm_loadu_pd(base.add(2 * c5 as usize)));
+            let v = _mm512_insertf64x2::<2>(v, _mm_loadu_pd(base.add(2 * c6 as usize)));
+            _mm512_insertf64x2::<3>(v, _mm_loadu_pd(base.add(2 * c7 as usize)))
+        };
+        // SAFETY: `ug[a][d]` is 8 f64.
+        unsafe {
+            _mm512_storeu_pd(ug[a][0].as_mut_ptr(), _mm512_permutex2var_pd(lo, ix, hi));
+            _mm512_storeu_pd(ug[a][1].as_mut_ptr(), _mm512_permutex2var_pd(lo, iy, hi));
+        }
+    }
+}
+
 impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     pub fn new(region: String, mat: Material) -> Self {
         let d = mat.dmat();
@@ -331,7 +373,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     /// `ZERO`: the zero-free pass (each pack first zeroes the clusters it writes first,
     /// `FirstWriters`).
     #[inline(always)]
-    fn run_chunk_body<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+    fn run_chunk_body<const ZERO: bool, const WIDE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
         let cp = self.sched.chunk_packs;
         let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
         let mut ug = [[[0.0; LANES]; 2]; N];
@@ -351,12 +393,25 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             // pack of Q4 in the hot loop).
             let top = conn.iter().flatten().fold(0u32, |m, &c| m.max(c)) as usize;
             assert!(top < u.len() && top < f.len(), "cluster {top} beyond the displacement ({}) or force ({}) array", u.len(), f.len());
-            for (l, c) in conn.iter().enumerate() {
-                for a in 0..N {
-                    // SAFETY: c[a] <= top < u.len() (asserted above).
-                    let ua = unsafe { *u.get_unchecked(c[a] as usize) };
-                    ug[a][0][l] = ua[0];
-                    ug[a][1][l] = ua[1];
+            #[cfg(target_arch = "x86_64")]
+            let wide = WIDE && conn.len() == LANES;
+            #[cfg(not(target_arch = "x86_64"))]
+            let wide = false;
+            if wide {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `WIDE` only in `run_chunk_avx512` (the CPU has AVX-512 F and DQ); every
+                // corner's cluster <= top < u.len() (asserted above); a full pack.
+                unsafe {
+                    gather_pack_avx512(u, conn, &mut ug)
+                };
+            } else {
+                for (l, c) in conn.iter().enumerate() {
+                    for a in 0..N {
+                        // SAFETY: c[a] <= top < u.len() (asserted above).
+                        let ua = unsafe { *u.get_unchecked(c[a] as usize) };
+                        ug[a][0][l] = ua[0];
+                        ug[a][1][l] = ua[1];
+                    }
                 }
             }
             match self.extra_of[p] {
@@ -376,19 +431,19 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     }
     /// [`Self::run_chunk_body`] compiled for the baseline instruction set.
     fn run_chunk_plain<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<ZERO>(k, u, f)
+        self.run_chunk_body::<ZERO, false>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX2 (4 lanes per vector instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn run_chunk_avx2<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<ZERO>(k, u, f)
+        self.run_chunk_body::<ZERO, false>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX-512 (8 lanes: one pack per instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
     fn run_chunk_avx512<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<ZERO>(k, u, f)
+        self.run_chunk_body::<ZERO, true>(k, u, f)
     }
     /// The chunk loop for `simd` (`None` when this CPU lacks it). The three are the same
     /// code compiled for wider registers: each lane does the same IEEE operations in the same
