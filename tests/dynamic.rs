@@ -197,6 +197,32 @@ fn pulled_strip(gf: f64, end: f64) -> Simulation {
 /// cohesive zones (`Contact::zones`: intact area, softening area, pending energy).
 type Drive<'a> = &'a dyn Fn([f64; 2], f64) -> Option<[f64; 2]>;
 fn cohesive_square_opened(cuts: &[&[([f64; 2], [f64; 2])]], phases: &[Drive]) -> Vec<(f64, f64, [f64; 3])> {
+    let (mut s, centre, x0) = cohesive_square(cuts);
+    let nc = x0.len();
+    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+    let c = s.contact.as_mut().unwrap();
+    let (n, dt) = (400usize, 1.0);
+    let mut u = vec![[0.0; 2]; nc];
+    let mut f = vec![[0.0; 2]; nc];
+    let mut fracture = 0.0;
+    let mut out = Vec::new();
+    for drive in phases {
+        for i in 1..=n {
+            let t = i as f64 / n as f64;
+            let un: Vec<[f64; 2]> = (0..nc).map(|cl| drive(centre[cl], t).unwrap_or(u[cl])).collect();
+            let v: Vec<[f64; 2]> = (0..nc).map(|cl| [(un[cl][0] - u[cl][0]) / dt, (un[cl][1] - u[cl][1]) / dt]).collect();
+            u = un;
+            c.compute(law, &x0, &u, &v, dt, &mut f);
+            fracture += c.fracture_step;
+        }
+        out.push((fracture, c.fresh_face_area(&s.model), c.zones(law)));
+    }
+    out
+}
+
+/// The square of [`cohesive_square_opened`] with its cuts made: the simulation, the mean
+/// centroid of every cluster's elements, and every cluster's reference position.
+fn cohesive_square(cuts: &[&[([f64; 2], [f64; 2])]]) -> (Simulation, Vec<[f64; 2]>, Vec<[f64; 2]>) {
     let text = "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 2.0\nnx = 2\nny = 2\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.2\ndensity = 1.0\n[contact]\nlaw = { type = \"cohesive\", normal_stiffness = 1e4, shear_stiffness = 1e4, tensile_strength = 1.0, fracture_energy = 0.01, friction = 0.0 }\n[[stage]]\nlevels = {}\n";
     let mut s = sim(text);
     for cut in cuts {
@@ -227,25 +253,7 @@ fn cohesive_square_opened(cuts: &[&[([f64; 2], [f64; 2])]], phases: &[Drive]) ->
     }
     let centre: Vec<[f64; 2]> = centre.iter().map(|c| [c[0] / c[2], c[1] / c[2]]).collect();
     let x0: Vec<[f64; 2]> = (0..nc).map(|c| s.model.mesh.points[topo.cluster_point[c].idx()]).collect();
-    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
-    let c = s.contact.as_mut().unwrap();
-    let (n, dt) = (400usize, 1.0);
-    let mut u = vec![[0.0; 2]; nc];
-    let mut f = vec![[0.0; 2]; nc];
-    let mut fracture = 0.0;
-    let mut out = Vec::new();
-    for drive in phases {
-        for i in 1..=n {
-            let t = i as f64 / n as f64;
-            let un: Vec<[f64; 2]> = (0..nc).map(|cl| drive(centre[cl], t).unwrap_or(u[cl])).collect();
-            let v: Vec<[f64; 2]> = (0..nc).map(|cl| [(un[cl][0] - u[cl][0]) / dt, (un[cl][1] - u[cl][1]) / dt]).collect();
-            u = un;
-            c.compute(law, &x0, &u, &v, dt, &mut f);
-            fracture += c.fracture_step;
-        }
-        out.push((fracture, c.fresh_face_area(&s.model), c.zones(law)));
-    }
-    out
+    (s, centre, x0)
 }
 
 /// One crack face opened by a prescribed displacement (issue 36 must-show 3, the closed form
@@ -294,4 +302,39 @@ fn a_node_with_two_cohesive_faces_releases_both() {
     assert!(rel(r[0].2[0], 1.0) < 1e-12 && r[0].2[1] == 0.0, "after phase 1: zones {:?} (the right half intact)", r[0].2);
     assert!(rel(r[1].0, 3.0 * gf) < 1e-9, "after phase 2: fracture {:.9e} against 3 G_f", r[1].0);
     assert_eq!(r[1].2, [0.0; 3]);
+}
+
+/// Review r17 (the stable step across bonded cracks): a crack carries its faces in compression
+/// by its bonds alone. The square's mid-height line is cut through (two edges, four bonded
+/// ends, bond area 2 x thickness 1) and the upper half is pressed down by d = 1e-3 (a ramp over
+/// 400 steps, driven through `Contact::compute`). Reference: the `cohesive` law's penalty in
+/// compression, k_n per unit area over the crack's faces once (module doc of
+/// `plugins/src/contact/cohesive.rs`: `k_n A max(-gap, 0)`), so the upper half is pushed up by
+/// k_n x 2 x d = 20, to 1e-9. Before the fix the upper nodes' contact search also paired them
+/// with the lower faces that the bonds hold (their bonds' slaves are the lower nodes), a second
+/// spring over the same faces: 2 k_n x 2 x d = 40, and on a crack whose bonds alternate sides
+/// a node pair carried 3 k A against the 2 k A that `Contact::omega2` assumes.
+#[test]
+fn a_closed_bonded_crack_is_pressed_by_its_bonds_alone() {
+    let line: &[([f64; 2], [f64; 2])] = &[([0.0, 1.0], [1.0, 1.0]), ([1.0, 1.0], [2.0, 1.0])];
+    let (mut s, centre, x0) = cohesive_square(&[line]);
+    let nc = x0.len();
+    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+    let c = s.contact.as_mut().unwrap();
+    assert_eq!(c.bonds.len(), 4, "one bond per cut edge end");
+    let (n, d, k) = (400usize, 1e-3, 1e4);
+    let mut u = vec![[0.0; 2]; nc];
+    let mut f = vec![[0.0; 2]; nc];
+    for i in 1..=n {
+        let t = i as f64 / n as f64;
+        let un: Vec<[f64; 2]> = (0..nc).map(|cl| if centre[cl][1] > 1.0 { [0.0, -d * t] } else { [0.0; 2] }).collect();
+        let v: Vec<[f64; 2]> = (0..nc).map(|cl| [un[cl][0] - u[cl][0], un[cl][1] - u[cl][1]]).collect();
+        u = un;
+        c.compute(law, &x0, &u, &v, 1.0, &mut f);
+    }
+    let up: f64 = (0..nc).filter(|&cl| centre[cl][1] > 1.0).map(|cl| f[cl][1]).sum();
+    let down: f64 = (0..nc).filter(|&cl| centre[cl][1] < 1.0).map(|cl| f[cl][1]).sum();
+    eprintln!("pressed crack: force on the upper half {up}, lower half {down}, pairs {}", c.n_active);
+    assert!(rel(up, k * 2.0 * d) < 1e-9, "upper half pushed by {up} against k_n x 2 x d = {}", k * 2.0 * d);
+    assert!(rel(-down, up) < 1e-12, "momentum: {down} against {up}");
 }

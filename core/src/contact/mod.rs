@@ -9,7 +9,9 @@
 //! - Broad phase ([`search`]): a uniform grid over the master faces gives, for every slave,
 //!   the faces within `skin + max_depth` (a Verlet list). The list is rebuilt only when some
 //!   surface node has moved more than `skin / 2` since the last build, or the topology
-//!   changed (a split), so a quiet step costs one pass over the list.
+//!   changed (a split), so a quiet step costs one pass over the list. With a law that has
+//!   cohesion (bonds, below) a split updates the list locally instead (session 18,
+//!   `Contact::patch_verlet`: the split's nodes and faces; same pairs as a full rebuild).
 //! - Narrow phase: node-to-edge in the edge's local frame (paper eq. 6-7): the slave touches
 //!   face i->j when `0 <= xi <= 1` along it and it lies inside the element side by less than
 //!   `max_depth` x the face length. Node-to-node (corner): a slave inside a concave master
@@ -108,7 +110,9 @@
 //! `one_cohesive_face_opened_releases_gc_times_its_area`,
 //! `a_node_with_two_cohesive_faces_releases_both`; the branching plate released 0.38 of
 //! `G_c` x its free crack). A bond carries its face in compression too (the law's penalty): the
-//! contact search leaves a slave's bond masters out (no second spring on the same faces) and
+//! contact search leaves out, for every node at a bond's point (either side), both faces of
+//! that bond's edge (no second spring on the same faces; review r17: before, only the slave's
+//! own bonds' masters, so a node pair could carry 3 k A against the 2 k A of `omega2`) and
 //! goes on for every other face (the notch's, another crack's); the two-pass contact of the
 //! other side's nodes goes on as before. Laws without cohesion (`spring_dashpot`, `penalty`, plugin laws)
 //! never make bonds: their runs are unchanged. Checkpoint section `contact_bonds` (version 1).

@@ -122,7 +122,28 @@ pub struct Contact {
     area: Vec<f64>,
     cand_off: Vec<u32>,
     cand: Vec<u32>,
-    u_build: Vec<[f64; 2]>,
+    /// The displacement of every surface node at the build of its Verlet list (by cluster): the
+    /// list's build configuration is `x0 + ub`. A full build sets it for every slave; a local
+    /// update after a split (cohesive laws, [`Contact::patch_verlet`]) keeps it for the slaves
+    /// it does not touch and gives new ones their parent's (or their displacement now).
+    ub: Vec<[f64; 2]>,
+    /// The list holds, for every slave, every face within `margin_list` of it in the build
+    /// configuration; `lmax_list` is the longest face it was built for and `skin_list` what is
+    /// left of the margin beyond `max_depth x lmax_list`: the list stays valid while no surface
+    /// node moved more than `skin_list / 2` from its build position.
+    margin_list: f64,
+    lmax_list: f64,
+    skin_list: f64,
+    /// The grid of the last full build (origin, cell size, cells), its items' face ids (by the
+    /// build's face index), and the faces made since (not in the grid).
+    grid_lo: [f64; 2],
+    grid_h: f64,
+    grid_n: [usize; 2],
+    grid_ids: Vec<u32>,
+    /// Faces made since the last full build, by grid cell (face ids).
+    grid_extra: Vec<Vec<u32>>,
+    /// Local updates of the Verlet list at splits so far (cohesive laws).
+    pub patches: u64,
     dirty: bool,
     /// The open pairs (checkpoint this).
     pub history: ContactHistory,
@@ -150,9 +171,12 @@ pub struct Contact {
     per_face: bool,
     /// The cohesive faces still holding (checkpoint section `contact_bonds`).
     pub bonds: Vec<Bond>,
-    /// (slave, master face) of every bond, sorted: the contact search leaves a slave's bond
-    /// masters to its bonds.
+    /// (face, mesh point) of both faces of every bond's edge at the bond's end, sorted: the
+    /// contact search leaves a face to the bonds at that point (review r17: a node's search
+    /// met the face its neighbour's bond holds, and a node pair carried 3 k A in compression).
     bonded: Vec<(u32, u32)>,
+    /// (slave face, mesh point) of each bond (parallel to `bonds`).
+    bond_meta: Vec<(u32, u32)>,
     /// The bond of each batch entry from `n_pairs` on.
     bond_at: Vec<u32>,
     n_pairs: usize,
@@ -177,6 +201,12 @@ pub struct VerletState {
     pub dirty: bool,
     pub rebuilds: u64,
 }
+
+/// The margin of a Verlet list that splits updated locally (cohesive laws, session 18):
+/// `(margin_list, lmax_list, skin_list)`, checkpoint section `contact_verlet_margin`, so that a
+/// resumed run rebuilds the same list (every face within that margin of each slave's build
+/// position) and rebuilds it again at the same step.
+pub type VerletMargin = (f64, f64, f64);
 
 impl Contact {
     /// Builds the surfaces of a model (after pre-separated edges were cut).
@@ -206,7 +236,16 @@ impl Contact {
             area: Vec::new(),
             cand_off: Vec::new(),
             cand: Vec::new(),
-            u_build: Vec::new(),
+            ub: Vec::new(),
+            margin_list: 0.0,
+            lmax_list: 0.0,
+            skin_list: 0.0,
+            grid_lo: [0.0; 2],
+            grid_h: 1.0,
+            grid_n: [0; 2],
+            grid_ids: Vec::new(),
+            grid_extra: Vec::new(),
+            patches: 0,
             dirty: true,
             history: ContactHistory::default(),
             next: Vec::new(),
@@ -226,6 +265,7 @@ impl Contact {
             per_face: cfg.law.unreleased(&PairState { fresh: true, ..Default::default() }) > 0.0,
             bonds: Vec::new(),
             bonded: Vec::new(),
+            bond_meta: Vec::new(),
             bond_at: Vec::new(),
             n_pairs: 0,
         };
@@ -335,14 +375,31 @@ impl Contact {
     ///   edge cut earlier has opened already: a pair born there with an empty history would
     ///   count the whole opening as if the law had acted over it (stored and released energy
     ///   out of nothing) and pull again across a gap that opened free of traction.
-    pub fn on_split(&mut self, law: &dyn ContactLaw, model: &Model, rec: &SplitRecord) {
+    ///
+    /// With a law that has cohesion (bonds, module doc) the Verlet list is then updated locally
+    /// ([`Contact::patch_verlet`]: the split's nodes and the faces it made) instead of rebuilt
+    /// over every crack face at the next step; `x0`, `u` are the clusters' reference positions
+    /// and displacements after the split.
+    pub fn on_split(&mut self, law: &dyn ContactLaw, model: &Model, rec: &SplitRecord, x0: &[[f64; 2]], u: &[[f64; 2]]) {
         for &(e, _) in &rec.cut_edges {
             if !self.fresh_edge[e.idx()] {
                 self.fresh_edge[e.idx()] = true;
                 self.history.fresh_edges.push(e.0);
             }
         }
+        let can_patch = self.per_face && !self.dirty && self.rebuilds > 0 && rec.moved.is_empty() && x0.len() == model.topo.n_clusters() && u.len() == x0.len();
+        let before = can_patch.then(|| (self.slaves.clone(), self.faces.iter().map(|f| f.id).collect::<Vec<u32>>(), std::mem::take(&mut self.cand_off), std::mem::take(&mut self.cand)));
         self.rebuild_surfaces(model);
+        if let Some((slaves, ids, off, cand)) = before {
+            let mut points: Vec<u32> = rec.new_clusters.iter().map(|nc| nc.point.0).collect();
+            points.extend(rec.cut_edges.iter().map(|&(e, end)| model.topo.edges[e.idx()].points[end as usize].0));
+            points.sort_unstable();
+            points.dedup();
+            if self.patch_verlet(rec, &points, x0, u, &slaves, &ids, &off, &cand) {
+                self.patches += 1;
+                self.dirty = false;
+            }
+        }
         let topo = &model.topo;
         let mut old = std::mem::take(&mut self.history.pairs);
         for p in old.iter_mut() {
@@ -379,6 +436,7 @@ impl Contact {
                 }
                 let area = half_area(&topo.edges[e.idx()], se);
                 self.bonds.push(Bond { edge: e.0, end, slave: s, master: mf, area, state: PairState { fresh: true, ..Default::default() } });
+                self.bond_meta.push((sf, topo.edges[e.idx()].points[end as usize].0));
             }
             self.history.pairs = old;
             self.refresh_bonded();
@@ -453,10 +511,14 @@ impl Contact {
         self.history = history;
     }
 
-    /// The (slave, master face) of every bond, sorted (after the bonds changed).
+    /// The (face, point) of both faces of every bond's end, sorted (after the bonds changed).
     fn refresh_bonded(&mut self) {
         self.bonded.clear();
-        self.bonded.extend(self.bonds.iter().map(|b| (b.slave, b.master)));
+
+        for (b, &(sf, pt)) in self.bonds.iter().zip(&self.bond_meta) {
+            self.bonded.push((b.master, pt));
+            self.bonded.push((sf, pt));
+        }
         self.bonded.sort_unstable();
         self.bonded.dedup();
     }
@@ -474,16 +536,19 @@ impl Contact {
     /// its master, or an area that is not finite and positive, is refused (a corrupt or foreign
     /// checkpoint: the message names the bond), and nothing is restored.
     pub fn restore_bonds(&mut self, model: &Model, mut bonds: Vec<Bond>) -> Result<(), String> {
+        let mut meta = Vec::with_capacity(bonds.len());
         for (i, b) in bonds.iter_mut().enumerate() {
-            let Some((s, _, _, _)) = bond_ends(&model.topo, b.edge, b.end) else {
+            let Some((s, sf, _, _)) = bond_ends(&model.topo, b.edge, b.end) else {
                 return Err(format!("cohesive bond {i} names edge {} end {}, which is not an edge with two sides in this mesh", b.edge, b.end));
             };
             if self.face(b.master).is_none() || !(b.area.is_finite() && b.area > 0.0) {
                 return Err(format!("cohesive bond {i} (edge {} end {}) has master face {} and area {}: not a crack face of this run, or not a positive area", b.edge, b.end, b.master, b.area));
             }
             b.slave = s;
+            meta.push((sf, model.topo.edges[b.edge as usize].points[b.end as usize].0));
         }
         self.bonds = bonds;
+        self.bond_meta = meta;
         self.refresh_bonded();
         Ok(())
     }
@@ -498,19 +563,25 @@ impl Contact {
     /// candidate set (all faces within the margin at the build) is a superset that depends on
     /// when it was built, and the concave-corner test counts every penetrated candidate face.
     pub fn verlet_state(&self) -> VerletState {
-        VerletState { u_build: self.u_build.clone(), dirty: self.dirty, rebuilds: self.rebuilds }
+        let u_build = if self.slaves.iter().all(|&s| (s as usize) < self.ub.len()) { self.slaves.iter().map(|&s| self.ub[s as usize]).collect() } else { Vec::new() };
+        VerletState { u_build, dirty: self.dirty, rebuilds: self.rebuilds }
+    }
+
+    /// The margin of the list now (checkpoint section `contact_verlet_margin`, cohesive laws).
+    pub fn verlet_margin(&self) -> VerletMargin {
+        (self.margin_list, self.lmax_list, self.skin_list)
     }
 
     /// Rebuilds the Verlet list as it was at the checkpoint (after [`Contact::restore`]): from
     /// the saved surface displacements, so the list and its next rebuild step are the
     /// uninterrupted run's. A state that does not fit the surfaces leaves the list dirty.
-    pub fn restore_verlet(&mut self, x0: &[[f64; 2]], st: VerletState) {
+    pub fn restore_verlet(&mut self, x0: &[[f64; 2]], st: VerletState, margin: Option<VerletMargin>) {
         if !st.dirty && st.u_build.len() == self.slaves.len() && self.slaves.iter().all(|&s| (s as usize) < x0.len()) {
             let mut u = vec![[0.0; 2]; x0.len()];
             for (&s, b) in self.slaves.iter().zip(&st.u_build) {
                 u[s as usize] = *b;
             }
-            self.build_verlet(x0, &u);
+            self.build_verlet_with(x0, &u, margin.filter(|_| self.per_face));
         } else {
             self.dirty = true;
         }
@@ -570,11 +641,21 @@ impl Contact {
     /// Rebuilds the Verlet list: for every slave, the faces (not of its own element) within
     /// `max_depth x L_max + skin` of it, ascending.
     pub fn build_verlet(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]]) {
+        self.build_verlet_with(x0, u, None);
+    }
+
+    /// [`Contact::build_verlet`], with the margin of a checkpointed list when given.
+    fn build_verlet_with(&mut self, x0: &[[f64; 2]], u: &[[f64; 2]], given: Option<VerletMargin>) {
         self.rebuilds += 1;
         self.dirty = false;
         let x = |c: u32| [x0[c as usize][0] + u[c as usize][0], x0[c as usize][1] + u[c as usize][1]];
-        self.u_build.clear();
-        self.u_build.extend(self.slaves.iter().map(|&s| u[s as usize]));
+        self.ub.resize(x0.len().max(self.ub.len()), [0.0; 2]);
+        for &s in &self.slaves {
+            self.ub[s as usize] = u[s as usize];
+        }
+        self.grid_extra.iter_mut().for_each(|c| c.clear());
+        self.grid_ids.clear();
+        self.grid_ids.extend(self.faces.iter().map(|f| f.id));
         self.cand_off.clear();
         self.cand.clear();
         self.cand_off.push(0);
@@ -591,18 +672,26 @@ impl Contact {
                 hi[d] = hi[d].max(p[d].max(q[d]));
             }
         }
-        let margin = self.max_depth * lmax + self.skin;
+        let mut margin = self.max_depth * lmax + self.skin;
+        (self.margin_list, self.lmax_list, self.skin_list) = (margin, lmax, self.skin);
+        if let Some((m, l, s)) = given {
+            (margin, self.margin_list, self.lmax_list, self.skin_list) = (m, m, l, s);
+        }
         let mut h = lmax + 2.0 * margin;
+        let cap = 4 * self.faces.len() + 64;
         for d in 0..2 {
             lo[d] -= margin;
             hi[d] += margin;
         }
-        let cap = 4 * self.faces.len() + 64;
         let dims = |h: f64| [((hi[0] - lo[0]) / h).floor() as usize + 1, ((hi[1] - lo[1]) / h).floor() as usize + 1];
         while dims(h)[0] * dims(h)[1] > cap {
             h *= 1.5;
         }
         let [nx, ny] = dims(h);
+        (self.grid_lo, self.grid_h, self.grid_n) = (lo, h, [nx, ny]);
+        if self.per_face {
+            self.grid_extra.resize(nx * ny, Vec::new());
+        }
         let cell = |p: [f64; 2]| -> Option<usize> {
             let (i, j) = (((p[0] - lo[0]) / h).floor(), ((p[1] - lo[1]) / h).floor());
             (i >= 0.0 && j >= 0.0 && (i as usize) < nx && (j as usize) < ny).then(|| j as usize * nx + i as usize)
@@ -657,13 +746,183 @@ impl Contact {
         }
     }
 
+    /// The grid cells (of the last full build) that a box `[lo, hi]` covers, clamped to the
+    /// grid: `(i0, i1, j0, j1)`. A point outside the grid maps to the border cell nearest it,
+    /// which every face within the margin of the point covers too (a face's margin box that
+    /// holds the point and meets the grid holds the point's projection onto the grid).
+    fn cells_of(&self, lo: [f64; 2], hi: [f64; 2]) -> (usize, usize, usize, usize) {
+        let [nx, ny] = self.grid_n;
+        let c = |v: f64, o: f64, n: usize| (((v - o) / self.grid_h).floor().max(0.0) as usize).min(n - 1);
+        (c(lo[0], self.grid_lo[0], nx), c(hi[0], self.grid_lo[0], nx), c(lo[1], self.grid_lo[1], ny), c(hi[1], self.grid_lo[1], ny))
+    }
+
+    /// Updates the Verlet list locally after a split (cohesive laws; session 18: the full
+    /// rebuild at every check that split took a third of the branching plate's time). The list
+    /// keeps its meaning: for every slave, every face (not excluded: its own element's, or met
+    /// only at a vertex) within `margin_list` of it in the build configuration `x0 + ub`, in
+    /// face order. A new node takes its parent's build displacement (it is a copy of it, at the
+    /// same place since the parent's build) or, when the parent was no surface node, its
+    /// displacement now; the nodes at the split's points (their exclusions change) and the new
+    /// ones are searched again in the grid of the last full build (with the faces added since);
+    /// every other slave keeps its list and gains the new faces within the margin. The margin
+    /// covers faces as long as the longest one built for (`lmax_list`): a new longer face
+    /// shrinks the skin left (`skin_list`), and below half the surfaces' skin the list is
+    /// rebuilt in full (returns false, and the next step rebuilds). `slaves`, `ids`, `off`,
+    /// `cand`: the list before the split (slaves, face ids by index, candidates).
+    ///
+    /// The list differs from a full rebuild's only in faces beyond the contact distance (the
+    /// superset within the margin depends on where each node was at its build); of the narrow
+    /// phase only the concave-corner rule reads those (it counts penetrated faces beyond their
+    /// ends), so the pairs found can differ there, rarely. The paper's laws (no cohesion) never
+    /// take this path: their lists are rebuilt in full as before.
+    #[allow(clippy::too_many_arguments)]
+    fn patch_verlet(&mut self, rec: &SplitRecord, points: &[u32], x0: &[[f64; 2]], u: &[[f64; 2]], slaves: &[u32], ids: &[u32], off: &[u32], cand: &[u32]) -> bool {
+        if self.grid_n[0] == 0 || self.grid_extra.len() != self.grid_n[0] * self.grid_n[1] || self.faces.is_empty() {
+            return false;
+        }
+        self.ub.resize(x0.len(), [0.0; 2]);
+        // Build displacements of the new slaves; which slaves are searched again (the new ones,
+        // and those at the split's points, `points`, sorted).
+        let root = |mut c: u32| {
+            while let Some(nc) = rec.new_clusters.iter().find(|nc| nc.id.0 == c) {
+                c = nc.parent.0;
+            }
+            c
+        };
+        let n = self.slaves.len();
+        let mut touched = vec![false; n];
+        let mut k = 0;
+        for (i, &s) in self.slaves.iter().enumerate() {
+            while k < slaves.len() && slaves[k] < s {
+                k += 1;
+            }
+            if k < slaves.len() && slaves[k] == s {
+                touched[i] = points.binary_search(&self.slave_pt[i]).is_ok();
+            } else {
+                let r = root(s);
+                self.ub[s as usize] = if r != s && slaves.binary_search(&r).is_ok() { self.ub[r as usize] } else { u[s as usize] };
+                touched[i] = true;
+            }
+        }
+        let xb = |c: u32| [x0[c as usize][0] + self.ub[c as usize][0], x0[c as usize][1] + self.ub[c as usize][1]];
+        // The faces made: the longest sets the skin left.
+        let mut fresh: Vec<u32> = Vec::new();
+        let mut k = 0;
+        for (fi, f) in self.faces.iter().enumerate() {
+            while k < ids.len() && ids[k] < f.id {
+                k += 1;
+            }
+            if k >= ids.len() || ids[k] != f.id {
+                fresh.push(fi as u32);
+            }
+        }
+        let mut lmax = self.lmax_list;
+        for &fi in &fresh {
+            let f = &self.faces[fi as usize];
+            let (p, q) = (xb(f.a), xb(f.b));
+            lmax = lmax.max(((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt());
+        }
+        let skin = self.margin_list - self.max_depth * lmax;
+        if skin < 0.5 * self.skin {
+            return false;
+        }
+        let (margin, m2) = (self.margin_list, self.margin_list * self.margin_list);
+        // The new faces into the grid (by their build-configuration box and the margin).
+        let mut near: Vec<(u32, u32)> = Vec::new();
+        for &fi in &fresh {
+            let f = self.faces[fi as usize];
+            let (p, q) = (xb(f.a), xb(f.b));
+            let (i0, i1, j0, j1) = self.cells_of([p[0].min(q[0]) - margin, p[1].min(q[1]) - margin], [p[0].max(q[0]) + margin, p[1].max(q[1]) + margin]);
+            let nx = self.grid_n[0];
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    self.grid_extra[j * nx + i].push(f.id);
+                }
+            }
+            // The slaves that are not searched again and lie within the margin of the new
+            // face: each is an end of a face in the cells the face's margin box covers.
+            let mut ends: Vec<u32> = Vec::new();
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let k = j * nx + i;
+                    let items = self.cell_items[self.cell_count[k] as usize..self.cell_count[k + 1] as usize].iter().map(|&g| self.grid_ids[g as usize]);
+                    for id in items.chain(self.grid_extra[k].iter().copied()) {
+                        if let Some(g) = self.face(id) {
+                            ends.push(g.a);
+                            ends.push(g.b);
+                        }
+                    }
+                }
+            }
+            ends.sort_unstable();
+            ends.dedup();
+            for c in ends {
+                let Ok(si) = self.slaves.binary_search(&c) else { continue };
+                if touched[si] || f.elem.contains(&c) || f.vertex_only(c, self.slave_pt[si]) {
+                    continue;
+                }
+                if dist2_segment(xb(c), p, q) <= m2 {
+                    near.push((si as u32, fi));
+                }
+            }
+        }
+        near.sort_unstable();
+        // The new list, slave by slave.
+        let mut new_off = Vec::with_capacity(n + 1);
+        let mut new_cand: Vec<u32> = Vec::with_capacity(cand.len() + 16 * fresh.len());
+        new_off.push(0u32);
+        let (mut k, mut e) = (0, 0);
+        for (i, &s) in self.slaves.iter().enumerate() {
+            while k < slaves.len() && slaves[k] < s {
+                k += 1;
+            }
+            let start = new_cand.len();
+            if touched[i] {
+                let (p, sp) = (xb(s), self.slave_pt[i]);
+                let (i0, _, j0, _) = self.cells_of(p, p);
+                let cell = j0 * self.grid_n[0] + i0;
+                let items = self.cell_items[self.cell_count[cell] as usize..self.cell_count[cell + 1] as usize].iter().map(|&g| self.grid_ids[g as usize]);
+                for id in items.chain(self.grid_extra[cell].iter().copied()) {
+                    let Some(&fi) = self.face_of_id.get(id as usize).filter(|&&fi| fi != NONE) else { continue };
+                    let f = &self.faces[fi as usize];
+                    if f.elem.contains(&s) || f.vertex_only(s, sp) {
+                        continue;
+                    }
+                    if dist2_segment(p, xb(f.a), xb(f.b)) <= m2 {
+                        new_cand.push(fi);
+                    }
+                }
+            } else {
+                for &fo in &cand[off[k] as usize..off[k + 1] as usize] {
+                    new_cand.push(self.face_of_id[ids[fo as usize] as usize]);
+                }
+                while e < near.len() && near[e].0 < i as u32 {
+                    e += 1;
+                }
+                while e < near.len() && near[e].0 == i as u32 {
+                    new_cand.push(near[e].1);
+                    e += 1;
+                }
+            }
+            new_cand[start..].sort_unstable();
+            new_off.push(new_cand.len() as u32);
+        }
+        self.cand_off = new_off;
+        self.cand = new_cand;
+        (self.lmax_list, self.skin_list) = (lmax, skin);
+        true
+    }
+
     fn needs_rebuild(&self, u: &[[f64; 2]]) -> bool {
-        if self.dirty || self.u_build.len() != self.slaves.len() {
+        if self.dirty || self.slaves.last().is_some_and(|&s| s as usize >= self.ub.len()) {
             return true;
         }
-        let lim = 0.25 * self.skin * self.skin;
-        self.slaves.iter().zip(&self.u_build).any(|(&s, b)| {
-            let d = u[s as usize];
+        // A list that splits updated locally (cohesive laws) keeps the skin it was built
+        // with (`skin_list`); otherwise the skin of the surfaces now (the paper's scenes).
+        let skin = if self.per_face { self.skin_list } else { self.skin };
+        let lim = 0.25 * skin * skin;
+        self.slaves.iter().any(|&s| {
+            let (d, b) = (u[s as usize], self.ub[s as usize]);
             (d[0] - b[0]).powi(2) + (d[1] - b[1]).powi(2) > lim
         })
     }
@@ -727,6 +986,11 @@ impl Contact {
             self.reports.push(PairReport { slave: g.slave, master: g.master, force: fv, gap: self.kin[k].gap + self.st[k].offset });
         }
         if self.bonds.iter().any(|b| b.area <= 0.0) {
+            let mut k = 0;
+            self.bond_meta.retain(|_| {
+                k += 1;
+                self.bonds[k - 1].area > 0.0
+            });
             self.bonds.retain(|b| b.area > 0.0);
             self.refresh_bonded();
         }
@@ -749,10 +1013,15 @@ impl Contact {
                 h += 1;
             }
             let mut old = (h < pairs.len() && pairs[h].slave == s).then(|| pairs[h]);
-            // A face that a bond of this slave holds is the bond's (below, in compression too):
-            // no contact pair with it; a pair the slave had with it lets its springs go.
+            // A face whose edge has a live bond at this slave's point is the bond's (below, in
+            // compression too), whichever side's node the bond holds: no contact pair with it;
+            // a pair the slave had with it lets its springs go. (Before review r17 only the
+            // slave's own bonds' masters were left out: on a crack whose bonds alternate sides,
+            // a node pair carried the bonds and both nodes' contact pairs, 3 k A against the
+            // 2 k A of `omega2`.)
             let bonded = &self.bonded;
-            let held = |f: u32| !bonded.is_empty() && bonded.binary_search(&(s, f)).is_ok();
+            let sp = self.slave_pt[si];
+            let held = |f: u32| !bonded.is_empty() && bonded.binary_search(&(f, sp)).is_ok();
             if let Some(o) = old.filter(|o| matches!(o.master, Master::Face(f) if held(f))) {
                 self.released += o.state.stored;
                 old = None;
@@ -791,10 +1060,11 @@ impl Contact {
                 let mut corners: [(u32, u8); 4] = [(NONE, 0); 4];
                 for &fi in cands {
                     let g = self.faces[fi as usize];
-                    if held(g.id) {
+                    let (xa, xb) = (x(g.a), x(g.b));
+                    if surely_apart(p, xa, xb, self.max_depth) || held(g.id) {
                         continue;
                     }
-                    let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
+                    let (gap, xi, len, n, t) = Self::face_geo(p, xa, xb);
                     if gap >= 0.0 || -gap > self.max_depth * len {
                         continue;
                     }
@@ -1049,6 +1319,20 @@ fn cluster_across(topo: &Topology, e: ElemId, pa: PointId, pb: PointId, p: Point
     let (other, _) = ed.sides.iter().flatten().find(|(x, _)| *x != e).copied()?;
     let c = topo.copy_cluster[topo.copy_at(other, p)?.idx()].0;
     (c != own).then_some(c)
+}
+
+/// The slave at `p` is surely in front of the face `a`-`b` (gap > 0) or behind it by more than
+/// `depth` x its length, decided without a square root or a division: the narrow phase's
+/// `gap >= 0 || -gap > depth x len` would reject it too (the margins, 1e-9 relative, are far
+/// above the rounding of either form), so skipping it first changes no result; the cases near
+/// either bound go on to the exact test.
+#[inline]
+fn surely_apart(p: [f64; 2], a: [f64; 2], b: [f64; 2], depth: f64) -> bool {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let (u, w) = ((p[0] - a[0]) * dy, (p[1] - a[1]) * dx);
+    let gn = u - w;
+    let e = 1e-9 * (u.abs() + w.abs());
+    gn > e || -gn > depth * (dx * dx + dy * dy) * (1.0 + 1e-9) + e
 }
 
 /// Squared distance from `p` to the segment `a`-`b`.

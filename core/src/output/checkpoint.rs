@@ -250,6 +250,8 @@ impl Checkpoint {
             ck.put_section("contact_verlet", 1, &c.verlet_state())?;
             if c.per_face() {
                 ck.put_section("contact_bonds", 1, &c.bonds)?;
+                // The margin of a list that splits updated locally (session 18).
+                ck.put_section("contact_verlet_margin", 1, &c.verlet_margin())?;
             }
         }
         Ok(ck)
@@ -375,7 +377,8 @@ impl Checkpoint {
                     (false, Some(_)) => return Err(bad("the checkpoint has cohesive bonds (section contact_bonds) and the scene's contact law has no cohesion".into())),
                 }
                 if let Some(v) = self.section::<crate::contact::search::VerletState>("contact_verlet", 1)? {
-                    c.restore_verlet(&sim.x0, v);
+                    let margin = self.section::<crate::contact::search::VerletMargin>("contact_verlet_margin", 1)?;
+                    c.restore_verlet(&sim.x0, v, margin);
                 }
             }
             (None, None) => {}

@@ -1456,7 +1456,7 @@ impl Simulation {
         st.v_pres = vpres;
         self.refresh_constant_force();
         if let (Some(c), Some(cfg)) = (self.contact.as_mut(), self.scene.file.contact.as_ref()) {
-            c.on_split(cfg.law.as_ref(), &self.model, rec);
+            c.on_split(cfg.law.as_ref(), &self.model, rec, &self.x0, &self.state.u);
         }
     }
 }
