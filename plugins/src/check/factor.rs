@@ -1031,6 +1031,34 @@ mod tests {
     /// The dissection is a permutation, its factor solves the system (reference: the residual
     /// of the solution, 1e-13 relative, and faer's AMD-ordered factor, 1e-12), and the factor is
     /// bit-identical on one thread and on a pool of two.
+    /// Ours (session 18): `forward_sparse` gives `u^T A^{-1} v` as the dot of the forward halves
+    /// (`A = L L^T` permuted). Reference: the full solve `A^{-1} v` (the factor's own, checked
+    /// against faer's AMD factor above), dotted with `u`, for columns with a few non-zero rows
+    /// (as the kept factor's low-rank columns), one of them with a row beyond the factor (left
+    /// out). Tolerance 1e-12 relative. Also: the forward halves of a column supported in one
+    /// corner of the grid leave most rows zero (only the elimination-tree ancestors are visited).
+    #[test]
+    fn forward_halves_give_the_inverse_products() {
+        let (a, xy) = grid(60, 40);
+        let n = a.nrows();
+        let sym = symbolic(a.symbolic(), &nested_dissection(a.symbolic(), &xy)).unwrap();
+        let f = Factor::new(sym, &a, Par::Seq).unwrap();
+        let cols: Vec<Vec<(usize, f64)>> = vec![vec![(3, 1.0), (4, -0.5), (61, 0.25)], vec![(n / 2, 2.0), (n / 2 + 1, 1.0), (n + 5, 9.0)], vec![(n - 1, 1.0)]];
+        let y = f.forward_sparse(&cols);
+        for (p, u) in cols.iter().enumerate() {
+            for (q, v) in cols.iter().enumerate() {
+                let mut b = vec![0.0; n];
+                v.iter().filter(|e| e.0 < n).for_each(|&(i, x)| b[i] = x);
+                let z = f.solve(&b, Par::Seq);
+                let full: f64 = u.iter().filter(|e| e.0 < n).map(|&(i, x)| x * z[i]).sum();
+                let half: f64 = (0..n).map(|i| y[(i, p)] * y[(i, q)]).sum();
+                assert!((full - half).abs() <= 1e-12 * full.abs().max(1e-300), "({p}, {q}): {full} against {half}");
+            }
+        }
+        let zeros = (0..n).filter(|&i| y[(i, 0)] == 0.0).count();
+        assert!(zeros > n / 2, "{zeros} of {n} rows zero");
+    }
+
     #[test]
     fn dissection_orders_and_solves_bit_identically_on_any_thread_count() {
         let (a, xy) = grid(240, 160);

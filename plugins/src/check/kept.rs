@@ -423,13 +423,22 @@ impl KeptFactor {
                 let c22 = nalgebra::DMatrix::<f64>::from_fn(k, k, |p, q| bm(ro + p, q) + if p == q { 1.0 / base.lam[ro + p] } else { 0.0 });
                 let c22 = (c22.clone() + c22.transpose()) * 0.5;
                 let mut smat = c22.clone();
+                // After a move (ours, session 18: `Base::v`), the two products of size `r^2 k` go
+                // through faer's matrix product (one thread); the paper's rules keep the loops
+                // of before (their bits).
+                let gemm = base.v.is_some();
                 let mut e = vec![0.0; ro * k];
-                for i in 0..ro {
-                    let row = &base.cinv[i * ro..(i + 1) * ro];
-                    for (j, &c) in row.iter().enumerate() {
-                        if c != 0.0 {
-                            for q in 0..k {
-                                e[i * k + q] += c * b_old[j * k + q];
+                if gemm && ro > 0 {
+                    let mut em = faer::MatMut::from_row_major_slice_mut(&mut e, ro, k);
+                    faer::linalg::matmul::matmul(em.as_mut(), faer::Accum::Replace, faer::MatRef::from_row_major_slice(&base.cinv, ro, ro), faer::MatRef::from_row_major_slice(&b_old, ro, k), 1.0, faer::Par::Seq);
+                } else {
+                    for i in 0..ro {
+                        let row = &base.cinv[i * ro..(i + 1) * ro];
+                        for (j, &c) in row.iter().enumerate() {
+                            if c != 0.0 {
+                                for q in 0..k {
+                                    e[i * k + q] += c * b_old[j * k + q];
+                                }
                             }
                         }
                     }
@@ -452,9 +461,21 @@ impl KeptFactor {
                     }
                 }
                 let mut cinv = vec![0.0; r * r];
+                let mut fe = Vec::new();
+                if gemm && ro > 0 {
+                    fe = vec![0.0; ro * ro];
+                    let mut m = faer::MatMut::from_row_major_slice_mut(&mut fe, ro, ro);
+                    faer::linalg::matmul::matmul(m.as_mut(), faer::Accum::Replace, faer::MatRef::from_row_major_slice(&f, ro, k), faer::MatRef::from_row_major_slice(&e, ro, k).transpose(), 1.0, faer::Par::Seq);
+                }
                 for i in 0..ro {
-                    for j in 0..ro {
-                        cinv[i * r + j] = base.cinv[i * ro + j] + (0..k).map(|q| f[i * k + q] * e[j * k + q]).sum::<f64>();
+                    if gemm {
+                        for j in 0..ro {
+                            cinv[i * r + j] = base.cinv[i * ro + j] + fe[i * ro + j];
+                        }
+                    } else {
+                        for j in 0..ro {
+                            cinv[i * r + j] = base.cinv[i * ro + j] + (0..k).map(|q| f[i * k + q] * e[j * k + q]).sum::<f64>();
+                        }
                     }
                     for q in 0..k {
                         cinv[i * r + ro + q] = -f[i * k + q];
