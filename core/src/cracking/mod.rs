@@ -400,9 +400,6 @@ impl Cracking {
                 r.moved.push((q, to));
             }
             if let Some((q, origin, dir)) = line {
-                if std::env::var_os("P34_DEBUG").is_some() {
-                    eprintln!("P34 cut {} tip {:?} line origin {:?} dir {:.2} moved {:?} x {:?}", self.cuts.len(), tip.map(|t| model.mesh.points[t.point.idx()]), origin, dir.to_degrees(), moved.map(|m| m.2), model.mesh.points[q.idx()]);
-                }
                 self.path.lines.push(path::TipLine { point: q.0, origin, dir });
             }
             if u_ext.is_empty() {
