@@ -2,7 +2,8 @@
 # Ours (issue 34, must-show 5; docs/paths.md "Cost"): CPU time per event (events solver) of the
 # edge rule and of `tip_mts` on the scenes of configs/paths/, each scene's rule replaced, the
 # edge rule's run right before its tip_mts run, each run REPEATS times (the least CPU kept: the
-# machine is shared, and /usr/bin/time has a 10 ms resolution). CPU = user + sys.
+# machine is shared). CPU = the process's task clock (`perf stat -e task-clock`, 1 us
+# resolution; /usr/bin/time's 10 ms is too coarse for the small meshes' 0.1 s runs).
 # Usage: tools/paths_cost.sh FLEM OUT_DIR [REPEATS] [SCENE...]   (default: every configs/paths scene)
 set -euo pipefail
 flem=$(realpath "$1"); out=$(realpath -m "$2"); reps=${3:-2}; shift 3 || shift $#
@@ -19,8 +20,8 @@ for f in "${scenes[@]}"; do
     best=""
     for r in $(seq "$reps"); do
       rm -rf "$out/run"
-      /usr/bin/time -o "$out/t.txt" -f "%U %S" "$flem" run "$s" --out "$out/run" > /dev/null 2>&1
-      c=$(awk '{print $1 + $2}' "$out/t.txt")
+      perf stat -x, -e task-clock -o "$out/t.txt" "$flem" run "$s" --out "$out/run" > /dev/null 2>&1
+      c=$(awk -F, '/task-clock/ {print $1 / 1000}' "$out/t.txt")
       if [ -z "$best" ] || awk "BEGIN{exit !($c < $best)}"; then best=$c; fi
     done
     e=$(python3 -c "import json;print(json.load(open('$out/run/summary.json'))['steps'])")

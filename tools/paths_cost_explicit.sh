@@ -3,7 +3,8 @@
 # march with the edge rule and with `tip_mts` on shear-test scenes of configs/paths/ (as
 # tests/paths.rs `tip_mts_in_the_explicit_march`: the events solver replaced by the explicit
 # march to equilibrium, tolerance 1e-4, a failure check every 10 steps, the displacement raised
-# in four stages 0.01, 0.02, 0.025, 0.03, at most 20000 steps each). Least CPU of REPEATS runs.
+# in four stages 0.01, 0.02, 0.025, 0.03, at most 20000 steps each). Least CPU (task clock,
+# `perf stat`) of REPEATS runs.
 # Usage: tools/paths_cost_explicit.sh FLEM OUT_DIR REPEATS SCENE...
 set -euo pipefail
 flem=$(realpath "$1"); out=$(realpath -m "$2"); reps=$3; shift 3
@@ -29,8 +30,8 @@ PY
     best=""
     for r in $(seq "$reps"); do
       rm -rf "$out/run"
-      /usr/bin/time -o "$out/t.txt" -f "%U %S" "$flem" run "$s" --out "$out/run" > /dev/null 2>&1 || true
-      c=$(awk '{print $1 + $2}' "$out/t.txt")
+      perf stat -x, -e task-clock -o "$out/t.txt" "$flem" run "$s" --out "$out/run" > /dev/null 2>&1 || true
+      c=$(awk -F, '/task-clock/ {print $1 / 1000}' "$out/t.txt")
       if [ -z "$best" ] || awk "BEGIN{exit !($c < $best)}"; then best=$c; fi
     done
     e=$(python3 -c "import json;print(json.load(open('$out/run/summary.json'))['steps'])")

@@ -430,7 +430,14 @@ impl KeptFactor {
                 let mut e = vec![0.0; ro * k];
                 if gemm && ro > 0 {
                     let mut em = faer::MatMut::from_row_major_slice_mut(&mut e, ro, k);
-                    faer::linalg::matmul::matmul(em.as_mut(), faer::Accum::Replace, faer::MatRef::from_row_major_slice(&base.cinv, ro, ro), faer::MatRef::from_row_major_slice(&b_old, ro, k), 1.0, faer::Par::Seq);
+                    faer::linalg::matmul::matmul(
+                        em.as_mut(),
+                        faer::Accum::Replace,
+                        faer::MatRef::from_row_major_slice(&base.cinv, ro, ro),
+                        faer::MatRef::from_row_major_slice(&b_old, ro, k),
+                        1.0,
+                        faer::Par::Seq,
+                    );
                 } else {
                     for i in 0..ro {
                         let row = &base.cinv[i * ro..(i + 1) * ro];
@@ -465,7 +472,14 @@ impl KeptFactor {
                 if gemm && ro > 0 {
                     fe = vec![0.0; ro * ro];
                     let mut m = faer::MatMut::from_row_major_slice_mut(&mut fe, ro, ro);
-                    faer::linalg::matmul::matmul(m.as_mut(), faer::Accum::Replace, faer::MatRef::from_row_major_slice(&f, ro, k), faer::MatRef::from_row_major_slice(&e, ro, k).transpose(), 1.0, faer::Par::Seq);
+                    faer::linalg::matmul::matmul(
+                        m.as_mut(),
+                        faer::Accum::Replace,
+                        faer::MatRef::from_row_major_slice(&f, ro, k),
+                        faer::MatRef::from_row_major_slice(&e, ro, k).transpose(),
+                        1.0,
+                        faer::Par::Seq,
+                    );
                 }
                 for i in 0..ro {
                     if gemm {
