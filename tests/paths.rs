@@ -273,3 +273,80 @@ fn shear_whole_path_same_on_t3_and_q4() {
     let d = flem_plugins::check::paths::hausdorff(&a, &b, 1e-4);
     assert!(d <= 0.02, "Hausdorff distance {:.2} % of the size", 100.0 * d);
 }
+
+/// Ours (session 18, review r17 (b)): the path method's fixity mask. On the shear test
+/// (`shear_t3_1`, h = 1/30) the crack's line meets the clamped edge (y = 0) at x of about 0.78.
+/// With the bottom held by a prescribed displacement of zero (the same problem as the support,
+/// but a prescribed motion: class `HELD`, never moved), no point of the bottom edge may move,
+/// the refusals are counted (`held_refused`) and the crack still reaches the edge (cut where the
+/// node lies). The same scene with the mask emptied (`path_held`, as before session 18) slides
+/// a bottom node: what the mask is for. With the support itself (class `SLIDES`: the support
+/// covers both boundary edges of every bottom node but the corners) the slide along the edge
+/// stays allowed (the same problem: u = 0 along the same edges). Tolerance: exact (moves are
+/// records, the edge's points have y = 0 exactly).
+#[test]
+fn path_method_never_moves_a_held_point() {
+    let t = text("shear_t3_1", "tip_mts");
+    let support = "[[support]]\nnodes = \"bottom\"\nfix = \"xy\"\n";
+    assert!(t.contains(support) && t.contains("levels = { shear = 0.05 }"), "the scene changed: update the test");
+    let held = t
+        .replace(support, "[[load]]\nname = \"clamp\"\ntype = \"displacement\"\nnodes = \"bottom\"\nx = 0.0\ny = 0.0\n")
+        .replace("levels = { shear = 0.05 }", "levels = { shear = 0.05, clamp = 1.0 }");
+    let bottom_moves = |s: &Simulation| s.cracking.as_ref().unwrap().path.moves.iter().filter(|m| m.from[1] == 0.0).count();
+    let run = |text: &str, mask: bool| {
+        let mut s = sim(text);
+        if !mask {
+            s.cracking.as_mut().unwrap().path_held.clear();
+        }
+        let tips = crack_tips(&s.model);
+        let initial = crack_faces(&s.model);
+        s.run(&mut NoOutput).unwrap();
+        let cuts = s.cracking.as_ref().unwrap().cuts.clone();
+        let k = kinks_in_order(&s.model, &tips, &initial, 5.0, &cuts).remove(0);
+        let end = *k.through().last().unwrap();
+        assert!(k.boundary_at.is_some() && end[1].abs() < 1e-9, "the path ends at {end:?}");
+        s
+    };
+    let s = run(&held, true);
+    let cr = s.cracking.as_ref().unwrap();
+    assert_eq!(bottom_moves(&s), 0, "a held point moved");
+    assert!(cr.held_refused > 0 && cr.path.refused >= cr.held_refused, "{} held refusals", cr.held_refused);
+    let free = run(&held, false);
+    assert!(bottom_moves(&free) > 0, "without the mask no bottom node moved: the test would not see the defect");
+    let sup = run(&t, true);
+    assert!(bottom_moves(&sup) > 0, "a supported node no longer slides along its supported edge");
+    assert_eq!(sup.cracking.as_ref().unwrap().held_refused, 0);
+}
+
+/// The mask's classes (`Loads::held_points`, ours, session 18) on the 4 x 4 Q4 rectangle with
+/// the bottom supported in y, the left edge in x, the top displaced and a traction on the right
+/// edge: a bottom node inside the edge slides (its support covers both its boundary edges), the
+/// corner (0, 0) slides neither (not straight: `check_move` refuses it anyway), the left edge's
+/// nodes slide, the top and right edges' nodes (prescribed, loaded face) and the corners where a
+/// support ends are held, an interior node is free. Moves: exact classes and refusals by name.
+#[test]
+fn fixity_mask_classes() {
+    let s = sim("[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 4.0\nnx = 4\nny = 4\n\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n\n[[support]]\nnodes = \"bottom\"\nfix = \"y\"\n\n[[support]]\nnodes = \"left\"\nfix = \"x\"\n\n[[load]]\nname = \"d\"\ntype = \"displacement\"\nnodes = \"top\"\ny = 0.01\n\n[[load]]\nname = \"t\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [1.0, 0.0]\n\n[[stage]]\nname = \"none\"\nlevels = { d = 1.0, t = 1.0 }\n");
+    use flem_core::cracking::path::{check_move_held, HELD, HELD_MSG, SLIDES};
+    let m = &s.model;
+    let id = |x: [f64; 2]| (0..m.mesh.points.len()).find(|&i| m.mesh.points[i] == x).map(PointId::new).unwrap();
+    let h = s.loads.held_points(m);
+    let c = |x: [f64; 2]| h[id(x).idx()];
+    assert_eq!(c([2.0, 0.0]), SLIDES);
+    assert_eq!(c([0.0, 2.0]), SLIDES);
+    // (0, 0): fixed in x and y, its neighbours each in one direction only: the supports end there.
+    assert_eq!(c([0.0, 0.0]), HELD);
+    // (4, 0): the bottom's y support ends at the right edge (free in y below the traction), and
+    // it is an end of a loaded face.
+    assert_eq!(c([4.0, 0.0]), HELD);
+    assert_eq!(c([4.0, 2.0]), HELD);
+    assert_eq!(c([2.0, 4.0]), HELD);
+    assert_eq!(c([2.0, 2.0]), 0);
+    assert_eq!(check_move_held(m, &h, id([2.0, 0.0]), [2.3, 0.0]), Ok(()));
+    assert_eq!(check_move_held(m, &h, id([2.0, 0.0]), [2.3, 0.1]), Err("a boundary point"));
+    assert_eq!(check_move_held(m, &h, id([4.0, 2.0]), [4.0, 2.3]), Err(HELD_MSG));
+    assert_eq!(check_move_held(m, &h, id([2.0, 4.0]), [2.3, 4.0]), Err(HELD_MSG));
+    assert_eq!(check_move_held(m, &h, id([2.0, 2.0]), [2.25, 1.8]), Ok(()));
+    // Empty mask: nothing held (the rule's state before set-up, the paper's rules).
+    assert_eq!(check_move_held(m, &[], id([2.0, 4.0]), [2.3, 4.0]), Ok(()));
+}

@@ -54,6 +54,8 @@ pub struct Row {
     pub splits: usize,
     pub moves: usize,
     pub refused_moves: u64,
+    /// Of `refused_moves`, those of a point that carries a boundary condition (ours, session 18).
+    pub refused_held: u64,
     pub wall_s: f64,
     /// The specimen's size: the larger side of the mesh's bounding box.
     pub size: f64,
@@ -106,7 +108,7 @@ pub fn measure(path: &PathBuf, rule: Option<&str>, sizes: f64) -> Result<Vec<Row
     let ks = kinks_in_order(&sim.model, &tips, &initial, sizes, cuts);
     let small = fragment_sizes(&sim.model).iter().filter(|&&s| s < 3).count();
     let cr = sim.cracking.as_ref();
-    let (splits, moves, refused) = cr.map_or((0, 0, 0), |c| (c.n_splits, c.path.moves.len(), c.path.refused));
+    let (splits, moves, refused, held) = cr.map_or((0, 0, 0, 0), |c| (c.n_splits, c.path.moves.len(), c.path.refused, c.held_refused));
     Ok(ks
         .into_iter()
         .map(|k| {
@@ -132,6 +134,7 @@ pub fn measure(path: &PathBuf, rule: Option<&str>, sizes: f64) -> Result<Vec<Row
                 splits,
                 moves,
                 refused_moves: refused,
+                refused_held: held,
                 wall_s,
                 size,
                 run_error: run_error.clone(),
@@ -142,14 +145,18 @@ pub fn measure(path: &PathBuf, rule: Option<&str>, sizes: f64) -> Result<Vec<Row
 
 pub fn table(rows: &[Row]) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "{:<44} {:>6} {:>8} {:>8} {:>8} {:>8} {:>7} {:>5} {:>5} {:>6} {:>6} {:>7}", "scene", "tip", "h", "MTS", "chord", "lsq", "error", "frag", "br", "moves", "refus", "wall s");
+    let _ = writeln!(
+        s,
+        "{:<44} {:>6} {:>8} {:>8} {:>8} {:>8} {:>7} {:>5} {:>5} {:>6} {:>6} {:>5} {:>7}",
+        "scene", "tip", "h", "MTS", "chord", "lsq", "error", "frag", "br", "moves", "refus", "held", "wall s"
+    );
     let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
     for r in rows {
         let k = &r.kink;
         let err = if k.reached { f(r.error_deg) } else { format!("short {:.2}", k.length / k.h) };
         let _ = writeln!(
             s,
-            "{:<44} {:>6} {:>8.4} {:>8} {:>8} {:>8} {:>7} {:>5} {:>5} {:>6} {:>6} {:>7.2}{}",
+            "{:<44} {:>6} {:>8.4} {:>8} {:>8} {:>8} {:>7} {:>5} {:>5} {:>6} {:>6} {:>5} {:>7.2}{}",
             r.scene,
             k.tip_point,
             k.h,
@@ -161,6 +168,7 @@ pub fn table(rows: &[Row]) -> String {
             k.branches,
             r.moves,
             r.refused_moves,
+            r.refused_held,
             r.wall_s,
             r.run_error.as_ref().map_or(String::new(), |e| format!("  [stopped: {}]", e.lines().next().unwrap_or("")))
         );

@@ -63,6 +63,15 @@ pub struct Cracking {
     /// The path method's moves and tip lines (ours, issue 34, `path.rs`): empty unless the
     /// separation rule grows tips. A checkpoint keeps it (section "path").
     pub path: path::PathState,
+    /// Ours (session 18): the fixity mask, per point: whether it carries a boundary condition (a
+    /// support, a point load, a prescribed motion, an end of a loaded face:
+    /// `Loads::held_points`), built once at set-up when the rule grows tips; the path method
+    /// never moves such a point, except a supported one along its supported straight boundary
+    /// (`path::check_move_held`). Empty: no point is held.
+    pub path_held: Vec<u8>,
+    /// Of `path.refused`, the moves refused because the point is held (`path_held`). A
+    /// checkpoint keeps it (section "path_held", written when not zero).
+    pub held_refused: u64,
     /// The nonlocal average (`[cracking] nonlocal`, ours); `None`: the paper's corner mean.
     pub nonlocal: Option<nonlocal::Nonlocal>,
     /// The certified skip (ours, issue 24, `skip.rs`): on by default (it changes no result);
@@ -116,6 +125,8 @@ impl Cracking {
             n_splits: 0,
             cuts: Vec::new(),
             path: path::PathState::default(),
+            path_held: Vec::new(),
+            held_refused: 0,
             nonlocal,
             certified_skip: true,
             skip_margin_factor: 1.0,
@@ -356,9 +367,14 @@ impl Cracking {
                         let at = |f: f64| [from[0] + f * (to[0] - from[0]), from[1] + f * (to[1] - from[1])];
                         // (A model whose blocks cannot be rebuilt, stateful or co-rotational,
                         // refuses every move: its tips are cut along the nearest link.)
-                        match [1.0, 0.5, 0.25].into_iter().map(at).find(|&x| path::check_move(model, q, x).is_ok()).map(|x| (x, model.move_point(q, x))) {
+                        // A point that carries a boundary condition (`path_held`) is refused
+                        // at once, counted apart (`held_refused`): the link is cut where it lies.
+                        match [1.0, 0.5, 0.25].into_iter().map(at).find(|&x| path::check_move_held(model, &self.path_held, q, x).is_ok()).map(|x| (x, model.move_point(q, x))) {
                             Some((x, Ok(()))) => moved = Some((q, from, x)),
-                            _ => self.path.refused += 1,
+                            _ => {
+                                self.path.refused += 1;
+                                self.held_refused += (path::check_move_held(model, &self.path_held, q, to) == Err(path::HELD_MSG)) as u64;
+                            }
                         }
                     }
                     crate::plugin::traits::Proposal { edges: plan.edges }

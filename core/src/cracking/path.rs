@@ -7,7 +7,8 @@
 //! A *tip* is a point with one cluster (never split) at which exactly one interior crack face
 //! ends: an edge separated at its other end and joined at the tip (as `check::sif::crack_tips`).
 //!
-//! A move of point `p` to `x` is accepted when `p` is an interior point (or, ours since session
+//! A move of point `p` to `x` is accepted when `p` carries no boundary condition (ours, session
+//! 18: the fixity mask `Cracking::path_held`, [`check_move_held`]), is an interior point (or, ours since session
 //! 17, a boundary point sliding along a straight stretch of the boundary:
 //! [`slides_along_boundary`]) that never split, lies on no crack face, and every element with a corner at `p` keeps its orientation and a corner
 //! angle of at least [`MIN_ANGLE_DEG`] (or half its smallest angle before the move, whichever
@@ -162,7 +163,38 @@ pub fn slides_along_boundary(model: &Model, p: PointId, to: [f64; 2]) -> Result<
     Ok(straight && on_line)
 }
 
-/// Whether `p` may move to `to` (see the module doc); the reason when not.
+/// The fixity mask's classes (`Loads::held_points`, ours, session 18): a point that never moves.
+pub const HELD: u8 = 1;
+/// A point held by supports that cover both of its boundary edges: it may slide along a straight
+/// boundary, never leave it.
+pub const SLIDES: u8 = 2;
+
+/// The reason [`check_move_held`] gives for a held point.
+pub const HELD_MSG: &str = "the point carries a boundary condition (support, load or prescribed motion)";
+
+/// [`check_move`], and first (ours, session 18) the fixity mask `held` (per point, built once at
+/// set-up: `Loads::held_points`): a [`HELD`] point (a point load, a prescribed velocity or
+/// displacement, an end of a loaded face, the end of a support) never moves; a [`SLIDES`] point
+/// (supported, the support covering both its boundary edges) only slides along a straight
+/// boundary ([`slides_along_boundary`]). Otherwise a move would change the problem being solved.
+/// `held` shorter than the points (empty): nothing held.
+pub fn check_move_held(model: &Model, held: &[u8], p: PointId, to: [f64; 2]) -> Result<(), &'static str> {
+    match held.get(p.idx()).copied().unwrap_or(0) {
+        0 => {}
+        SLIDES if is_on_boundary(model, p) => {}
+        _ => return Err(HELD_MSG),
+    }
+    check_move(model, p, to)
+}
+
+/// Whether `p` is an end of an outer boundary edge.
+fn is_on_boundary(model: &Model, p: PointId) -> bool {
+    let topo = &model.topo;
+    topo.point_edges.row(p.idx()).iter().any(|&e| topo.edges[e.idx()].sides[1].is_none())
+}
+
+/// Whether `p` may move to `to` (see the module doc); the reason when not. The fixity mask is
+/// [`check_move_held`]'s.
 pub fn check_move(model: &Model, p: PointId, to: [f64; 2]) -> Result<(), &'static str> {
     let topo = &model.topo;
     if !(to[0].is_finite() && to[1].is_finite()) {

@@ -241,6 +241,10 @@ impl Checkpoint {
         if let Some(c) = sim.cracking.as_ref().filter(|c| c.path != crate::cracking::path::PathState::default()) {
             ck.put_section("path", 1, &c.path)?;
         }
+        // Ours (session 18): the moves refused for a held point, only when some were.
+        if let Some(c) = sim.cracking.as_ref().filter(|c| c.held_refused > 0) {
+            ck.put_section("path_held", 1, &c.held_refused)?;
+        }
         // The run's warnings so far (issue 35: a resumed run kept only those of building the
         // model and lost the earlier stages'). Absent in older checkpoints: the new
         // simulation's own are kept then.
@@ -276,6 +280,10 @@ impl Checkpoint {
         }
         sim.levels.clone_from(&self.levels);
         let path: crate::cracking::path::PathState = self.section("path", 1)?.unwrap_or_default();
+        let held_refused: u64 = self.section("path_held", 1)?.unwrap_or(0);
+        if let Some(cr) = sim.cracking.as_mut() {
+            cr.held_refused = held_refused;
+        }
         if !self.cuts.is_empty() {
             let Some(cr) = sim.cracking.as_mut() else { return Err(bad("it has splits and the scene has no [cracking]".into())) };
             cr.cuts.clone_from(&self.cuts);

@@ -179,6 +179,59 @@ impl Loads {
         Ok(Loads { loads, point_fix, gravity: scene.model.gravity, has_follower, has_time, velocity_of_t, file: file.to_string() })
     }
 
+    /// Ours (issue 34, session 18): the fixity mask of the path method
+    /// (`cracking::path::check_move_held`), per point, built once at set-up:
+    /// - [`HELD`]: the point carries a point load, a prescribed velocity or displacement, or is an
+    ///   end of a face with a pressure or traction (whatever the stage's level), or a support that
+    ///   ends at it (a boundary neighbour lacks one of its fixed directions). It never moves: the
+    ///   move would change the problem (where the load acts or the support ends, what was
+    ///   integrated on the face).
+    /// - [`SLIDES`]: held by supports only, with both of its boundary neighbours fixed in (at
+    ///   least) the same directions: the support covers both boundary edges at the point. It may
+    ///   slide along a straight boundary (`slide`), never off it: the fixed directions stay zero
+    ///   along the same two edges, which is the same problem (the outline and the supported
+    ///   stretch unchanged).
+    /// - 0: free.
+    pub fn held_points(&self, model: &Model) -> Vec<u8> {
+        use crate::cracking::path::{HELD, SLIDES};
+        let topo = &model.topo;
+        let mut held: Vec<u8> = (0..self.point_fix.len())
+            .map(|p| {
+                let bits = self.point_fix[p];
+                if bits == 0 {
+                    return 0;
+                }
+                let mut n = 0;
+                let mut covered = true;
+                for &e in topo.point_edges.row(p) {
+                    if topo.edges[e.idx()].sides[1].is_none() {
+                        n += 1;
+                        let q = topo.other_end(e, PointId::new(p));
+                        covered &= self.point_fix[q.idx()] & bits == bits;
+                    }
+                }
+                if n == 2 && covered {
+                    SLIDES
+                } else {
+                    HELD
+                }
+            })
+            .collect();
+        for l in &self.loads {
+            match &l.kind {
+                Kind::Point { points, .. } | Kind::Prescribed { points, .. } => points.iter().for_each(|p| held[p.idx()] = HELD),
+                Kind::Edge { faces, .. } => {
+                    for &f in faces {
+                        let (a, b) = Self::face_points(model, f);
+                        held[a.idx()] = HELD;
+                        held[b.idx()] = HELD;
+                    }
+                }
+            }
+        }
+        held
+    }
+
     /// The two points of a face (element, local edge), in the element's order.
     fn face_points(model: &Model, face: (ElemId, u8)) -> (PointId, PointId) {
         let (e, k) = face;

@@ -617,7 +617,14 @@ impl Simulation {
             model.apply_record(&rec);
         }
         let cracking = match &scene.file.cracking {
-            Some(c) => Some(Cracking::new(c, &model, &file, &mut warnings)?),
+            Some(c) => {
+                let mut cr = Cracking::new(c, &model, &file, &mut warnings)?;
+                // The path method (ours) never moves a point that carries a boundary condition.
+                if c.separation.grows_tips() {
+                    cr.path_held = loads.held_points(&model);
+                }
+                Some(cr)
+            }
             None => None,
         };
         if scene.file.cracking.as_ref().is_some_and(|c| c.at_equilibrium) {

@@ -281,6 +281,8 @@ pub fn extend_ordering(old: &[usize], n: usize, parent: &[usize]) -> Vec<usize> 
 pub struct Symbolic {
     /// `fwd[new] = old`.
     fwd: Vec<usize>,
+    /// `inv[old] = new` (`Factor::forward_sparse`).
+    inv: Vec<usize>,
     /// FNV-1a hash of the unpermuted pattern's row indices, column by column (a matrix handed
     /// to `Factor::new` must have this pattern).
     rows_hash: u64,
@@ -366,7 +368,7 @@ pub fn symbolic(pattern: SymbolicSparseColMatRef<'_, usize>, order: &[usize]) ->
     let et = unsafe { simplicial::EliminationTreeRef::<usize>::from_inner(&etree) };
     let sn = supernodal::factorize_supernodal_symbolic_cholesky(upper.as_ref(), et, &counts, stack, Default::default()).map_err(|e| format!("{e:?}"))?;
     let plan = Plan::new(&sn);
-    Ok(Arc::new(Symbolic { fwd: order.to_vec(), rows_hash: rows_hash(pattern), to_perm, lcp, lri, sn, plan }))
+    Ok(Arc::new(Symbolic { fwd: order.to_vec(), inv, rows_hash: rows_hash(pattern), to_perm, lcp, lri, sn, plan }))
 }
 
 /// FNV-1a hash of a pattern's row indices, column by column (with each column's length).
@@ -915,6 +917,51 @@ impl Factor {
         }
     }
 
+    /// Ours (issue 34, session 18): the forward half of a solve, `L y = P b`, for right-hand
+    /// sides with few non-zero rows (the columns of the events solver's low-rank update,
+    /// `kept.rs`): `cols` are the columns of `b` as (row, value) in the original order (rows at
+    /// or beyond the factor's size are left out), `y` is returned in the factor's (permuted)
+    /// order, `n x k`. A supernode whose rows of `y` are all zero is skipped: only the
+    /// elimination-tree ancestors of `b`'s rows are visited, and no backward half is run. With
+    /// `A^{-1} = P^T L^{-T} L^{-1} P`, `u^T A^{-1} v = (L^{-1} P u) . (L^{-1} P v)`. One thread
+    /// (the same result on any thread count).
+    pub fn forward_sparse(&self, cols: &[Vec<(usize, f64)>]) -> faer::Mat<f64> {
+        let n = self.sym.fwd.len();
+        let k = cols.len();
+        let inv = &self.sym.inv;
+        let mut x = faer::Mat::<f64>::zeros(n, k);
+        for (c, col) in cols.iter().enumerate() {
+            for &(i, v) in col.iter().filter(|e| e.0 < n) {
+                x[(inv[i], c)] = v;
+            }
+        }
+        let l = SupernodalLltRef::new(&self.sym.sn, &self.values);
+        let mut tmp = faer::Mat::<f64>::zeros(0, k);
+        for s in 0..self.sym.sn.n_supernodes() {
+            let sn = l.supernode(s);
+            let ls = sn.val();
+            let size = ls.ncols();
+            let start = sn.start();
+            if (0..k).all(|j| x.col(j).subrows(start, size).iter().all(|&v| v == 0.0)) {
+                continue;
+            }
+            let (top, bot) = ls.split_at_row(size);
+            faer::linalg::triangular_solve::solve_lower_triangular_in_place(top, x.as_mut().subrows_mut(start, size), Par::Seq);
+            let pat = sn.pattern();
+            if pat.is_empty() {
+                continue;
+            }
+            tmp.resize_with(pat.len(), k, |_, _| 0.0);
+            faer::linalg::matmul::matmul(tmp.as_mut(), Accum::Replace, bot, x.as_ref().subrows(start, size), 1.0, Par::Seq);
+            for j in 0..k {
+                for (idx, &i) in pat.iter().enumerate() {
+                    x[(i, j)] -= tmp[(idx, j)];
+                }
+            }
+        }
+        x
+    }
+
     /// Solves `A x = b` for one vector.
     pub fn solve(&self, b: &[f64], par: Par) -> Vec<f64> {
         let mut x = b.to_vec();
@@ -984,6 +1031,34 @@ mod tests {
     /// The dissection is a permutation, its factor solves the system (reference: the residual
     /// of the solution, 1e-13 relative, and faer's AMD-ordered factor, 1e-12), and the factor is
     /// bit-identical on one thread and on a pool of two.
+    /// Ours (session 18): `forward_sparse` gives `u^T A^{-1} v` as the dot of the forward halves
+    /// (`A = L L^T` permuted). Reference: the full solve `A^{-1} v` (the factor's own, checked
+    /// against faer's AMD factor above), dotted with `u`, for columns with a few non-zero rows
+    /// (as the kept factor's low-rank columns), one of them with a row beyond the factor (left
+    /// out). Tolerance 1e-12 relative. Also: the forward halves of a column supported in one
+    /// corner of the grid leave most rows zero (only the elimination-tree ancestors are visited).
+    #[test]
+    fn forward_halves_give_the_inverse_products() {
+        let (a, xy) = grid(60, 40);
+        let n = a.nrows();
+        let sym = symbolic(a.symbolic(), &nested_dissection(a.symbolic(), &xy)).unwrap();
+        let f = Factor::new(sym, &a, Par::Seq).unwrap();
+        let cols: Vec<Vec<(usize, f64)>> = vec![vec![(3, 1.0), (4, -0.5), (61, 0.25)], vec![(n / 2, 2.0), (n / 2 + 1, 1.0), (n + 5, 9.0)], vec![(n - 1, 1.0)]];
+        let y = f.forward_sparse(&cols);
+        for (p, u) in cols.iter().enumerate() {
+            for (q, v) in cols.iter().enumerate() {
+                let mut b = vec![0.0; n];
+                v.iter().filter(|e| e.0 < n).for_each(|&(i, x)| b[i] = x);
+                let z = f.solve(&b, Par::Seq);
+                let full: f64 = u.iter().filter(|e| e.0 < n).map(|&(i, x)| x * z[i]).sum();
+                let half: f64 = (0..n).map(|i| y[(i, p)] * y[(i, q)]).sum();
+                assert!((full - half).abs() <= 1e-12 * full.abs().max(1e-300), "({p}, {q}): {full} against {half}");
+            }
+        }
+        let zeros = (0..n).filter(|&i| y[(i, 0)] == 0.0).count();
+        assert!(zeros > n / 2, "{zeros} of {n} rows zero");
+    }
+
     #[test]
     fn dissection_orders_and_solves_bit_identically_on_any_thread_count() {
         let (a, xy) = grid(240, 160);

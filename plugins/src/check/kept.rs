@@ -63,6 +63,27 @@ struct Base {
     /// load that did not change is not solved again).
     ycache: Vec<(Vec<f64>, Vec<f64>)>,
     updates: usize,
+    /// Ours (issue 34, session 18): once a node moved by the path method changed `K` since this
+    /// factorisation, the forward halves `V = L^{-1} P W` of the low-rank columns (on `K_0`'s
+    /// dofs, the factor's order, non-zero rows only): the capacitance's new entries are then
+    /// `W_a^T K_0^{-1} W_q = V_a . V_q` (plus the new dofs' rows, where `A_0 = I`), from one
+    /// sparse forward solve of the new columns (`Factor::forward_sparse`) instead of a full
+    /// solve. `None`: no move yet (the paper's rules never move a node: their updates, and so
+    /// their results, are those of before, bit for bit).
+    v: Option<Vec<(Vec<u32>, Vec<f64>)>>,
+}
+
+/// The non-zero rows of column `q` of `y`.
+fn sparse_col(y: &Mat<f64>, q: usize) -> (Vec<u32>, Vec<f64>) {
+    let (mut rows, mut vals) = (Vec::new(), Vec::new());
+    for i in 0..y.nrows() {
+        let v = y[(i, q)];
+        if v != 0.0 {
+            rows.push(i as u32);
+            vals.push(v);
+        }
+    }
+    (rows, vals)
 }
 
 impl Base {
@@ -218,6 +239,7 @@ impl KeptFactor {
             cmat: Vec::new(),
             ycache: Vec::new(),
             updates: 0,
+            v: None,
         });
         Ok(out)
     }
@@ -334,32 +356,96 @@ impl KeptFactor {
             }
             let k = base.w.len() - first;
             if k > 0 {
-                // Z_new = A_0^{-1} W_new (one multi-column solve; the rows of new dofs: A_0 = I).
-                let mut zn = Mat::<f64>::zeros(n, k);
-                for q in 0..k {
-                    for &(i, v) in &base.w[first + q] {
-                        zn[(i, q)] = v;
+                let r = base.w.len();
+                let ro = first;
+                let n0 = base.n0;
+                // The capacitance's new columns `bt[a k + q] = W_a^T A_0^{-1} W_new,q` (all `r`
+                // rows a).
+                let bt: Vec<f64> = if base.v.is_some() || moved_any {
+                    // Ours (session 18): the forward halves (see `Base::v`). The columns before
+                    // this call are forward-solved once, at the first move since the fresh
+                    // factorisation.
+                    if base.v.is_none() {
+                        let y = base.llt.forward_sparse(&base.w[..ro]);
+                        base.v = Some((0..ro).map(|a| sparse_col(&y, a)).collect());
                     }
-                }
-                base.llt.solve_in_place(zn.as_mut().subrows_mut(0, base.n0), factor::par(base.n0));
+                    let yn = base.llt.forward_sparse(&base.w[ro..]);
+                    let v = base.v.as_mut().expect("set above");
+                    v.extend((0..k).map(|q| sparse_col(&yn, q)));
+                    // The rows where some new column is non-zero, row-major (`k` values each).
+                    let mut slot = vec![u32::MAX; n0];
+                    let mut rows_k: Vec<f64> = Vec::new();
+                    for i in 0..n0 {
+                        if (0..k).any(|q| yn[(i, q)] != 0.0) {
+                            slot[i] = (rows_k.len() / k) as u32;
+                            rows_k.extend((0..k).map(|q| yn[(i, q)]));
+                        }
+                    }
+                    // The new dofs' rows of W_new (A_0 = I there).
+                    let mut wt = vec![0.0; (n - n0) * k];
+                    for q in 0..k {
+                        for &(i, x) in base.w[ro + q].iter().filter(|e| e.0 >= n0) {
+                            wt[(i - n0) * k + q] = x;
+                        }
+                    }
+                    let mut bt = vec![0.0; r * k];
+                    for (a, (rows, vals)) in v.iter().enumerate() {
+                        let acc = &mut bt[a * k..(a + 1) * k];
+                        for (&i, &x) in rows.iter().zip(vals) {
+                            let sl = slot[i as usize];
+                            if sl != u32::MAX {
+                                let y = &rows_k[sl as usize * k..(sl as usize + 1) * k];
+                                acc.iter_mut().zip(y).for_each(|(s, y)| *s += x * y);
+                            }
+                        }
+                        for &(i, x) in base.w[a].iter().filter(|e| e.0 >= n0) {
+                            acc.iter_mut().zip(&wt[(i - n0) * k..(i - n0 + 1) * k]).for_each(|(s, y)| *s += x * y);
+                        }
+                    }
+                    bt
+                } else {
+                    // Z_new = A_0^{-1} W_new (one multi-column solve; the rows of new dofs: A_0 = I).
+                    let mut zn = Mat::<f64>::zeros(n, k);
+                    for q in 0..k {
+                        for &(i, v) in &base.w[first + q] {
+                            zn[(i, q)] = v;
+                        }
+                    }
+                    base.llt.solve_in_place(zn.as_mut().subrows_mut(0, base.n0), factor::par(base.n0));
+                    (0..r * k).map(|e| base.w[e / k].iter().map(|&(i, x)| x * zn[(i, e % k)]).sum::<f64>()).collect()
+                };
+                let bm = |a: usize, q: usize| bt[a * k + q];
                 // The capacitance's new columns B = W^T Z_new (all rows; the new rows with
                 // L^{-1} on the diagonal), then the inverse grown by bordering:
                 // E = C_old^{-1} B_old, S = B_new - B_old^T E,
                 // C^{-1} = [[C_old^{-1} + E S^{-1} E^T, -E S^{-1}], [-S^{-1} E^T, S^{-1}]].
-                let r = base.w.len();
-                let ro = first;
-                let bm = |a: usize, q: usize| base.w[a].iter().map(|&(i, x)| x * zn[(i, q)]).sum::<f64>();
                 let b_old: Vec<f64> = (0..ro * k).map(|e| bm(e / k, e % k)).collect();
                 let c22 = nalgebra::DMatrix::<f64>::from_fn(k, k, |p, q| bm(ro + p, q) + if p == q { 1.0 / base.lam[ro + p] } else { 0.0 });
                 let c22 = (c22.clone() + c22.transpose()) * 0.5;
                 let mut smat = c22.clone();
+                // After a move (ours, session 18: `Base::v`), the two products of size `r^2 k` go
+                // through faer's matrix product (one thread); the paper's rules keep the loops
+                // of before (their bits).
+                let gemm = base.v.is_some();
                 let mut e = vec![0.0; ro * k];
-                for i in 0..ro {
-                    let row = &base.cinv[i * ro..(i + 1) * ro];
-                    for (j, &c) in row.iter().enumerate() {
-                        if c != 0.0 {
-                            for q in 0..k {
-                                e[i * k + q] += c * b_old[j * k + q];
+                if gemm && ro > 0 {
+                    let mut em = faer::MatMut::from_row_major_slice_mut(&mut e, ro, k);
+                    faer::linalg::matmul::matmul(
+                        em.as_mut(),
+                        faer::Accum::Replace,
+                        faer::MatRef::from_row_major_slice(&base.cinv, ro, ro),
+                        faer::MatRef::from_row_major_slice(&b_old, ro, k),
+                        1.0,
+                        faer::Par::Seq,
+                    );
+                } else {
+                    for i in 0..ro {
+                        let row = &base.cinv[i * ro..(i + 1) * ro];
+                        for (j, &c) in row.iter().enumerate() {
+                            if c != 0.0 {
+                                for q in 0..k {
+                                    e[i * k + q] += c * b_old[j * k + q];
+                                }
                             }
                         }
                     }
@@ -382,9 +468,28 @@ impl KeptFactor {
                     }
                 }
                 let mut cinv = vec![0.0; r * r];
+                let mut fe = Vec::new();
+                if gemm && ro > 0 {
+                    fe = vec![0.0; ro * ro];
+                    let mut m = faer::MatMut::from_row_major_slice_mut(&mut fe, ro, ro);
+                    faer::linalg::matmul::matmul(
+                        m.as_mut(),
+                        faer::Accum::Replace,
+                        faer::MatRef::from_row_major_slice(&f, ro, k),
+                        faer::MatRef::from_row_major_slice(&e, ro, k).transpose(),
+                        1.0,
+                        faer::Par::Seq,
+                    );
+                }
                 for i in 0..ro {
-                    for j in 0..ro {
-                        cinv[i * r + j] = base.cinv[i * ro + j] + (0..k).map(|q| f[i * k + q] * e[j * k + q]).sum::<f64>();
+                    if gemm {
+                        for j in 0..ro {
+                            cinv[i * r + j] = base.cinv[i * ro + j] + fe[i * ro + j];
+                        }
+                    } else {
+                        for j in 0..ro {
+                            cinv[i * r + j] = base.cinv[i * ro + j] + (0..k).map(|q| f[i * k + q] * e[j * k + q]).sum::<f64>();
+                        }
                     }
                     for q in 0..k {
                         cinv[i * r + ro + q] = -f[i * k + q];

@@ -38,14 +38,16 @@
 //!    on the line, or `max_move` times the link's length towards it when the foot is farther
 //!    (a structured Q4 grid, whose fans have no link near 45 deg, then follows the line as a
 //!    staircase within about half an element of it). The core
-//!    refuses a move of a boundary point, of a point on a crack face, or one that inverts or
+//!    refuses a move of a point that carries a boundary condition (a support, a point load, a
+//!    prescribed velocity or displacement, an end of a loaded face: a mask built once at set-up,
+//!    session 18), of a boundary point, of a point on a crack face, or one that inverts or
 //!    flattens an element (a corner below 15 deg), and then cuts the link where it is. The
 //!    moved node's elements are rebuilt (geometry, gradients, lumped masses:
 //!    `Model::move_point`); checkpoints keep the moves.
 //!
 //! Limits: linear elastic q4/t3 models only at tips (the integral's limits, docs/paths.md);
-//! supports and loads inside the domain are not refused here (keep them a few element sizes
-//! from the path); the tip's lines and moves are replayed by checkpoints.
+//! a held point (support, load) on the path is not moved, so the crack passes it on the mesh's
+//! own node (partial staircase there); the tip's lines and moves are replayed by checkpoints.
 //!
 //! Parameters: `radius` (element sizes, default 4), `max_move` (fraction of the link length,
 //! default 0.5), `route` (element sizes, default 3), `relocate` (default true; false: the
@@ -127,7 +129,7 @@ pub struct TipMts {
     #[serde(default = "two")]
     pub shrink: f64,
     /// Ours (session 17): the last link's far node, when it lies on a straight stretch of the
-    /// outer boundary, slides along it towards where the line meets the boundary (at most
+    /// outer boundary and carries no boundary condition (session 18), slides along it towards where the line meets the boundary (at most
     /// `max_move` of the link's length; `path::slides_along_boundary`). false: a boundary node
     /// never moves (the crack leaves the body at the nearest node, as before). Default true
     /// (session 17).
