@@ -13,7 +13,7 @@ use flem_core::solver::{NoOutput, Simulation};
 use flem_plugins::check::paths::{crack_faces, fragment_sizes, kinks_in_order};
 use flem_plugins::check::sif::crack_tips;
 
-use crate::common::{root, sim};
+use crate::common::{mesh_area, root, sim};
 
 const HOLES: [[f64; 2]; 3] = [[6.0, 2.75], [6.0, 4.75], [6.0, 6.75]];
 const R: f64 = 0.25;
@@ -60,14 +60,7 @@ fn beam_scenes_are_bittencourts_specimen() {
             let on = pts.iter().filter(|x| (dist(**x, c) - R).abs() < 1e-9).count();
             assert!(on >= 16, "{name}: {on} points on the hole at {c:?}");
         }
-        let mut area = 0.0;
-        for cell in &m.mesh.cells {
-            let c = cell.corners();
-            for k in 0..c.len() {
-                let (a, b) = (pts[c[k] as usize], pts[c[(k + 1) % c.len()] as usize]);
-                area += 0.5 * (a[0] * b[1] - b[0] * a[1]);
-            }
-        }
+        let area = mesh_area(&m.mesh);
         let holes = 3.0 * std::f64::consts::PI * R * R;
         assert!(area > 160.0 - holes && area < 160.0 - 0.95 * holes, "{name}: area {area}, the exact holes give {}", 160.0 - holes);
         let tips = crack_tips(m);

@@ -39,3 +39,17 @@ pub fn assert_same_forces(a: &Simulation, b: &mut Simulation, tol: f64) {
         }
     }
 }
+
+/// The area of a 2D mesh: the shoelace sum over every cell's corners (units of the mesh squared).
+pub fn mesh_area(mesh: &flem_core::mesh::RawMesh) -> f64 {
+    let pts = &mesh.points;
+    let mut area = 0.0;
+    for cell in &mesh.cells {
+        let c = cell.corners();
+        for k in 0..c.len() {
+            let (a, b) = (pts[c[k] as usize], pts[c[(k + 1) % c.len()] as usize]);
+            area += 0.5 * (a[0] * b[1] - b[0] * a[1]);
+        }
+    }
+    area
+}

@@ -9,7 +9,7 @@
 //! winkler_band.csv); the crack starts at the re-entrant corner.
 use flem_core::solver::{Observer, Simulation};
 
-use crate::common::{root, sim};
+use crate::common::{mesh_area, root, sim};
 
 /// The scene `configs/lpanel/NAME.toml` as text for `common::sim` (paths against configs/).
 fn text(name: &str) -> String {
@@ -40,14 +40,7 @@ fn lpanel_scenes_are_winklers_specimen() {
                 assert!(x[0] > -1e-12 && x[0] < 0.5 + 1e-12 && x[1] > -1e-12 && x[1] < 0.5 + 1e-12, "{name}: point {x:?} outside the panel");
                 assert!(!(x[0] > 0.25 + 1e-9 && x[1] < 0.25 - 1e-9), "{name}: point {x:?} inside the cut-out");
             }
-            let mut area = 0.0;
-            for cell in &m.mesh.cells {
-                let c = cell.corners();
-                for k in 0..c.len() {
-                    let (a, b) = (pts[c[k] as usize], pts[c[(k + 1) % c.len()] as usize]);
-                    area += 0.5 * (a[0] * b[1] - b[0] * a[1]);
-                }
-            }
+            let area = mesh_area(&m.mesh);
             assert!((area - 0.1875).abs() < 1e-9, "{name}: area {area}");
             let lift = m.node_set("lift", "lift", &name).unwrap();
             assert!(lift.len() >= 2);
