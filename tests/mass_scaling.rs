@@ -51,3 +51,14 @@ fn mass_scaling_refuses_gravity() {
     let e = Simulation::new(Scene::from_str(&text, &path, path.parent().unwrap()).unwrap()).err().expect("refused").to_string();
     assert!(e.contains("solver.mass_scaling") && e.contains("gravity"), "{e}");
 }
+
+/// The 3D march has no mass scaling: a 3D scene that asks for it is refused by the key's name
+/// (review r18: it was silently ignored).
+#[test]
+fn mass_scaling_refused_in_3d() {
+    let path = root().join("configs/3d/notched_bar.toml");
+    let text = std::fs::read_to_string(&path).unwrap().replace("[solver]\n", "[solver]\nmass_scaling = true\n");
+    assert!(text.contains("mass_scaling = true"));
+    let e = flem_core::scene3::Scene3::from_str(&text, &path, path.parent().unwrap()).err().expect("refused").to_string();
+    assert!(e.contains("solver.mass_scaling") && e.contains("3D"), "{e}");
+}

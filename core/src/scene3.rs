@@ -284,6 +284,9 @@ impl Scene3 {
         if s.large_strain {
             return Err(FlemError::config(&n, "solver.large_strain", "is not available in 3D yet"));
         }
+        if s.mass_scaling {
+            return Err(FlemError::config(&n, "solver.mass_scaling", "is not available in 3D yet"));
+        }
         if let Some(dt) = s.dt {
             range("solver.dt", dt, 0.0, false, f64::INFINITY, false)?;
         }

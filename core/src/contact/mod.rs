@@ -11,7 +11,8 @@
 //!   surface node has moved more than `skin / 2` since the last build, or the topology
 //!   changed (a split), so a quiet step costs one pass over the list. With a law that has
 //!   cohesion (bonds, below) a split updates the list locally instead (session 18,
-//!   `Contact::patch_verlet`: the split's nodes and faces; same pairs as a full rebuild).
+//!   `Contact::patch_verlet`: the split's nodes and faces; the same list as a full rebuild
+//!   within the contact distance, see its doc for the concave-corner rule beyond it).
 //! - Narrow phase: node-to-edge in the edge's local frame (paper eq. 6-7): the slave touches
 //!   face i->j when `0 <= xi <= 1` along it and it lies inside the element side by less than
 //!   `max_depth` x the face length. Node-to-node (corner): a slave inside a concave master

@@ -311,6 +311,9 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
 /// The CPU has AVX-512 F and DQ; `conn` holds `LANES` elements whose clusters index `u`. Call it
 /// only from a function compiled for AVX-512 (`run_chunk_avx512`), into which it is inlined
 /// (a function with `target_feature` cannot be `inline(always)`).
+// `gather_pack_avx512` fills 8 lanes with one 512-bit store per corner and coordinate.
+const _: () = assert!(LANES == 8);
+
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 unsafe fn gather_pack_avx512<const N: usize>(u: &[[f64; 2]], conn: &[[u32; N]], ug: &mut [[[f64; LANES]; 2]; N]) {

@@ -400,6 +400,10 @@ pub fn trend_search<T>(name: &str, o: &FosOptions, run: &mut dyn FnMut(f64) -> R
     let (mut lo, mut hi) = (o.lo, o.hi);
     // `lo` stood in a trial (else it is only the lower end of the options' bracket).
     let mut lo_stood = false;
+    // A closing trial from below was run and no estimate has fallen inside the bracket since:
+    // the search bisects instead, so that a low estimate cannot walk `lo` up by `rel_tol` per
+    // trial (review r18).
+    let mut below_tried = false;
     let mut flow_keep: T;
     loop {
         if n >= o.max_trials {
@@ -435,12 +439,18 @@ pub fn trend_search<T>(name: &str, o: &FosOptions, run: &mut dyn FnMut(f64) -> R
             // Closing from below: the estimate at or below a trial that stood (the ratios of
             // trials stopped early near the factor have not settled yet and put the estimate
             // low): the factor is just above `lo`.
-            Some(e) if lo_stood && e <= lo && c_lo < hi => c_lo,
+            Some(e) if lo_stood && e <= lo && c_lo < hi && !below_tried => c_lo,
             // No estimate inside: the mid-point, or `lo` itself once the bracket is narrow
             // but `lo` never ran.
             _ if !lo_stood && hi - lo <= o.rel_tol * lo => lo,
             _ => 0.5 * (lo + hi),
         };
+        // An estimate inside the bracket is new evidence: a closing trial from below may follow
+        // it again; one that stood leaves bisection until then.
+        match trend_estimate(&flowed) {
+            Some(e) if e > lo && e < hi => below_tried = false,
+            _ => below_tried |= next == c_lo,
+        }
         let (f, r, keep) = run(next)?;
         n += 1;
         if f {
@@ -524,6 +534,22 @@ mod tests {
         assert!(lo < fs && fs < hi && hi - lo <= o.rel_tol * lo, "[{lo}, {hi}] around {fs}");
         assert!((f - fs).abs() <= 0.01 * fs);
         assert_eq!((trials, n), (4, 4));
+    }
+
+    /// A biased trend (every ratio 0.05 high, as trials stopped early before their ratio settled
+    /// give them): the estimate is then 9 % below the factor (`r / (d + 0.05)` against `r / d`),
+    /// trials placed at it
+    /// stand, and the search must still close in about as many trials as bisection would, not
+    /// walk `lo` up by `rel_tol` per trial (review r18: 10-25 trials before the guard).
+    /// Reference: the bracket holds the exact factor `r / d` and is `rel_tol` wide.
+    #[test]
+    fn trend_search_with_a_low_estimate_still_closes() {
+        let (d, r) = (0.5, 0.69);
+        let fs = r / d;
+        let o = FosOptions::default();
+        let (_, [lo, hi], (), trials) = trend_search("model", &o, &mut |f| Ok((f > fs, if f > fs { d - r / f + 0.05 } else { 0.0 }, ()))).unwrap();
+        assert!(lo < fs && fs < hi && hi - lo <= o.rel_tol * lo, "[{lo}, {hi}] around {fs}");
+        assert!(trials <= 10, "{trials} trials (bisection from [{}, {}] needs about 8)", o.lo, o.hi);
     }
 
     /// Rows every 300 steps of a 6000-step stage (as a trial writes them).

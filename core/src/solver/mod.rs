@@ -906,7 +906,9 @@ impl Simulation {
     }
 
     /// A step that is stable for any splitting of the current mesh: the element bound, with
-    /// the contact term of the current masses (the same combination as `dt_crit`).
+    /// the contact term of the current masses (the same combination as `dt_crit`). The element
+    /// bound is of the unscaled masses: with `mass_scaling` it is no bound, which is safe only
+    /// because scaling is refused with cracking and contact (review r18).
     fn safe_step_bound(&self) -> f64 {
         let k = self.scene.file.solver.damping.as_ref().map_or(1.0, |d| d.stability_factor());
         let w_el = 2.0 * k / self.stable.dt_element_bound;

@@ -11,9 +11,10 @@
 //! arrays). The Jacobian is linear in the natural coordinates, `dx/dxi = a + eta h`,
 //! `dx/deta = b + xi h` (with `a, b, h` the three corner combinations of x and y: 6 values),
 //! plus `1 / det J` at the 4 Gauss points: 10 f64 = 80 bytes per element. A pack whose
-//! elements are all parallelograms (`h = 0`: every structured mesh) keeps only `a, b` (4 f64 =
-//! 32 bytes per element, `Q4Pack`) and computes its one `1 / det J` (issue 24); the others keep
-//! the other 6 f64 in a `Q4Extra` beside it. Both forms give the same forces bit for bit on a
+//! elements are all parallelograms (`h = 0`: every structured mesh) keeps only `a, b` and its
+//! one `1 / det J` (5 f64 = 40 bytes per element, `Q4Pack`; issue 24 computed `1 / det J` in the
+//! kernel from 32 bytes, issue 42 stores it: no division per pack); the others keep the other
+//! 6 f64 in a `Q4Extra` beside it. Both forms give the same forces bit for bit on a
 //! parallelogram (`full_pack` says when; tested). With
 //! `adj J = det J * J^-1`, the force of a Gauss point is
 //! `f_a = w t (adj J^T dN_a)^T sigma`, `sigma = D (adj J grad_xi u) / det J`, which is exactly
@@ -222,7 +223,7 @@ fn total_forces_full<const BBAR: bool>(g: &[[f64; LANES]; 5], x: &[[f64; LANES];
 }
 
 /// Geometry of `LANES` elements, all a pack needs when every element of it is a parallelogram
-/// (`h = 0`): `dx/dxi = a`, `dx/deta = b`, one Jacobian for the whole element (32 bytes each).
+/// (`h = 0`): `dx/dxi = a`, `dx/deta = b`, one Jacobian and its `1 / det J` for the whole element (40 bytes each).
 #[derive(Copy, Clone, Debug)]
 #[repr(C, align(64))]
 pub struct Q4Pack {
