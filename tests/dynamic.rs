@@ -338,3 +338,62 @@ fn a_closed_bonded_crack_is_pressed_by_its_bonds_alone() {
     assert!(rel(up, k * 2.0 * d) < 1e-9, "upper half pushed by {up} against k_n x 2 x d = {}", k * 2.0 * d);
     assert!(rel(-down, up) < 1e-12, "momentum: {down} against {up}");
 }
+
+/// Checks the contact's Verlet list after every split and at every history row.
+struct VerletWatch {
+    checked: usize,
+    patched_checks: usize,
+}
+
+impl flem_core::solver::Observer for VerletWatch {
+    fn history(&mut self, sim: &Simulation, _stage: usize) -> flem_core::Result<()> {
+        self.check(sim, "history row");
+        Ok(())
+    }
+    fn splits(&mut self, sim: &Simulation, _rec: &flem_core::mesh::topology::SplitRecord, _ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+        self.check(sim, "split");
+        Ok(())
+    }
+}
+
+impl VerletWatch {
+    fn check(&mut self, sim: &Simulation, at: &str) {
+        let c = sim.contact.as_ref().unwrap();
+        if let Some(m) = c.verlet_list_mismatch(&sim.x0) {
+            panic!("step {} ({at}): the Verlet list is not a full build's: {m}", sim.state.step);
+        }
+        self.checked += 1;
+        if c.patches > 0 {
+            self.patched_checks += 1;
+        }
+    }
+}
+
+/// The local update of the Verlet list at splits (cohesive laws, session 18,
+/// `Contact::patch_verlet`) against a full build (review r18: there was no such check). The
+/// notched plate of configs/verification/notched_crack.toml with cohesive contact on the crack
+/// faces grows its crack under a rising load; after every split and at every history row the
+/// list must be exactly what a full build gives at the same build configuration and margin
+/// (`Contact::verlet_list_mismatch`: brute force over every slave and face, no grid).
+/// Reference: the definition of the list (every face within the margin of each slave, face
+/// order); tolerance: none (the same face set).
+#[test]
+fn verlet_list_patched_at_splits_is_a_full_build() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/verification/notched_crack.toml");
+    let base = std::fs::read_to_string(path).unwrap();
+    // The default skin (0.2 of the mean face) and a skin of three elements (1/6 each), with
+    // which a new face lies within the margin of slaves that the split does not touch (the
+    // list must then gain it for them).
+    for (name, skin) in [("default", ""), ("0.5", "\nskin = 0.5")] {
+        let text = format!(
+            "{base}\n[contact]\nlaw = {{ type = \"cohesive\", normal_stiffness = 2000.0, shear_stiffness = 800.0, tensile_strength = 0.5, fracture_energy = 0.005, friction = 0.5 }}{skin}\n\n[[stage]]\nname = \"more\"\nlevels = {{ pull = 0.6 }}\nmax_steps = 30000\n"
+        );
+        let mut s = sim(&text);
+        let mut w = VerletWatch { checked: 0, patched_checks: 0 };
+        s.run(&mut w).unwrap_or_else(|e| panic!("skin {name}: {e}"));
+        let c = s.contact.as_ref().unwrap();
+        eprintln!("skin {name}: {} checks, {} after a local update; {} patches, {} full builds", w.checked, w.patched_checks, c.patches, c.rebuilds);
+        assert!(c.patches >= 3, "skin {name}: the run must update its list locally at splits: {} patches", c.patches);
+        assert!(w.patched_checks >= 3, "skin {name}: the checks must see patched lists: {}", w.patched_checks);
+    }
+}

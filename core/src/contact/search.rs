@@ -588,6 +588,48 @@ impl Contact {
         self.rebuilds = st.rebuilds;
     }
 
+    /// For tests (review r18: the local update had no check against a full rebuild): the
+    /// Verlet list compared with what a full build at the same build configuration `x0 + ub`
+    /// and the same margin gives, found here by brute force over every slave and face (no
+    /// grid): for every slave, every face not excluded (its own element's, or met only at a
+    /// vertex) within `margin_list` of it, in face order. `None` when they are the same (or
+    /// the list is pending a rebuild), else a description of the first slave that differs.
+    /// O(slaves x faces): not for production runs.
+    #[doc(hidden)]
+    pub fn verlet_list_mismatch(&self, x0: &[[f64; 2]]) -> Option<String> {
+        if self.dirty || self.cand_off.len() != self.slaves.len() + 1 || self.slaves.iter().any(|&s| s as usize >= self.ub.len() || s as usize >= x0.len()) {
+            return None;
+        }
+        let xb = |c: u32| [x0[c as usize][0] + self.ub[c as usize][0], x0[c as usize][1] + self.ub[c as usize][1]];
+        let m2 = self.margin_list * self.margin_list;
+        let mut want: Vec<u32> = Vec::new();
+        for (i, (&s, &sp)) in self.slaves.iter().zip(&self.slave_pt).enumerate() {
+            want.clear();
+            let p = xb(s);
+            for (fi, f) in self.faces.iter().enumerate() {
+                if f.elem.contains(&s) || f.vertex_only(s, sp) {
+                    continue;
+                }
+                if dist2_segment(p, xb(f.a), xb(f.b)) <= m2 {
+                    want.push(fi as u32);
+                }
+            }
+            let have = &self.cand[self.cand_off[i] as usize..self.cand_off[i + 1] as usize];
+            if have != want.as_slice() {
+                let ids = |l: &[u32]| l.iter().map(|&fi| self.faces.get(fi as usize).map_or(u32::MAX, |f| f.id)).collect::<Vec<u32>>();
+                return Some(format!(
+                    "slave {s} (point {sp}): list has faces {:?}, a full build at the same positions {:?} (margin {:.3e}, {} patches, {} rebuilds)",
+                    ids(have),
+                    ids(&want),
+                    self.margin_list,
+                    self.patches,
+                    self.rebuilds
+                ));
+            }
+        }
+        None
+    }
+
     fn face(&self, id: u32) -> Option<Face> {
         match self.face_of_id.get(id as usize) {
             Some(&i) if i != NONE => Some(self.faces[i as usize]),
