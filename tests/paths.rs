@@ -161,20 +161,23 @@ fn move_point_in_place_equals_a_fresh_model() {
 
 /// Checkpoints carry the moved coordinates: the shear test with `tip_mts` (nodes moved), stopped
 /// after events 10 and 20 and resumed from the folder, ends bit for bit as the uninterrupted
-/// run (tests/ckpt.rs's check: displacements, splits, history, snapshots).
+/// run (tests/ckpt.rs's check: displacements, splits, history, snapshots). Also with `piece`
+/// (session 19; it adds no state of its own: a resumed tip reads its line from the checkpoint).
 #[test]
 fn tip_mts_checkpoint_resumes_bit_for_bit() {
-    let t = text("sen_q4_1", "tip_mts") + "\n[output]\ncheckpoint_every = 5\ncheckpoint_seconds = 0\n";
-    let ref_dir = crate::ckpt::tmp("paths-ref");
-    let mut reference = sim(&t);
-    let mut w = flem_core::output::OutputWriter::new(&ref_dir, &reference).unwrap();
-    reference.run(&mut w).unwrap();
-    let cr = reference.cracking.as_ref().unwrap();
-    assert!(reference.state.step > 20 && cr.path.moves.len() > 10, "{} events, {} moves", reference.state.step, cr.path.moves.len());
-    for at in [10, 20] {
-        crate::ckpt::interrupt_and_resume(&t, at, &reference, &ref_dir, &format!("paths-{at}"));
+    for (k, rule) in ["tip_mts", "tip_mts\"\npiece = 0.05\nshrink = 1.5\n#\""].into_iter().enumerate() {
+        let t = text("sen_q4_1", rule) + "\n[output]\ncheckpoint_every = 5\ncheckpoint_seconds = 0\n";
+        let ref_dir = crate::ckpt::tmp(&format!("paths-ref-{k}"));
+        let mut reference = sim(&t);
+        let mut w = flem_core::output::OutputWriter::new(&ref_dir, &reference).unwrap();
+        reference.run(&mut w).unwrap();
+        let cr = reference.cracking.as_ref().unwrap();
+        assert!(reference.state.step > 20 && cr.path.moves.len() > 10, "{rule}: {} events, {} moves", reference.state.step, cr.path.moves.len());
+        for at in [10, 20] {
+            crate::ckpt::interrupt_and_resume(&t, at, &reference, &ref_dir, &format!("paths-{k}-{at}"));
+        }
+        let _ = std::fs::remove_dir_all(&ref_dir);
     }
-    let _ = std::fs::remove_dir_all(&ref_dir);
 }
 
 /// The explicit march (the paper's solver, checks every 10 steps at equilibrium) with `tip_mts`

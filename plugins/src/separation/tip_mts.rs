@@ -440,5 +440,8 @@ mod tests {
         let e = TipMts { shrink: 0.5, ..TipMts::default() }.validate().unwrap_err();
         assert!(format!("{e:?}").contains("shrink"), "{e:?}");
         assert!(TipMts { shrink: 0.0, slide: false, every: 2.0, ..TipMts::default() }.validate().is_ok());
+        let e = TipMts { piece: -0.1, ..TipMts::default() }.validate().unwrap_err();
+        assert!(format!("{e:?}").contains("piece"), "{e:?}");
+        assert!(TipMts { piece: 0.05, shrink: 1.5, ..TipMts::default() }.validate().is_ok());
     }
 }
