@@ -161,20 +161,23 @@ fn move_point_in_place_equals_a_fresh_model() {
 
 /// Checkpoints carry the moved coordinates: the shear test with `tip_mts` (nodes moved), stopped
 /// after events 10 and 20 and resumed from the folder, ends bit for bit as the uninterrupted
-/// run (tests/ckpt.rs's check: displacements, splits, history, snapshots).
+/// run (tests/ckpt.rs's check: displacements, splits, history, snapshots). Also with `piece`
+/// (session 19; it adds no state of its own: a resumed tip reads its line from the checkpoint).
 #[test]
 fn tip_mts_checkpoint_resumes_bit_for_bit() {
-    let t = text("sen_q4_1", "tip_mts") + "\n[output]\ncheckpoint_every = 5\ncheckpoint_seconds = 0\n";
-    let ref_dir = crate::ckpt::tmp("paths-ref");
-    let mut reference = sim(&t);
-    let mut w = flem_core::output::OutputWriter::new(&ref_dir, &reference).unwrap();
-    reference.run(&mut w).unwrap();
-    let cr = reference.cracking.as_ref().unwrap();
-    assert!(reference.state.step > 20 && cr.path.moves.len() > 10, "{} events, {} moves", reference.state.step, cr.path.moves.len());
-    for at in [10, 20] {
-        crate::ckpt::interrupt_and_resume(&t, at, &reference, &ref_dir, &format!("paths-{at}"));
+    for (k, rule) in ["tip_mts", "tip_mts\"\npiece = 0.05\nshrink = 1.5\n#\""].into_iter().enumerate() {
+        let t = text("sen_q4_1", rule) + "\n[output]\ncheckpoint_every = 5\ncheckpoint_seconds = 0\n";
+        let ref_dir = crate::ckpt::tmp(&format!("paths-ref-{k}"));
+        let mut reference = sim(&t);
+        let mut w = flem_core::output::OutputWriter::new(&ref_dir, &reference).unwrap();
+        reference.run(&mut w).unwrap();
+        let cr = reference.cracking.as_ref().unwrap();
+        assert!(reference.state.step > 20 && cr.path.moves.len() > 10, "{rule}: {} events, {} moves", reference.state.step, cr.path.moves.len());
+        for at in [10, 20] {
+            crate::ckpt::interrupt_and_resume(&t, at, &reference, &ref_dir, &format!("paths-{k}-{at}"));
+        }
+        let _ = std::fs::remove_dir_all(&ref_dir);
     }
-    let _ = std::fs::remove_dir_all(&ref_dir);
 }
 
 /// The explicit march (the paper's solver, checks every 10 steps at equilibrium) with `tip_mts`
@@ -349,4 +352,92 @@ fn fixity_mask_classes() {
     assert_eq!(check_move_held(m, &h, id([2.0, 2.0]), [2.25, 1.8]), Ok(()));
     // Empty mask: nothing held (the rule's state before set-up, the paper's rules).
     assert_eq!(check_move_held(m, &[], id([2.0, 4.0]), [2.3, 4.0]), Ok(()));
+}
+
+/// Ours (session 19): `tip_mts`'s `piece` option, re-evaluation pieces of one length on every
+/// mesh (a fraction of the specimen's size) instead of `every` domain radii (4 h). The shear
+/// test on the 30 x 30 grid (`shear_q4_1`, h = 1/30) and the finest T3 mesh (`shear_t3_3`,
+/// h = 1/62), the pair farthest apart with the defaults (2.26 %, docs/paths.md).
+/// 1. The mechanism: on the coarse grid, the lines the main crack followed (`path.lines`; their
+///    origins are the path's vertices where the factors were evaluated) start at most
+///    `piece + 1.5 h` apart (a tip is evaluated at the first step past `piece` along its line,
+///    a step at most one link, plus the staircase's offset), after the first piece (which runs
+///    until the domain has cleared the first kink). With the defaults some piece is longer
+///    than that (they are `4 h` = 0.133 and more), which is what the check tells apart.
+///    Tolerance: exact geometry.
+/// 2. What it is for: the two paths, up to where each first reaches the clamped edge, within the
+///    issue's 2 % of the specimen's size (Hausdorff). Reference: each other (must-show 3 asks
+///    for the same path on every mesh; there is no closed form). The setting (`piece = 0.05`,
+///    `shrink = 1.5`) is the best of those measured on the 9 meshes of the series, and its
+///    neighbours are not all within 2 %: a tuned setting, not a convergence proof
+///    (docs/paths.md, session 19).
+#[test]
+fn tip_mts_piece_same_pieces_on_every_mesh() {
+    let opts = "type = \"tip_mts\"\npiece = 0.05\nshrink = 1.5";
+    let run = |name: &str, opts: &str| {
+        let mut s = sim(&text(name, "tip_mts").replace("type = \"tip_mts\"", opts));
+        let tips = crack_tips(&s.model);
+        let initial = crack_faces(&s.model);
+        s.run(&mut NoOutput).unwrap();
+        let cuts = s.cracking.as_ref().unwrap().cuts.clone();
+        assert!(fragment_sizes(&s.model).iter().all(|&n| n >= 3), "{name}: debris");
+        let k = kinks_in_order(&s.model, &tips, &initial, 5.0, &cuts).remove(0);
+        let end = *k.through().last().unwrap();
+        assert!(k.boundary_at.is_some() && end[1].abs() < 1e-9, "{name}: the path ends at {end:?}");
+        // The line origins on the path, in the path's order, and the largest distance between
+        // two consecutive ones after the first.
+        let p = k.through().to_vec();
+        let mut at: Vec<usize> = s.cracking.as_ref().unwrap().path.lines.iter().filter_map(|l| p.iter().position(|&v| v == l.origin)).collect();
+        at.sort_unstable();
+        at.dedup();
+        let gap = at.windows(2).skip(1).map(|w| (p[w[1]][0] - p[w[0]][0]).hypot(p[w[1]][1] - p[w[0]][1])).fold(0.0, f64::max);
+        (p, at.len(), gap, k.h)
+    };
+    let (coarse, n, gap, h) = run("shear_q4_1", opts);
+    assert!(n >= 6, "{n} evaluations along the path");
+    assert!(gap <= 0.05 + 1.5 * h, "largest piece {gap:.4} (h = {h:.4})");
+    let (_, _, gap0, _) = run("shear_q4_1", "type = \"tip_mts\"");
+    assert!(gap0 > 0.05 + 1.5 * h, "the defaults' largest piece {gap0:.4}");
+    let (fine, _, _, _) = run("shear_t3_3", opts);
+    let d = flem_plugins::check::paths::hausdorff(&coarse, &fine, 1e-4);
+    assert!(d <= 0.02, "Hausdorff distance {:.2} % of the size", 100.0 * d);
+}
+
+/// The `toml` blocks of `tip_mts`'s module doc and those of docs/paths.md that set
+/// `type = "tip_mts"` build the shear test's scene as its `[cracking.separation]` (the docs
+/// cannot drift from the code), and `piece` out of range is refused by name.
+#[test]
+fn tip_mts_doc_snippets_parse() {
+    let sep = "[cracking.separation]\ntype = \"sigma1_nearest\"\n";
+    let base = text("shear_q4_1", "sigma1_nearest");
+    assert!(base.contains(sep), "the scene changed: update the test");
+    let src = std::fs::read_to_string(root().join("plugins/src/separation/tip_mts.rs")).unwrap();
+    let mut snippets = flem_plugins::snippets::toml_blocks(&src);
+    assert!(!snippets.is_empty(), "tip_mts.rs has no toml block");
+    let md = std::fs::read_to_string(root().join("docs/paths.md")).unwrap();
+    let mut cur: Option<String> = None;
+    for line in md.lines() {
+        match (&mut cur, line.trim()) {
+            (None, "```toml") => cur = Some(String::new()),
+            (Some(s), "```") => {
+                if s.contains("type = \"tip_mts\"") {
+                    snippets.push(s.clone());
+                }
+                cur = None;
+            }
+            (Some(s), _) => {
+                s.push_str(line);
+                s.push('\n');
+            }
+            _ => {}
+        }
+    }
+    assert!(snippets.len() >= 3, "{} snippets", snippets.len());
+    for snip in &snippets {
+        let s = crate::common::scene(&base.replace(sep, snip));
+        assert!(s.file.cracking.as_ref().unwrap().separation.grows_tips(), "{snip}");
+    }
+    let bad = base.replace(sep, "[cracking.separation]\ntype = \"tip_mts\"\npiece = 2.0\n");
+    let e = flem_core::scene::Scene::from_str(&bad, std::path::Path::new("bad.toml"), &root().join("configs")).map(|_| ()).unwrap_err();
+    assert!(e.to_string().contains("cracking.separation.piece"), "{e}");
 }

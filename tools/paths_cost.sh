@@ -5,6 +5,7 @@
 # machine is shared). CPU = the process's task clock (`perf stat -e task-clock`, 1 us
 # resolution; /usr/bin/time's 10 ms is too coarse for the small meshes' 0.1 s runs).
 # Usage: tools/paths_cost.sh FLEM OUT_DIR [REPEATS] [SCENE...]   (default: every configs/paths scene)
+# TIP_OPTS="piece = 0.05; shrink = 1.5" adds keys to tip_mts's table (separated by "; ").
 set -euo pipefail
 flem=$(realpath "$1"); out=$(realpath -m "$2"); reps=${3:-2}; shift 3 || shift $#
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -16,7 +17,8 @@ for f in "${scenes[@]}"; do
   declare -A ms ev
   for rule in sigma1_nearest tip_mts; do
     s="$out/scenes/${n}_$rule.toml"
-    sed "s#\.\./meshes/#$root/configs/meshes/#; s#type = \"sigma1_nearest\"#type = \"$rule\"#" "$f" > "$s"
+    extra=""; [ "$rule" = tip_mts ] && [ -n "${TIP_OPTS:-}" ] && extra="\\n${TIP_OPTS//; /\\n}"
+    sed "s#\.\./meshes/#$root/configs/meshes/#; s#type = \"sigma1_nearest\"#type = \"$rule\"$extra#" "$f" > "$s"
     best=""
     for r in $(seq "$reps"); do
       rm -rf "$out/run"

@@ -6,6 +6,7 @@
 # in four stages 0.01, 0.02, 0.025, 0.03, at most 20000 steps each). Least CPU (task clock,
 # `perf stat`) of REPEATS runs.
 # Usage: tools/paths_cost_explicit.sh FLEM OUT_DIR REPEATS SCENE...
+# TIP_OPTS="piece = 0.05; shrink = 1.5" adds keys to tip_mts's table (separated by "; ").
 set -euo pipefail
 flem=$(realpath "$1"); out=$(realpath -m "$2"); reps=$3; shift 3
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -19,7 +20,9 @@ for f in "$@"; do
     python3 - "$f" "$s" "$rule" "$root" <<'PY'
 import sys, re
 src, dst, rule, root = sys.argv[1:]
-t = open(src).read().replace("../meshes/", root + "/configs/meshes/").replace('type = "sigma1_nearest"', f'type = "{rule}"')
+import os
+extra = "".join("\n" + kv.strip() for kv in os.environ.get("TIP_OPTS", "").split(";") if kv.strip()) if rule == "tip_mts" else ""
+t = open(src).read().replace("../meshes/", root + "/configs/meshes/").replace('type = "sigma1_nearest"', f'type = "{rule}"{extra}')
 t = re.sub(r'\[solver\]\n(.*\n)*?\n', '[solver]\ntolerance = 1e-4\n\n', t, count=1)
 t = t.replace("[cracking]\n", "[cracking]\ncheck_every = 10\n", 1)
 t = t[: t.index("[[stage]]")]

@@ -58,6 +58,14 @@
 //! re-evaluation whose domain leaves the body uses the largest smaller one down to `shrink h`,
 //! and the last link's node on a straight stretch of the boundary slides along it to where the
 //! line meets it (the crack leaves the body there, not at the nearest boundary node). All ours.
+//! `piece` (fraction of the specimen's size, default 0: off; ours, session 19): a tip is
+//! evaluated again once the crack is straight over `min(every reradius radius h, piece L)`
+//! (`L` the larger side of the mesh's bounding box), so that a curved path is a chain of
+//! pieces of about the same length on every mesh (with `every` alone the pieces are `4 h`, a
+//! first-order error in `h` where the path curves). The domain stays `reradius radius h`; when
+//! it still reaches behind the line's origin it is evaluated in the line's frame with the
+//! faces allowed `2 staircase h` off its axis (a larger previous turn is refused and the tip
+//! keeps to its line until the domain has cleared it).
 //!
 //! ```toml
 //! [cracking.separation]
@@ -70,6 +78,7 @@
 //! reradius = 1.0
 //! shrink = 2.0
 //! slide = true
+//! piece = 0.0        # ours (session 19): 0 = off; e.g. 0.05 with shrink = 1.5 (docs/paths.md)
 //! ```
 use serde::{Deserialize, Serialize};
 
@@ -135,11 +144,21 @@ pub struct TipMts {
     /// (session 17).
     #[serde(default = "yes")]
     pub slide: bool,
+    /// Ours (session 19): the longest straight piece between two evaluations along a line, as a
+    /// fraction of the specimen's size (the larger side of the mesh's bounding box), the same
+    /// length on every mesh. A tip is evaluated again once the crack is straight over
+    /// `min(every reradius radius h, piece size)`; the domain stays `reradius radius h`. When
+    /// that domain still reaches behind the line's origin (the previous turn), it is evaluated
+    /// in the line's frame with the faces allowed `2 staircase h` off its axis (as a staircase
+    /// tip); a domain that holds a larger turn is refused, and the tip keeps to its line. 0:
+    /// off (pieces of `every` domain radii, the default).
+    #[serde(default)]
+    pub piece: f64,
 }
 
 impl Default for TipMts {
     fn default() -> Self {
-        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 1.0, reradius: 1.0, shrink: 2.0, slide: true }
+        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 1.0, reradius: 1.0, shrink: 2.0, slide: true, piece: 0.0 }
     }
 }
 
@@ -196,11 +215,20 @@ impl TipMts {
                 }
             }
         };
+        // `piece` (ours, session 19): a re-evaluation due before the domain has cleared the
+        // line's origin sees the previous turn inside it; it is evaluated in the line's frame
+        // with the staircase's tolerance (a larger turn is refused: the tip keeps to its line).
+        let piece = self.piece_length(ctx);
+        if let (None, Some((_, dir))) = (frame, ctx.planned) {
+            if piece.is_finite() && straight < self.reradius * self.radius * ctx.h {
+                frame = Some([dir.cos(), dir.sin()]);
+            }
+        }
         let e1 = frame.unwrap_or(e1);
         let tip = CrackTip { point: q.idx(), x: xq, dir: e1, edge: ctx.face.idx(), h: ctx.h, faces: 1 };
         let re = [self.reradius];
         let radii: &[f64] = if ctx.planned.is_none() { &[1.0, 0.5] } else { &re };
-        for f in radii.iter().map(|f| f * self.radius).filter(|f| self.every * f * ctx.h <= straight) {
+        for f in radii.iter().map(|f| f * self.radius).filter(|f| (self.every * f * ctx.h).min(piece) <= straight) {
             let r_out = f * ctx.h;
             let d = match frame {
                 None => domain_sif(m, ctx.u, &[], &[], &tip, 0.5 * r_out, r_out),
@@ -212,7 +240,7 @@ impl TipMts {
                 return Some((xq, dir, dir));
             }
         }
-        if let Some(th) = self.near_boundary_kink(ctx, &tip, frame.is_some(), straight) {
+        if let Some(th) = self.near_boundary_kink(ctx, &tip, frame.is_some(), straight, piece) {
             let dir = angle_of(e1) + th?;
             return Some((xq, dir, dir));
         }
@@ -233,7 +261,7 @@ impl TipMts {
     /// domain leaves it and the crack is straight over `every` of the smaller radii behind the
     /// tip. `None`: not used (off, a first evaluation, the full domain not refused for the
     /// boundary, or no smaller domain fits); `Some(None)`: a closed tip.
-    fn near_boundary_kink(&self, ctx: &TipContext, tip: &CrackTip, staircase: bool, straight: f64) -> Option<Option<f64>> {
+    fn near_boundary_kink(&self, ctx: &TipContext, tip: &CrackTip, staircase: bool, straight: f64, piece: f64) -> Option<Option<f64>> {
         if self.shrink <= 0.0 || ctx.planned.is_none() {
             return None;
         }
@@ -241,11 +269,11 @@ impl TipMts {
         let tol = 2.0 * self.staircase * ctx.h;
         let eval = |r: f64| if staircase { domain_sif_tol(m, ctx.u, &[], &[], tip, 0.5 * r, r, tol) } else { domain_sif(m, ctx.u, &[], &[], tip, 0.5 * r, r) };
         let full = self.reradius * self.radius * ctx.h;
-        if self.every * full > straight || !matches!(eval(full), Err(SifError::DomainLeavesBody { .. })) {
+        if (self.every * full).min(piece) > straight || !matches!(eval(full), Err(SifError::DomainLeavesBody { .. })) {
             return None;
         }
         let mut r = 0.8 * full;
-        while r >= self.shrink * ctx.h && self.every * r <= straight {
+        while r >= self.shrink * ctx.h && (self.every * r).min(piece) <= straight {
             match eval(r) {
                 Ok(d) => return Some(kink_angle(d.k1, d.k2)),
                 Err(SifError::DomainLeavesBody { .. }) => r *= 0.8,
@@ -257,6 +285,22 @@ impl TipMts {
 }
 
 impl TipMts {
+    /// `piece` (ours, session 19) in model units: `piece` times the larger side of the mesh's
+    /// bounding box; infinite when off.
+    fn piece_length(&self, ctx: &TipContext) -> f64 {
+        if self.piece <= 0.0 {
+            return f64::INFINITY;
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for x in &ctx.model.mesh.points {
+            for k in 0..2 {
+                lo[k] = lo[k].min(x[k]);
+                hi[k] = hi[k].max(x[k]);
+            }
+        }
+        self.piece * (hi[0] - lo[0]).max(hi[1] - lo[1])
+    }
+
     /// `slide` (ours, session 17): the target of the boundary node `r` sliding along its straight
     /// boundary stretch towards where the line (`origin`, direction `dh`) meets it, at most
     /// `max_move` link lengths, and the slide's length. `None`: off, `r` interior, at a corner,
@@ -307,6 +351,9 @@ impl SeparationRule for TipMts {
         }
         if !(self.shrink.is_finite() && (self.shrink == 0.0 || (1.0..=self.radius).contains(&self.shrink))) {
             return Err(ParamError::new("shrink", format!("= {} is incorrect; it must be 0 (off) or in [1, radius] (element sizes)", self.shrink)));
+        }
+        if !(self.piece.is_finite() && (0.0..=1.0).contains(&self.piece)) {
+            return Err(ParamError::new("piece", format!("= {} is incorrect; it must be 0 (off) or in (0, 1] (fraction of the specimen's size)", self.piece)));
         }
         if !(self.every.is_finite() && (1.0..=10.0).contains(&self.every)) {
             return Err(ParamError::new("every", format!("= {} is incorrect; it must be in [1, 10] (domain radii)", self.every)));
@@ -393,5 +440,8 @@ mod tests {
         let e = TipMts { shrink: 0.5, ..TipMts::default() }.validate().unwrap_err();
         assert!(format!("{e:?}").contains("shrink"), "{e:?}");
         assert!(TipMts { shrink: 0.0, slide: false, every: 2.0, ..TipMts::default() }.validate().is_ok());
+        let e = TipMts { piece: -0.1, ..TipMts::default() }.validate().unwrap_err();
+        assert!(format!("{e:?}").contains("piece"), "{e:?}");
+        assert!(TipMts { piece: 0.05, shrink: 1.5, ..TipMts::default() }.validate().is_ok());
     }
 }
