@@ -260,18 +260,7 @@ fn whole_path_is_the_crack_that_ran_through_first() {
 /// clamped edge (y = 0) and leave no fragment below 3 elements.
 #[test]
 fn shear_whole_path_same_on_t3_and_q4() {
-    let run = |name: &str| {
-        let mut s = sim(&text(name, "tip_mts"));
-        let tips = crack_tips(&s.model);
-        let initial = crack_faces(&s.model);
-        s.run(&mut NoOutput).unwrap();
-        let cuts = s.cracking.as_ref().unwrap().cuts.clone();
-        assert!(fragment_sizes(&s.model).iter().all(|&n| n >= 3), "{name}: debris");
-        let k = kinks_in_order(&s.model, &tips, &initial, 5.0, &cuts).remove(0);
-        let end = *k.through().last().unwrap();
-        assert!(k.boundary_at.is_some() && end[1].abs() < 1e-9, "{name}: the path ends at {end:?}");
-        k.through().to_vec()
-    };
+    let run = |name: &str| whole_path_to_clamped_edge(name, &text(name, "tip_mts")).1.through().to_vec();
     let (a, b) = (run("shear_t3_1"), run("shear_q4_1"));
     let d = flem_plugins::check::paths::hausdorff(&a, &b, 1e-4);
     assert!(d <= 0.02, "Hausdorff distance {:.2} % of the size", 100.0 * d);
@@ -375,15 +364,7 @@ fn fixity_mask_classes() {
 fn tip_mts_piece_same_pieces_on_every_mesh() {
     let opts = "type = \"tip_mts\"\npiece = 0.05\nshrink = 1.5";
     let run = |name: &str, opts: &str| {
-        let mut s = sim(&text(name, "tip_mts").replace("type = \"tip_mts\"", opts));
-        let tips = crack_tips(&s.model);
-        let initial = crack_faces(&s.model);
-        s.run(&mut NoOutput).unwrap();
-        let cuts = s.cracking.as_ref().unwrap().cuts.clone();
-        assert!(fragment_sizes(&s.model).iter().all(|&n| n >= 3), "{name}: debris");
-        let k = kinks_in_order(&s.model, &tips, &initial, 5.0, &cuts).remove(0);
-        let end = *k.through().last().unwrap();
-        assert!(k.boundary_at.is_some() && end[1].abs() < 1e-9, "{name}: the path ends at {end:?}");
+        let (s, k) = whole_path_to_clamped_edge(name, &text(name, "tip_mts").replace("type = \"tip_mts\"", opts));
         // The line origins on the path, in the path's order, and the largest distance between
         // two consecutive ones after the first.
         let p = k.through().to_vec();
@@ -440,4 +421,20 @@ fn tip_mts_doc_snippets_parse() {
     let bad = base.replace(sep, "[cracking.separation]\ntype = \"tip_mts\"\npiece = 2.0\n");
     let e = flem_core::scene::Scene::from_str(&bad, std::path::Path::new("bad.toml"), &root().join("configs")).map(|_| ()).unwrap_err();
     assert!(e.to_string().contains("cracking.separation.piece"), "{e}");
+}
+
+/// Runs a shear-test scene to its end and returns it with the kink record of its first tip's
+/// whole path (`kinks_in_order`); asserts no fragment below 3 elements and that the path reaches
+/// the clamped edge (y = 0).
+fn whole_path_to_clamped_edge(name: &str, scene: &str) -> (Simulation, Kink) {
+    let mut s = sim(scene);
+    let tips = crack_tips(&s.model);
+    let initial = crack_faces(&s.model);
+    s.run(&mut NoOutput).unwrap();
+    let cuts = s.cracking.as_ref().unwrap().cuts.clone();
+    assert!(fragment_sizes(&s.model).iter().all(|&n| n >= 3), "{name}: debris");
+    let k = kinks_in_order(&s.model, &tips, &initial, 5.0, &cuts).remove(0);
+    let end = *k.through().last().unwrap();
+    assert!(k.boundary_at.is_some() && end[1].abs() < 1e-9, "{name}: the path ends at {end:?}");
+    (s, k)
 }
