@@ -161,6 +161,19 @@ pub fn signed_area(p: &[[f64; 2]]) -> f64 {
 pub const MAX_COORD: f64 = 1e100;
 
 impl RawMesh {
+    /// The smallest box `(lo, hi)` holding every point (infinite bounds for a mesh without
+    /// points). One pass, in point order.
+    pub fn bounding_box(&self) -> ([f64; 2], [f64; 2]) {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &self.points {
+            for d in 0..2 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        (lo, hi)
+    }
+
     /// Cell `e` as the user's file names it: "element tag 57" (gmsh), "VTK cell 12 (0-based, as
     /// in the file)", or "element 12 (0-based, in file order)" without [`FileIds`].
     pub fn cell_name(&self, e: usize) -> String {

@@ -104,13 +104,7 @@ impl RawMesh {
         if self.node_sets.contains_key(&set.name) || self.edge_sets.contains_key(&set.name) {
             return Err(FlemError::config(file, format!("{key}.name"), format!("= \"{}\" is already a group of the mesh; choose another name", set.name)));
         }
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in &self.points {
-            for d in 0..2 {
-                lo[d] = lo[d].min(p[d]);
-                hi[d] = hi[d].max(p[d]);
-            }
-        }
+        let (lo, hi) = self.bounding_box();
         let size = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.0);
         let tol = set.tolerance.unwrap_or(1e-6 * size);
         let (inside, what, sel_key): (Box<dyn Fn([f64; 2]) -> bool>, String, String) = if let Some(q) = set.nearest {

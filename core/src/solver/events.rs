@@ -350,13 +350,7 @@ impl Simulation {
         let check_every = self.scene.file.cracking.as_ref().map_or(0, |c| c.check_every);
         let uses_omega = sc.damping.as_deref().is_none_or(|d| d.uses_rayleigh_stats());
         let distance = sc.hand_over_distance * {
-            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-            for p in &self.model.mesh.points {
-                for d in 0..2 {
-                    lo[d] = lo[d].min(p[d]);
-                    hi[d] = hi[d].max(p[d]);
-                }
-            }
+            let (lo, hi) = self.model.mesh.bounding_box();
             ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt()
         };
         let n_stages = self.scene.file.stages.len();

@@ -817,13 +817,7 @@ impl Simulation {
         let mut u = vec![[0.0; 2]; n];
         let mut f = vec![[0.0; 2]; n];
         let size = {
-            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-            for p in &self.model.mesh.points {
-                for d in 0..2 {
-                    lo[d] = lo[d].min(p[d]);
-                    hi[d] = hi[d].max(p[d]);
-                }
-            }
+            let (lo, hi) = self.model.mesh.bounding_box();
             ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt().max(f64::MIN_POSITIVE)
         };
         let (mut lam, mut prev, mut it) = (0.0f64, 0.0f64, 0usize);

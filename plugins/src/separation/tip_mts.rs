@@ -286,18 +286,13 @@ impl TipMts {
 
 impl TipMts {
     /// `piece` (ours, session 19) in model units: `piece` times the larger side of the mesh's
-    /// bounding box; infinite when off.
+    /// bounding box (one pass over the points, only when `piece` is on: negligible beside the
+    /// interaction integral of the same evaluation); infinite when off.
     fn piece_length(&self, ctx: &TipContext) -> f64 {
         if self.piece <= 0.0 {
             return f64::INFINITY;
         }
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for x in &ctx.model.mesh.points {
-            for k in 0..2 {
-                lo[k] = lo[k].min(x[k]);
-                hi[k] = hi[k].max(x[k]);
-            }
-        }
+        let (lo, hi) = ctx.model.mesh.bounding_box();
         self.piece * (hi[0] - lo[0]).max(hi[1] - lo[1])
     }
 
