@@ -45,7 +45,8 @@ pub(crate) fn libs() -> &'static Libs {
         };
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let out = Command::new(cargo)
-            .args(["build", "--quiet", "--message-format=json", "--workspace", "--lib", "--examples", "--profile", profile, "--target-dir"])
+            // Not the unit-test harnesses (tests/unit/*): `cargo test` builds them as tests only.
+            .args(["build", "--quiet", "--message-format=json", "--workspace", "--exclude", "flem-core-unit", "--exclude", "flem-plugins-unit", "--lib", "--examples", "--profile", profile, "--target-dir"])
             .arg(target_dir)
             .current_dir(root())
             .output()

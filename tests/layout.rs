@@ -102,3 +102,29 @@ fn core_modules_have_no_cycle_and_folders_keep_their_layers() {
     }
     assert!(wrong.is_empty(), "imports against the layering of ARCHITECTURE.md: {wrong:?}");
 }
+
+/// The unit-test harnesses (tests/unit/core, tests/unit/plugins; CI time) compile core/src and
+/// plugins/src from manifests of their own: they must build the same crate as the library's
+/// manifest does, i.e. the same source file, build script, dependencies and features, while the
+/// libraries themselves keep `test = false` (their unit tests would otherwise be compiled twice)
+/// and the harnesses are the ones built at opt-level 0. Reference: the two manifests' tables.
+#[test]
+fn unit_test_harnesses_build_the_libraries_own_crates() {
+    let read = |p: &str| -> toml::Table { toml::from_str(&std::fs::read_to_string(root().join(p)).unwrap()).unwrap_or_else(|e| panic!("{p}: {e}")) };
+    let ws = read("Cargo.toml");
+    for (lib_dir, unit_dir, unit_name) in [("core", "tests/unit/core", "flem-core-unit"), ("plugins", "tests/unit/plugins", "flem-plugins-unit")] {
+        let lib = read(&format!("{lib_dir}/Cargo.toml"));
+        let unit = read(&format!("{unit_dir}/Cargo.toml"));
+        for table in ["dependencies", "dev-dependencies", "features"] {
+            assert_eq!(lib.get(table), unit.get(table), "[{table}] of {lib_dir}/Cargo.toml and {unit_dir}/Cargo.toml differ");
+        }
+        assert_eq!(lib["lib"].get("test").and_then(toml::Value::as_bool), Some(false), "{lib_dir}/Cargo.toml: [lib] test = false");
+        let src = root().join(unit_dir).join(unit["lib"]["path"].as_str().unwrap()).canonicalize().unwrap();
+        assert_eq!(src, root().join(lib_dir).join("src/lib.rs").canonicalize().unwrap(), "{unit_dir}: [lib] path");
+        let build = |t: &toml::Table, dir: &str| t["package"].get("build").and_then(toml::Value::as_str).map(|b| root().join(dir).join(b).canonicalize().unwrap());
+        let lib_build = build(&lib, lib_dir).or_else(|| root().join(lib_dir).join("build.rs").canonicalize().ok());
+        assert_eq!(build(&unit, unit_dir), lib_build, "{unit_dir}: build script");
+        assert_eq!(ws["profile"]["release"]["package"][unit_name]["opt-level"].as_integer(), Some(0), "[profile.release.package.{unit_name}]");
+        assert!(ws["workspace"]["members"].as_array().unwrap().iter().any(|m| m.as_str() == Some(unit_dir)), "{unit_dir} is a workspace member");
+    }
+}

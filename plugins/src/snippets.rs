@@ -46,3 +46,12 @@ pub(crate) fn doc_snippets<T: serde::de::DeserializeOwned>(sources: &[(&str, &st
     }
     out
 }
+
+/// The repository's configs/ folder, for the unit tests: found from the crate's manifest folder
+/// upwards, because these modules are compiled from two manifests (plugins/Cargo.toml and the
+/// unit-test harness tests/unit/plugins/Cargo.toml, two levels deeper).
+#[cfg(test)]
+pub(crate) fn configs_dir() -> std::path::PathBuf {
+    let here = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    here.ancestors().map(|d| d.join("configs")).find(|c| c.is_dir()).unwrap_or_else(|| panic!("no configs/ folder above {}", here.display()))
+}

@@ -238,7 +238,7 @@ mod tests {
     /// mesh that validates. Reference: the docs and the shipped mesh; exact.
     #[test]
     fn doc_toml_snippet_loads_a_3d_mesh() {
-        let configs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+        let configs = crate::snippets::configs_dir();
         for (file, src) in crate::snippets::doc_snippets::<Box<dyn MeshSource>>(&[("import/gmsh3.rs", include_str!("gmsh3.rs"))], &["mesh"], &["gmsh"]) {
             let AnyMesh::Three(mut m) = src.load_any(&configs).unwrap_or_else(|e| panic!("{file}: {e}")) else { panic!("{file}: not 3D") };
             m.validate(ValidationOptions::Refuse).unwrap_or_else(|e| panic!("{file}: {e}"));

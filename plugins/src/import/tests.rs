@@ -1,13 +1,13 @@
 //! Importer tests: every file in configs/meshes, format equivalence, bad inputs with their
 //! messages, and a mutation fuzz test (cases from FLEM_FUZZ_CASES, default 256).
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use flem_core::mesh::{CellKind, MeshSource, RawMesh, ValidationOptions};
 
 use super::{read_msh_bytes, read_vtk_bytes, Gmsh, Vtk};
 
 fn meshes() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/meshes")
+    crate::snippets::configs_dir().join("meshes")
 }
 
 fn gmsh(file: &str) -> RawMesh {
@@ -324,7 +324,7 @@ mod fuzz {
         /// The same for 3D msh files (issue 38: `read_msh_any`, then `RawMesh3::validate`).
         #[test]
         fn mutated_3d_msh_files_never_panic(file in 0..FILES_3D.len(), muts in prop::collection::vec(mutation(), 1..4)) {
-            let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/3d");
+            let dir = crate::snippets::configs_dir().join("3d");
             let mut b = std::fs::read(dir.join(FILES_3D[file])).unwrap();
             for m in &muts {
                 apply(&mut b, m);
@@ -343,7 +343,7 @@ mod fuzz {
         /// The same for a 3D VTU (`read_vtk_any`, then `RawMesh3::validate`).
         #[test]
         fn mutated_3d_vtu_never_panics(muts in prop::collection::vec(mutation(), 1..4)) {
-            let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/3d");
+            let dir = crate::snippets::configs_dir().join("3d");
             let mut b = std::fs::read(dir.join("cube_hex.vtu")).unwrap();
             for m in &muts {
                 apply(&mut b, m);
@@ -425,7 +425,7 @@ fn a_panic_inside_a_third_party_parser_becomes_an_error() {
 #[test]
 fn doc_toml_snippets_load() {
     let sources = [("import/mod.rs", include_str!("mod.rs")), ("import/gmsh.rs", include_str!("gmsh.rs")), ("import/vtk.rs", include_str!("vtk.rs"))];
-    let configs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    let configs = crate::snippets::configs_dir();
     for (file, src) in crate::snippets::doc_snippets::<Box<dyn flem_core::mesh::MeshSource>>(&sources, &["mesh"], &["gmsh", "vtk"]) {
         let m = src.load(&configs).unwrap_or_else(|e| panic!("{file}: {e}"));
         assert!(!m.cells.is_empty(), "{file}");

@@ -153,7 +153,7 @@ mod tests {
     /// mesh. Reference: the docs and the shipped file.
     #[test]
     fn doc_toml_snippet_loads_a_3d_mesh() {
-        let configs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+        let configs = crate::snippets::configs_dir();
         for (file, src) in crate::snippets::doc_snippets::<Box<dyn MeshSource>>(&[("import/vtk3.rs", include_str!("vtk3.rs"))], &["mesh"], &["vtk"]) {
             let AnyMesh::Three(mut m) = src.load_any(&configs).unwrap_or_else(|e| panic!("{file}: {e}")) else { panic!("{file}: not 3D") };
             m.validate(ValidationOptions::Refuse).unwrap_or_else(|e| panic!("{file}: {e}"));
