@@ -20,8 +20,6 @@ use flem_core::FlemError;
 
 use crate::common::{root, scene};
 
-const FLEM: &str = env!("CARGO_BIN_EXE_flem");
-
 pub(crate) fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("flem-ckpt-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -484,7 +482,7 @@ fn read_only_dir() -> PathBuf {
 #[test]
 fn read_only_output_dir_fails_before_any_step() {
     let ro = read_only_dir();
-    let out = Command::new(FLEM).args(["run", notch_path().to_str().unwrap(), "--quiet", "--out", ro.to_str().unwrap()]).output().unwrap();
+    let out = Command::new(crate::common::flem_exe()).args(["run", notch_path().to_str().unwrap(), "--quiet", "--out", ro.to_str().unwrap()]).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains(&ro.display().to_string()) && err.contains("not writable"), "{err}");
@@ -505,7 +503,7 @@ fn wait_for(pred: impl Fn() -> bool, what: &str) {
 }
 
 fn flem_run(args: &[&str]) -> std::process::Output {
-    Command::new(FLEM).args(args).stdin(Stdio::null()).output().unwrap()
+    Command::new(crate::common::flem_exe()).args(args).stdin(Stdio::null()).output().unwrap()
 }
 
 /// `flem run` stopped by SIGINT once its first checkpoint is on disk: it exits 130 with the
@@ -518,7 +516,7 @@ fn sigint_then_resume_command_gives_the_same_results() {
     let (ref_dir, dir) = (tmp("sig-ref"), tmp("sig"));
     let r = flem_run(&["run", sp, "--quiet", "--out", ref_dir.to_str().unwrap()]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let child = Command::new(FLEM).args(["run", sp, "--quiet", "--out", dir.to_str().unwrap()]).stderr(Stdio::piped()).stdout(Stdio::null()).spawn().unwrap();
+    let child = Command::new(crate::common::flem_exe()).args(["run", sp, "--quiet", "--out", dir.to_str().unwrap()]).stderr(Stdio::piped()).stdout(Stdio::null()).spawn().unwrap();
     wait_for(|| dir.join(checkpoint::file_name(1)).exists(), "the first checkpoint");
     // SAFETY: kill(2) on our own child's pid.
     assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
@@ -638,7 +636,7 @@ fn sigkill_during_output_leaves_every_file_whole() {
             if resume {
                 args.extend(["--resume", dir.to_str().unwrap()]);
             }
-            let mut child = Command::new(FLEM).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+            let mut child = Command::new(crate::common::flem_exe()).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
             rng = flem_core::cracking::weibull::splitmix64(rng);
             std::thread::sleep(Duration::from_millis(20 + rng % span_ms));
             let done = child.try_wait().unwrap().is_some();
@@ -722,7 +720,7 @@ fn a_second_run_into_a_locked_folder_is_refused() {
     let long_path = dir.with_extension("toml");
     std::fs::write(&long_path, long).unwrap();
     let d = dir.to_str().unwrap();
-    let mut first = Command::new(FLEM).args(["run", long_path.to_str().unwrap(), "--quiet", "--out", d]).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let mut first = Command::new(crate::common::flem_exe()).args(["run", long_path.to_str().unwrap(), "--quiet", "--out", d]).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
     let holder = format!("process {} (", first.id());
     wait_for(|| std::fs::read_to_string(dir.join(".flem.lock")).is_ok_and(|s| s.starts_with(&holder)), "the first run's lock");
     std::thread::sleep(Duration::from_millis(200));

@@ -4,8 +4,16 @@ use std::path::{Path, PathBuf};
 use flem_core::scene::Scene;
 use flem_core::solver::Simulation;
 
+/// The repository's root (this package is tests/).
 pub fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("tests/ inside the repository").to_path_buf()
+}
+
+/// The `flem` binary of this checkout, built (or found up to date) by cargo with this test
+/// binary's profile and target folder, once per test run (`dynplug::libs`): this package is not
+/// the binary's, so cargo's `CARGO_BIN_EXE_flem` is not available here.
+pub fn flem_exe() -> &'static Path {
+    &crate::dynplug::libs().flem
 }
 
 /// A scene from TOML text (relative paths resolve against configs/).

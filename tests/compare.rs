@@ -87,7 +87,7 @@ fn crack_separating_an_unsupported_fragment_is_named() {
 #[test]
 fn flem_compare_cli_writes_compare_json() {
     let dir = std::env::temp_dir().join(format!("flem-test-compare-cli-{}", std::process::id()));
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem"))
+    let out = std::process::Command::new(crate::common::flem_exe())
         .args(["compare", root().join("configs/verification/notch_compare.toml").to_str().unwrap(), "--out", dir.to_str().unwrap()])
         .output()
         .unwrap();
@@ -131,7 +131,7 @@ fn flem_compare_on_every_check_scene() {
             }
             found += 1;
             let out_dir = std::env::temp_dir().join(format!("flem-test-compare-all-{}-{}", std::process::id(), p.file_stem().unwrap().to_string_lossy()));
-            let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).args(["compare", p.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]).output().unwrap();
+            let out = std::process::Command::new(crate::common::flem_exe()).args(["compare", p.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]).output().unwrap();
             let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
             eprintln!("{}:\n{stdout}", p.display());
             assert!(out.status.success(), "flem compare {} exits {:?}:\n{stdout}\n{stderr}", p.display(), out.status.code());

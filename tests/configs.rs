@@ -25,7 +25,7 @@ fn every_config_scene_passes_check() {
     let mut files = Vec::new();
     toml_files(&root().join("configs"), &mut files);
     assert!(files.len() >= 4);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).arg("check").args(&files).output().unwrap();
+    let out = std::process::Command::new(crate::common::flem_exe()).arg("check").args(&files).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     for f in &files {
@@ -108,7 +108,7 @@ fn bad_scenes_give_their_messages() {
 /// lists kinds and names.
 #[test]
 fn cli_check_and_plugins() {
-    let exe = env!("CARGO_BIN_EXE_flem");
+    let exe = crate::common::flem_exe();
     let ok = std::process::Command::new(exe).arg("check").arg(root().join("configs/default.toml")).output().unwrap();
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let bad = std::process::Command::new(exe).arg("check").arg(root().join("tests/bad_scenes/unknown_key.toml")).output().unwrap();
@@ -184,7 +184,7 @@ fn diverging_run_stops_and_writes_nothing_non_finite() {
             + "levels = { p = 1.0 }\ndynamic = true\nmax_steps = 100000\n",
     )
     .unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", "--quiet", "--out"]).arg(dir.join("out")).arg(&scene).output().unwrap();
+    let out = std::process::Command::new(crate::common::flem_exe()).args(["run", "--quiet", "--out"]).arg(dir.join("out")).arg(&scene).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("diverged at step") && err.contains("dt_crit"), "{err}");
@@ -204,7 +204,7 @@ fn diverging_run_stops_and_writes_nothing_non_finite() {
 #[test]
 fn chart_sweeps_and_marks_the_pareto_front() {
     let dir = std::env::temp_dir().join(format!("flem-chart-{}", std::process::id()));
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem"))
+    let out = std::process::Command::new(crate::common::flem_exe())
         .args(["chart", root().join("configs/verification/cantilever.toml").to_str().unwrap(), "--quick", "--analytic", "tip:y=-4.02625", "--out", dir.to_str().unwrap()])
         .output()
         .unwrap();
@@ -257,7 +257,7 @@ fn pictures_have_a_key_and_the_curve_follows_the_load_through_every_stage() {
     let text = std::fs::read_to_string(root().join("configs/verification/tension_crack.toml")).unwrap() + "\n[output]\nprobes = [{ name = \"top\", at = [1.0, 4.0] }]\n";
     let scene_path = dir.with_extension("toml");
     std::fs::write(&scene_path, text).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", scene_path.to_str().unwrap(), "--quiet", "--plot", "--out", dir.to_str().unwrap()]).output().unwrap();
+    let out = std::process::Command::new(crate::common::flem_exe()).args(["run", scene_path.to_str().unwrap(), "--quiet", "--plot", "--out", dir.to_str().unwrap()]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let curve = std::fs::read_to_string(dir.join("plots/load_displacement.svg")).unwrap();
     assert!(curve.contains("along load pull (0, 1)") && curve.contains("every stage"), "the curve's labels: {}", &curve[..curve.len().min(3000)]);
@@ -284,7 +284,7 @@ fn a_stage_ending_on_a_history_row_writes_it_once() {
     assert!(text.contains("history_every = 1000") && text.contains("max_steps = 20000"), "tension_crack.toml changed");
     let scene_path = dir.with_extension("toml");
     std::fs::write(&scene_path, text).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", scene_path.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()]).output().unwrap();
+    let out = std::process::Command::new(crate::common::flem_exe()).args(["run", scene_path.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let hist = std::fs::read_to_string(dir.join("history.csv")).unwrap();
     let col = hist.lines().next().unwrap().split(',').position(|h| h == "step").unwrap();

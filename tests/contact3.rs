@@ -356,23 +356,23 @@ fn dropped_block_comes_to_rest_on_its_weight() {
 #[test]
 fn contact_section_of_a_3d_scene() {
     flem_plugins::link();
-    let doc = std::fs::read_to_string("docs/3d.md").unwrap();
+    let doc = std::fs::read_to_string(crate::common::root().join("docs/3d.md")).unwrap();
     let sec = doc.split("## Contact (3D)").nth(1).expect("docs/3d.md has a section \"Contact (3D)\"");
     let snippet = sec.split("```toml").nth(1).and_then(|s| s.split("```").next()).expect("a toml snippet in \"Contact (3D)\"");
     let scene = |contact: &str| {
         format!("[model]\ndim = 3\n[mesh]\ntype = \"box\"\nsize = [1.0, 1.0, 1.0]\nnx = 1\nny = 1\nnz = 1\n[[material]]\nyoung_modulus = 1.0\npoisson_ratio = 0.2\ndensity = 1.0\n[[stage]]\n{contact}")
     };
-    let s = Scene3::from_str(&scene(snippet), Path::new("docs/3d.md"), Path::new(".")).unwrap();
+    let s = Scene3::from_str(&scene(snippet), Path::new("docs/3d.md"), &crate::common::root()).unwrap();
     assert!(s.file.contact.is_some());
     let err = Scene3::from_str(
         &scene("[contact]\nlaw = { type = \"cohesive\", normal_stiffness = 1e6, shear_stiffness = 4e5, tensile_strength = 1.0, fracture_energy = 0.01, friction = 0.577 }\n"),
         Path::new("s.toml"),
-        Path::new("."),
+        &crate::common::root(),
     )
     .unwrap_err()
     .to_string();
     assert!(err.contains("contact.law") && err.contains("no 3D form"), "{err}");
-    let mut s = Scene3::from_str(&scene(""), Path::new("s.toml"), Path::new(".")).unwrap();
+    let mut s = Scene3::from_str(&scene(""), Path::new("s.toml"), &crate::common::root()).unwrap();
     assert!(March3::from_scene(&mut s).unwrap().contact.is_none());
 }
 
@@ -382,7 +382,7 @@ fn contact_section_of_a_3d_scene() {
 #[test]
 fn contact_scene_of_configs_runs() {
     flem_plugins::link();
-    let mut s = Scene3::from_file(Path::new("configs/3d/contact_drop.toml")).unwrap();
+    let mut s = Scene3::from_file(&crate::common::root().join("configs/3d/contact_drop.toml")).unwrap();
     let mut m = March3::from_scene(&mut s).unwrap();
     struct Quiet;
     impl flem_core::solver::march3::Observer3 for Quiet {}

@@ -379,7 +379,7 @@ impl VerletWatch {
 /// order); tolerance: none (the same face set).
 #[test]
 fn verlet_list_patched_at_splits_is_a_full_build() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/verification/notched_crack.toml");
+    let path = crate::common::root().join("configs/verification/notched_crack.toml");
     let base = std::fs::read_to_string(path).unwrap();
     // The default skin (0.2 of the mean face) and a skin of three elements (1/6 each), with
     // which a new face lies within the margin of slaves that the split does not touch (the

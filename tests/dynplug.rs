@@ -24,11 +24,14 @@ pub(crate) struct Libs {
     pub(crate) no_entry: PathBuf,
     /// plugins/testlib/examples/missing_fn.rs: a contact law without its evaluate function.
     pub(crate) missing_fn: PathBuf,
+    /// The `flem` binary (`common::flem_exe`).
+    pub(crate) flem: PathBuf,
 }
 
-/// Builds plugins/example and plugins/testlib once, with the cargo, target folder and profile
-/// of this test binary (target/<profile>/deps/flem_tests-*), and finds the shared libraries in
-/// cargo's JSON messages rather than guessing file names. `--workspace --lib --examples` gives
+/// Builds plugins/example and plugins/testlib, and the `flem` binary, once, with the cargo,
+/// target folder and profile of this test binary (target/<profile>/deps/flem_tests-*), and finds
+/// the shared libraries and the executable in cargo's JSON messages rather than guessing file
+/// names (after `cargo test` all are up to date: cargo only checks). `--workspace --lib --examples` gives
 /// the dependencies the same features as `cargo test --workspace`, so their compiled artifacts
 /// are reused: only the two small crates compile (a few seconds), not a second copy of the
 /// dependency tree.
@@ -46,7 +49,22 @@ pub(crate) fn libs() -> &'static Libs {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let out = Command::new(cargo)
             // Not the unit-test harnesses (tests/unit/*): `cargo test` builds them as tests only.
-            .args(["build", "--quiet", "--message-format=json", "--workspace", "--exclude", "flem-core-unit", "--exclude", "flem-plugins-unit", "--lib", "--examples", "--profile", profile, "--target-dir"])
+            .args([
+                "build",
+                "--quiet",
+                "--message-format=json",
+                "--workspace",
+                "--exclude",
+                "flem-core-unit",
+                "--exclude",
+                "flem-plugins-unit",
+                "--lib",
+                "--bins",
+                "--examples",
+                "--profile",
+                profile,
+                "--target-dir",
+            ])
             .arg(target_dir)
             .current_dir(root())
             .output()
@@ -59,6 +77,9 @@ pub(crate) fn libs() -> &'static Libs {
                 continue;
             }
             let name = v["target"]["name"].as_str().unwrap_or_default().to_string();
+            if let Some(exe) = v["executable"].as_str() {
+                found.insert(format!("bin {name}"), PathBuf::from(exe));
+            }
             for f in v["filenames"].as_array().into_iter().flatten().filter_map(|f| f.as_str()) {
                 if f.ends_with(std::env::consts::DLL_SUFFIX) {
                     found.insert(name.clone(), PathBuf::from(f));
@@ -66,7 +87,7 @@ pub(crate) fn libs() -> &'static Libs {
             }
         }
         let get = |n: &str| found.get(n).cloned().unwrap_or_else(|| panic!("cargo built no shared library for {n}: {found:?}"));
-        Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry"), missing_fn: get("missing_fn") }
+        Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry"), missing_fn: get("missing_fn"), flem: get("bin flem") }
     })
 }
 
@@ -238,7 +259,7 @@ fn panicking_plugin_gives_an_error() {
 #[test]
 fn cli_lists_loaded_plugins_and_survives_a_panic() {
     let lib = &libs().example;
-    let out = Command::new(env!("CARGO_BIN_EXE_flem")).args(["plugins", "--load"]).arg(lib).output().unwrap();
+    let out = Command::new(crate::common::flem_exe()).args(["plugins", "--load"]).arg(lib).output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(text.contains("criterion    rankine") && text.lines().any(|l| l.contains("example_rankine") && l.contains(&lib.canonicalize().unwrap().display().to_string())), "{text}");
@@ -246,7 +267,7 @@ fn cli_lists_loaded_plugins_and_survives_a_panic() {
     std::fs::create_dir_all(&dir).unwrap();
     let scene = dir.join("panic.toml");
     std::fs::write(&scene, tension_scene(&load_line(lib), "type = \"example_panic\"\nwhen = \"check\"", "type = \"sigma1_nearest\"")).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_flem")).arg("run").arg(&scene).arg("--out").arg(dir.join("out")).arg("--quiet").arg("--allow-plugins").output().unwrap();
+    let out = Command::new(crate::common::flem_exe()).arg("run").arg(&scene).arg("--out").arg(dir.join("out")).arg("--quiet").arg("--allow-plugins").output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("error: criterion \"example_panic\"") && err.contains("asked to panic in check"), "{err}");
@@ -322,7 +343,7 @@ fn scene_plugins_load_only_with_consent() {
     let sc = dir.join("example_rankine.toml");
     std::fs::write(&sc, &text).unwrap();
     let flem = |args: &[&str], env: Option<(&str, &Path)>| {
-        let mut c = Command::new(env!("CARGO_BIN_EXE_flem"));
+        let mut c = Command::new(crate::common::flem_exe());
         c.args(args).env_remove("FLEM_PLUGIN_PATH").env("XDG_CONFIG_HOME", dir.join("no-config"));
         if let Some((k, v)) = env {
             c.env(k, v);

@@ -295,7 +295,7 @@ fn element_doc_snippets_build() {
 #[test]
 fn chart_sweeps_element_kinds() {
     let dir = std::env::temp_dir().join(format!("flem-chart-elements-{}", std::process::id()));
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem"))
+    let out = std::process::Command::new(crate::common::flem_exe())
         .args(["chart", root().join("configs/verification/cantilever.toml").to_str().unwrap(), "--quick", "--analytic", "tip:y=-4.02625", "--elements", "q4,qm6", "--out", dir.to_str().unwrap()])
         .output()
         .unwrap();

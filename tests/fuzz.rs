@@ -991,7 +991,7 @@ fn several_splits_in_one_check_reach_new_clusters() {
 /// take the test binary down.
 #[test]
 fn truncated_plugin_library_is_refused_by_name() {
-    let exe = env!("CARGO_BIN_EXE_flem");
+    let exe = crate::common::flem_exe();
     let bytes = std::fs::read(exe).unwrap();
     let dir = std::env::temp_dir().join(format!("flem-fuzz-lib-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -1021,7 +1021,7 @@ fn truncated_plugin_library_is_refused_by_name() {
 #[test]
 fn converge_and_sweep_inputs_get_named_refusals() {
     use std::process::Command;
-    let exe = env!("CARGO_BIN_EXE_flem");
+    let exe = crate::common::flem_exe();
     let dir = std::env::temp_dir().join(format!("flem-fuzz-tools-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();

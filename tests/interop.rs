@@ -131,7 +131,7 @@ fn gmsh_scene_runs_end_to_end_and_opens_in_meshio() {
     for (scene_path, n_stages, cracks) in [("configs/meshes/gmsh_bar.toml", 1, false), ("configs/verification/tension_crack.toml", 2, true)] {
         let dir = std::env::temp_dir().join(format!("flem-e2e-{}-{}", std::process::id(), n_stages));
         let _ = std::fs::remove_dir_all(&dir);
-        let out = Command::new(env!("CARGO_BIN_EXE_flem")).args(["run", root().join(scene_path).to_str().unwrap(), "--out", dir.to_str().unwrap(), "--quiet"]).output().unwrap();
+        let out = Command::new(crate::common::flem_exe()).args(["run", root().join(scene_path).to_str().unwrap(), "--out", dir.to_str().unwrap(), "--quiet"]).output().unwrap();
         assert!(out.status.success(), "{scene_path}: {}", String::from_utf8_lossy(&out.stderr));
         let v = run_py(&[root().join("tests/python/read_run.py").to_str().unwrap(), dir.to_str().unwrap()]);
         let ds = v["datasets"].as_array().unwrap();

@@ -131,7 +131,7 @@ fn lpanel_crack_starts_at_the_re_entrant_corner_and_runs_left() {
 /// Reference: the experiments' peak, 6.7-7.6 kN (configs/lpanel/winkler_band.csv). Not met
 /// (docs/paths.md, "Winkler's L-panel"): on this mesh the peak is 12.4 kN at 0.2 mm, 8.5 kN
 /// and more on the scenes' meshes; kept, ignored, as the record of the gap (run it with
-/// `cargo test --release -p flem --test flem-tests -- --ignored lpanel`).
+/// `cargo test --release -p flem-tests -- --ignored lpanel`).
 #[test]
 #[ignore = "not met: the peak is 8.5 kN and more against 6.7-7.6 kN (docs/paths.md, Winkler's L-panel)"]
 fn lpanel_peak_inside_the_experimental_band() {

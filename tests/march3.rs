@@ -16,7 +16,7 @@ impl Observer3 for Quiet {}
 
 fn scene(text: &str) -> Scene3 {
     flem_plugins::link();
-    Scene3::from_str(text, Path::new("tests/march3.rs scene"), Path::new(".")).unwrap()
+    Scene3::from_str(text, Path::new("tests/march3.rs scene"), &crate::common::root()).unwrap()
 }
 
 /// A beam 4 x 1 x 1 clamped at x = 0 under a pressure on its top face, on bricks (h8, h8_full)
@@ -63,7 +63,7 @@ levels = {{ p = 1.0 }}
         let mut m = March3::from_scene(&mut sc).unwrap();
         let r = m.run_scene(&sc, &mut Quiet).unwrap();
         assert!(r[0].at_rest, "{kind}: not at rest after {} steps (ratio {})", r[0].steps, r[0].ratio);
-        let AnyMesh::Three(mesh) = sc.file.mesh.load_any(Path::new(".")).unwrap() else { panic!() };
+        let AnyMesh::Three(mesh) = sc.file.mesh.load_any(&crate::common::root()).unwrap() else { panic!() };
         let mut p = Problem3::new(&mesh, 1000.0, 0.25);
         p.hex = hex;
         for &q in &mesh.node_sets["xmin"] {
@@ -202,8 +202,8 @@ fn notched_plate_cracks_like_its_plane_strain_section() {
     use flem_core::solver::Simulation;
     flem_plugins::link();
     for (k2, k3) in [("q4", "h8_full"), ("qm6", "h8")] {
-        let sc = Scene::from_str(&plate_2d(k2), Path::new("tests/march3.rs plate"), Path::new(".")).unwrap();
-        let mesh2 = sc.file.mesh.load(Path::new(".")).unwrap();
+        let sc = Scene::from_str(&plate_2d(k2), Path::new("tests/march3.rs plate"), &crate::common::root()).unwrap();
+        let mesh2 = sc.file.mesh.load(&crate::common::root()).unwrap();
         let mut sim = Simulation::new(sc).unwrap();
         sim.set_stage_levels(0);
         let u1 = flem_plugins::check::static_solve(&sim).unwrap();
@@ -239,7 +239,7 @@ fn notched_plate_cracks_like_its_plane_strain_section() {
 
         // The crack, 5 % above initiation, with the 2D scene's protocol (check at rest, one
         // split per check, until a check splits nothing or the stage does not come to rest).
-        let mut sc2 = Scene::from_str(&plate_2d(k2), Path::new("tests/march3.rs plate"), Path::new(".")).unwrap();
+        let mut sc2 = Scene::from_str(&plate_2d(k2), Path::new("tests/march3.rs plate"), &crate::common::root()).unwrap();
         sc2.file.solver.tolerance = 1e-8;
         sc2.file.solver.max_steps = 30_000;
         sc2.file.cracking.as_mut().unwrap().max_splits_per_check = 1;
@@ -333,14 +333,14 @@ name = "cut short"
 levels = { p = 2.0 }
 max_steps = 50
 "#;
-    let bar = std::fs::read_to_string("configs/3d/notched_bar.toml")
+    let bar = std::fs::read_to_string(crate::common::root().join("configs/3d/notched_bar.toml"))
         .unwrap()
         .replace("file = \"notched_bar_hex_v41.msh\"", "file = \"configs/3d/notched_bar_hex_v41.msh\"")
         .replace("tolerance = 1e-6\nmax_steps = 20000", "tolerance = 1e-11\nmax_steps = 400000")
         .replace("[cracking]\n", "[check]\n\n[cracking]\n");
     let bar: String = bar.split("[[stage]]\nname = \"cracking\"").next().unwrap().to_string();
     for (name, text, stages) in [("cube", cube.to_string(), 2), ("notched bar", bar, 1)] {
-        let mut sc = Scene3::from_str(&text, Path::new(name), Path::new(".")).unwrap();
+        let mut sc = Scene3::from_str(&text, Path::new(name), &crate::common::root()).unwrap();
         let out = dir.join(name.replace(' ', "_"));
         flem_core::output::prepare_dir(&out).unwrap();
         let (m, _) = flem_core::output::run3::run3_in_folder(&mut sc, &out).unwrap();
@@ -361,10 +361,10 @@ max_steps = 50
             // region's material, FLEM's first stage at rest within 1e-6 of the largest
             // displacement.
             let first = text.split("[[stage]]\nname = \"cut short\"").next().unwrap().to_string();
-            let mut sc1 = Scene3::from_str(&first, Path::new(name), Path::new(".")).unwrap();
+            let mut sc1 = Scene3::from_str(&first, Path::new(name), &crate::common::root()).unwrap();
             let mut m1 = March3::from_scene(&mut sc1).unwrap();
             assert!(m1.run_scene(&sc1, &mut Quiet).unwrap()[0].at_rest);
-            let AnyMesh::Three(mesh) = sc1.file.mesh.load_any(Path::new(".")).unwrap() else { panic!() };
+            let AnyMesh::Three(mesh) = sc1.file.mesh.load_any(&crate::common::root()).unwrap() else { panic!() };
             let mut p = Problem3::new(&mesh, 1000.0, 0.25);
             p.cells = mesh.cell_region.iter().map(|r| if r == "left" { (1000.0, 0.25, Kind3::T4) } else { (3000.0, 0.3, Kind3::T4) }).collect();
             for &q in &mesh.node_sets["xmin"] {
@@ -421,12 +421,12 @@ fn run_files(dir: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
 fn checkpoints_3d_resume_bit_identically() {
     flem_plugins::link();
     let root = std::env::temp_dir().join(format!("flem_ck3_{}", std::process::id()));
-    let text = std::fs::read_to_string("configs/3d/notched_bar.toml")
+    let text = std::fs::read_to_string(crate::common::root().join("configs/3d/notched_bar.toml"))
         .unwrap()
         .replace("file = \"notched_bar_hex_v41.msh\"", "file = \"configs/3d/notched_bar_hex_v41.msh\"")
         .replace("max_steps = 20000", "max_steps = 9000")
         .replace("[cracking]\n", "[output]\ncheckpoint_every = 2000\ncheckpoint_keep = 100\n\n[check]\ntolerance = 1e-3\n\n[cracking]\n");
-    let scene = || Scene3::from_str(&text, Path::new("notched bar"), Path::new(".")).unwrap();
+    let scene = || Scene3::from_str(&text, Path::new("notched bar"), &crate::common::root()).unwrap();
     let run = |dir: &Path, resume: bool, stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>| {
         flem_core::output::prepare_dir(dir).unwrap();
         flem_core::output::run3::run3_with(&mut scene(), dir, resume, stop)
@@ -478,12 +478,12 @@ fn checkpoints_3d_resume_bit_identically() {
     }
     // Resumed on two threads (the results are the same bits on any number of threads, and the
     // scene's hash leaves the count out).
-    let mut sc2 = Scene3::from_str(&text.replace("[solver]\n", "[solver]\nthreads = 2\n"), Path::new("notched bar"), Path::new(".")).unwrap();
+    let mut sc2 = Scene3::from_str(&text.replace("[solver]\n", "[solver]\nthreads = 2\n"), Path::new("notched bar"), &crate::common::root()).unwrap();
     flem_core::output::run3::run3_with(&mut sc2, &c, true, None).unwrap();
     same(&run_files(&c), "interrupted and resumed on two threads");
     // A checkpoint of another scene is refused by name.
     let other = text.replace("tensile_strength = 1.0", "tensile_strength = 1.1");
-    let mut sc = Scene3::from_str(&other, Path::new("edited"), Path::new(".")).unwrap();
+    let mut sc = Scene3::from_str(&other, Path::new("edited"), &crate::common::root()).unwrap();
     let e = flem_core::output::run3::run3_with(&mut sc, &c, true, None).err().expect("an edited scene is refused").to_string();
     assert!(e.contains("another scene"), "{e}");
     let _ = std::fs::remove_dir_all(&root);
@@ -499,11 +499,11 @@ fn checkpoints_3d_with_contact_resume_bit_identically() {
     use flem_core::contact::contact3::{Pair3, VerletState3};
     flem_plugins::link();
     let root = std::env::temp_dir().join(format!("flem_ck3c_{}", std::process::id()));
-    let text = std::fs::read_to_string("configs/3d/contact_drop.toml").unwrap().replace("file = \"contact_drop.msh\"", "file = \"configs/3d/contact_drop.msh\"")
+    let text = std::fs::read_to_string(crate::common::root().join("configs/3d/contact_drop.toml")).unwrap().replace("file = \"contact_drop.msh\"", "file = \"configs/3d/contact_drop.msh\"")
         + "\n[output]\ncheckpoint_every = 150\ncheckpoint_keep = 100\n";
     let run = |dir: &Path, resume: bool| {
         flem_core::output::prepare_dir(dir).unwrap();
-        let mut sc = Scene3::from_str(&text, Path::new("contact drop"), Path::new(".")).unwrap();
+        let mut sc = Scene3::from_str(&text, Path::new("contact drop"), &crate::common::root()).unwrap();
         flem_core::output::run3::run3_with(&mut sc, dir, resume, None).unwrap()
     };
     let a = root.join("whole");

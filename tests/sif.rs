@@ -118,7 +118,7 @@ fn edge_crack_against_tada() {
 /// angle; `--tip` picks one tip. Same reference and tolerance as the inclined-crack test.
 #[test]
 fn cli_sif_writes_json() {
-    let exe = env!("CARGO_BIN_EXE_flem");
+    let exe = crate::common::flem_exe();
     let dir = std::env::temp_dir().join(format!("flem-sif-{}", std::process::id()));
     let out = std::process::Command::new(exe)
         .args(["sif", root().join("configs/sif/inclined_45_t3.toml").to_str().unwrap(), "--stage", "1", "--tip", "0.7071,0.7071", "--radii", "4,8", "--out", dir.to_str().unwrap()])

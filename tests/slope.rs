@@ -161,7 +161,7 @@ fn slope_fos_by_strength_reduction_against_bishop() {
     let dir = std::env::temp_dir().join(format!("flem_fos_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let scene = root().join("configs/verification/slope.toml");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flem"))
+    let out = std::process::Command::new(crate::common::flem_exe())
         .args(["fos", scene.to_str().unwrap(), "--out", dir.to_str().unwrap(), "--lo", "1.0", "--hi", "2.0", "--rel-tol", "0.02"])
         .output()
         .unwrap();

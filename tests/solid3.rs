@@ -361,7 +361,7 @@ fn element3d_doc_snippets_parse() {
 }
 
 /// LE10 on finer meshes (ignored by default for its time; the figures are in docs/3d.md):
-/// `cargo test --release -p flem --test flem-tests -- --ignored nafems_le10_fine --nocapture`.
+/// `cargo test --release -p flem-tests -- --ignored nafems_le10_fine --nocapture`.
 /// `h8` at 12 x 24 x 16 and 18 x 36 x 24 bricks within 3 % of -5.38 MPa; `t4` (6 per brick)
 /// printed at 12 x 24 x 16 and 24 x 48 x 16.
 #[test]

@@ -47,8 +47,8 @@ fn same_with_two_threads(text: &str, base: &Path, tag: &str, stage: &str, min_sp
 fn notched_bar_cracks_the_same_on_one_and_two_threads() {
     // At most 12000 steps a stage (the scene's 20000 are for the whole crack; the test needs
     // splits, not the end of the crack).
-    let text = std::fs::read_to_string("configs/3d/notched_bar.toml").unwrap().replace("max_steps = 20000", "max_steps = 12000");
-    let base = Path::new("configs/3d");
+    let text = std::fs::read_to_string(crate::common::root().join("configs/3d/notched_bar.toml")).unwrap().replace("max_steps = 20000", "max_steps = 12000");
+    let base = &crate::common::root().join("configs/3d");
     assert!(text.contains("max_steps = 12000"));
     same_with_two_threads(&text, base, "notched_bar_h8", "1", 2);
 }
@@ -97,5 +97,5 @@ levels = { pull = 1.0 }
 dynamic = true
 max_steps = 400
 "#;
-    same_with_two_threads(text, Path::new("."), "box_t4", "0", 5);
+    same_with_two_threads(text, &crate::common::root(), "box_t4", "0", 5);
 }

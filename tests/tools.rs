@@ -73,7 +73,7 @@ enum Outcome {
 }
 
 fn flem(args: &[&str]) -> (Option<i32>, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_flem")).args(args).output().unwrap();
+    let out = Command::new(crate::common::flem_exe()).args(args).output().unwrap();
     (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
