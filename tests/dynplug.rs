@@ -86,7 +86,7 @@ pub(crate) fn libs() -> &'static Libs {
                 }
             }
         }
-        let get = |n: &str| found.get(n).cloned().unwrap_or_else(|| panic!("cargo built no shared library for {n}: {found:?}"));
+        let get = |n: &str| found.get(n).cloned().unwrap_or_else(|| panic!("cargo built no shared library or executable for {n}: {found:?}"));
         Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry"), missing_fn: get("missing_fn"), flem: get("bin flem") }
     })
 }
