@@ -15,7 +15,10 @@
 //!   (a compression with a shear alternating in sign, no cut-off below the apex): the usual
 //!   return of a plastic zone in compression (the footing, the slope);
 //! - `large_strain_elastic`, `large_strain_mohr_coulomb_elastic`, `large_strain_mohr_coulomb`:
-//!   the same with `large_strain` (geometry and spin recomputed every update).
+//!   the same with `large_strain` (geometry and spin recomputed every update);
+//! - `corotational`: the linear law with `corotational = true` (`element::corot`: each
+//!   element's best-fit rotation, the linear kernel on the local displacements, the forces
+//!   rotated back), the kinematics of the paper's direct shear scenes.
 //!
 //! Each case alternates between two displacement fields, so every update sees a real
 //! strain increment. `plastic_fraction` is the fraction of the elements whose points were
@@ -63,6 +66,7 @@ pub fn run(n: usize, min_time: f64) -> Result<()> {
         ("large_strain_elastic", "", true, ShearStretch),
         ("large_strain_mohr_coulomb_elastic", mc_el, true, ShearStretch),
         ("large_strain_mohr_coulomb", mc_pl, true, ShearStretch),
+        ("corotational", "corotational = true", false, ShearStretch),
     ];
     let mut rows = Vec::new();
     let mut ns_of = std::collections::BTreeMap::new();
@@ -107,6 +111,7 @@ pub fn run(n: usize, min_time: f64) -> Result<()> {
         "large_over_small_elastic": r("large_strain_elastic", "elastic"),
         "large_over_small_mohr_coulomb_elastic": r("large_strain_mohr_coulomb_elastic", "mohr_coulomb_elastic"),
         "large_over_small_mohr_coulomb_plastic": r("large_strain_mohr_coulomb", "mohr_coulomb_plastic"),
+        "corotational_over_elastic": r("corotational", "elastic"),
     });
     eprintln!("bench laws: ratios {ratios}");
     println!("{}", serde_json::to_string_pretty(&json!({"bench": "laws", "kind": "Q4", "threads": 1, "cases": rows, "ratios": ratios}))?);

@@ -550,6 +550,124 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         }
         self.fw = FirstWriters::from_pack_of(pack_of, self.packs.len());
     }
+    /// The blocked kernel's packs and extra parts of every element (`prepare` without the
+    /// chunk schedule; the co-rotational block, `element::corot`, needs these only).
+    pub(crate) fn prepare_packs(&mut self) {
+        let (d, t) = (self.d, self.mat.thickness);
+        self.packs = self.x.chunks(LANES).map(|x| S::pack(x, &d, t)).collect();
+        (self.extra, self.extra_of) = (Vec::new(), Vec::with_capacity(self.packs.len()));
+        for x in self.x.chunks(LANES) {
+            match S::extra(x, &d, t) {
+                Some(e) => {
+                    self.extra_of.push(self.extra.len() as u32);
+                    self.extra.push(e);
+                }
+                None => self.extra_of.push(u32::MAX),
+            }
+        }
+    }
+
+    /// Co-rotational forces (`element::corot`, its module doc) of the elements `range`, `f[c]
+    /// +=`, pack by pack with the blocked kernel: each lane's rotation and local displacements
+    /// (`CorotBlock::local`'s arithmetic, lane by lane, so that it vectorises), the pack's forces
+    /// by `Blocked::forces` on the local displacements, rotated back and added in element
+    /// order. One thread; the same bits from every `simd` (each lane does the same IEEE
+    /// operations). Needs the packs (`prepare_packs`).
+    #[inline(always)]
+    fn corot_body(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        assert_eq!(self.packs.len(), self.len().div_ceil(LANES), "the co-rotational block's packs were not built (Block::prepare)");
+        assert!(range.end <= self.len(), "elements {range:?} beyond the block ({})", self.len());
+        if range.is_empty() {
+            return;
+        }
+        let inv = 1.0 / N as f64;
+        for p in range.start / LANES..=(range.end - 1) / LANES {
+            let e0 = p * LANES;
+            let e1 = (e0 + LANES).min(self.conn.len());
+            let (conn, xs) = (&self.conn[e0..e1], &self.x[e0..e1]);
+            // Reference and current corners in lanes (missing lanes: zero, so zero rotation and
+            // zero local displacement; the kernel gives them zero force).
+            let (mut x0, mut xc) = ([[[0.0; LANES]; 2]; N], [[[0.0; LANES]; 2]; N]);
+            for (l, (c, xe)) in conn.iter().zip(xs).enumerate() {
+                for a in 0..N {
+                    let ua = u[c[a] as usize];
+                    x0[a][0][l] = xe[a][0];
+                    x0[a][1][l] = xe[a][1];
+                    xc[a][0][l] = xe[a][0] + ua[0];
+                    xc[a][1][l] = xe[a][1] + ua[1];
+                }
+            }
+            let (mut cs, mut sn, mut ul) = ([1.0; LANES], [0.0; LANES], [[[0.0; LANES]; 2]; N]);
+            for l in 0..LANES {
+                let (mut c0, mut c1) = ([0.0; 2], [0.0; 2]);
+                for a in 0..N {
+                    for d in 0..2 {
+                        c0[d] += inv * x0[a][d][l];
+                        c1[d] += inv * xc[a][d][l];
+                    }
+                }
+                let (mut sx, mut dx) = (0.0, 0.0);
+                for a in 0..N {
+                    let (p, q) = ([x0[a][0][l] - c0[0], x0[a][1][l] - c0[1]], [xc[a][0][l] - c1[0], xc[a][1][l] - c1[1]]);
+                    sx += p[0] * q[1] - p[1] * q[0];
+                    dx += p[0] * q[0] + p[1] * q[1];
+                }
+                let r = (sx * sx + dx * dx).sqrt();
+                let pos = r > 0.0;
+                let rd = if pos { r } else { 1.0 };
+                let (c, s) = (if pos { dx / rd } else { 1.0 }, if pos { sx / rd } else { 0.0 });
+                for a in 0..N {
+                    let q = [xc[a][0][l] - c1[0], xc[a][1][l] - c1[1]];
+                    ul[a][0][l] = c * q[0] + s * q[1] - (x0[a][0][l] - c0[0]);
+                    ul[a][1][l] = -s * q[0] + c * q[1] - (x0[a][1][l] - c0[1]);
+                }
+                cs[l] = c;
+                sn[l] = s;
+            }
+            let mut fg = [[[0.0; LANES]; 2]; N];
+            match self.extra_of[p] {
+                u32::MAX => S::forces(&self.packs[p], &self.dk, &ul, &mut fg),
+                i => S::forces_extra(&self.packs[p], &self.extra[i as usize], &self.dk, &ul, &mut fg),
+            }
+            for l in range.start.max(e0) - e0..range.end.min(e1) - e0 {
+                let c = &conn[l];
+                for a in 0..N {
+                    let (f0, f1) = (fg[a][0][l], fg[a][1][l]);
+                    let fa = &mut f[c[a] as usize];
+                    fa[0] += cs[l] * f0 - sn[l] * f1;
+                    fa[1] += sn[l] * f0 + cs[l] * f1;
+                }
+            }
+        }
+    }
+    fn corot_plain(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.corot_body(range, u, f)
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn corot_avx2(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.corot_body(range, u, f)
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    fn corot_avx512(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
+        self.corot_body(range, u, f)
+    }
+    /// [`Self::corot_body`] compiled for `simd`; false (nothing added) when this CPU lacks it.
+    pub fn corot_forces_simd(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]], simd: Simd) -> bool {
+        match simd {
+            Simd::Plain => self.corot_plain(range, u, f),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the CPU has AVX2 (`detected`).
+            Simd::Avx2 if simd.detected() => unsafe { self.corot_avx2(range, u, f) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the CPU has AVX-512 F, VL and DQ (`detected`).
+            Simd::Avx512 if simd.detected() => unsafe { self.corot_avx512(range, u, f) },
+            _ => return false,
+        }
+        true
+    }
+
     pub fn push(&mut self, e: ElemId, x: [[f64; 2]; N], conn: [u32; N]) {
         self.elems.push(e);
         self.x.push(x);
@@ -696,18 +814,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         true
     }
     fn prepare(&mut self, n_clusters: usize) {
-        let (d, t) = (self.d, self.mat.thickness);
-        self.packs = self.x.chunks(LANES).map(|x| S::pack(x, &d, t)).collect();
-        (self.extra, self.extra_of) = (Vec::new(), Vec::with_capacity(self.packs.len()));
-        for x in self.x.chunks(LANES) {
-            match S::extra(x, &d, t) {
-                Some(e) => {
-                    self.extra_of.push(self.extra.len() as u32);
-                    self.extra.push(e);
-                }
-                None => self.extra_of.push(u32::MAX),
-            }
-        }
+        self.prepare_packs();
         self.sched = Schedule::build(&self.conn, n_clusters);
         if self.fw.on {
             // A new schedule, new first writers.
