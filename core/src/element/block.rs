@@ -65,8 +65,9 @@ pub trait Block: Send + Sync {
     fn kernel_bytes(&self) -> usize {
         self.memory_bytes()
     }
-    /// `f[c] += F_int` for the local elements in `range` only, element by element with the
-    /// reference kernel `element::internal_force` (tests compare the blocked kernel with it).
+    /// `f[c] += F_int` for the local elements in `range` only: for a linear block element by
+    /// element with the reference kernel `Blocked::force_ref` (tests compare the blocked kernel
+    /// with it); a co-rotational block runs its blocked pass here (`element::corot`).
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]);
     /// `m[c] += ` lumped mass of every element.
     fn add_mass(&self, m: &mut [f64]);

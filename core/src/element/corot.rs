@@ -13,8 +13,9 @@
 //! the force (the usual element-independent co-rotational simplification): forces sum to zero
 //! exactly; moment balance holds to second order in the local strain.
 //!
-//! Why a separate block type: the linear `ElementBlock` kernel stays untouched (and fast);
-//! the choice is made once per block when the model is built, never inside the element loop.
+//! Why a separate block type: the linear `ElementBlock` pass stays as it is (the co-rotational
+//! pass is its own function, `ElementBlock::corot_body`, calling the same element kernel); the
+//! choice is made once per block when the model is built, never inside the element loop.
 //! It is a separate `Block` impl wrapping `ElementBlock` (issue 4).
 //!
 //! How it runs (ours, session 21): pack by pack with the linear block's own blocked kernel
@@ -27,11 +28,14 @@
 //! 176 ns per element-update against 47 ns after, the linear kernel 17-35 ns in the same runs
 //! (Q4, 1e5 elements, one thread). The two agree to round-off, not bit for bit (the blocked
 //! kernel folds D, the thickness and the Gauss weights into its packs): the co-rotational
-//! scenes' results moved by round-off (the paper's direct shear scenes: the same splits at the
+//! scenes' trajectories differ by round-off that grows once pieces break loose (the paper's
+//! direct shear scenes: the same splits at the
 //! same steps in `direct_shear_stop`, `_steps` and `_fine`; in `direct_shear` one split of the
 //! 2235 stage at another step, the stages' split counts unchanged; energy residuals 1.07e-3 ->
 //! 1.06e-3, `_steps` 3.9e-6 -> 8.2e-6). `add_internal_forces_reference` keeps the old pass as
 //! the tests' reference (`corotational_blocked_pass_matches_the_reference`: 1e-12).
+//! `strain_energy` (the ledger) still evaluates `force_ref` on the local displacements: the
+//! energy and the forces come from the two kernels, equal to round-off.
 //! One thread: co-rotational blocks have no chunk schedule.
 //!
 //! Energy and stable step: `Model::strain_energy` uses each co-rotational element's local

@@ -356,6 +356,15 @@ fn corotational_blocked_pass_matches_the_reference() {
         }),
     ];
     let bits = |f: &[[f64; 2]]| f.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let entry = |name: &str, u: &[[f64; 2]]| {
+        let mut f = vec![[0.0; 2]; pts.len()];
+        match name {
+            "q4" => q.add_internal_forces(u, &mut f),
+            "t3" => t.add_internal_forces(u, &mut f),
+            _ => qm.add_internal_forces(u, &mut f),
+        }
+        f
+    };
     for (name, len, pass) in passes {
         let run = |r: std::ops::Range<usize>, u: &[[f64; 2]], simd| {
             let mut f = vec![[0.0; 2]; pts.len()];
@@ -377,6 +386,9 @@ fn corotational_blocked_pass_matches_the_reference() {
                     assert_eq!(bits(&f), bits(&plain), "{name} at {deg} deg: {simd:?} differs from the baseline");
                 }
             }
+            // The step's entry point (`Block::add_internal_forces`, the widest unit of this CPU).
+            let step = entry(name, &u);
+            assert_eq!(bits(&step), bits(&plain), "{name} at {deg} deg: Block::add_internal_forces differs from the baseline");
             // Two sub-ranges (the cut inside a pack) add up to the whole pass.
             let cut = 3 * LANES + 3;
             let mut f = vec![[0.0; 2]; pts.len()];
