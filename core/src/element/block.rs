@@ -556,6 +556,11 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     pub(crate) fn prepare_packs(&mut self) {
         let (d, t) = (self.d, self.mat.thickness);
         self.packs = self.x.chunks(LANES).map(|x| S::pack(x, &d, t)).collect();
+        self.build_extra();
+    }
+    /// The extra parts of the packs that need one, and each pack's index into them.
+    fn build_extra(&mut self) {
+        let (d, t) = (self.d, self.mat.thickness);
         (self.extra, self.extra_of) = (Vec::new(), Vec::with_capacity(self.packs.len()));
         for x in self.x.chunks(LANES) {
             match S::extra(x, &d, t) {
@@ -775,16 +780,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
                 (None, u32::MAX) => {}
                 _ => {
                     // The chunk gains or loses its extra data: the lists as `prepare` builds them.
-                    (self.extra, self.extra_of) = (Vec::new(), Vec::with_capacity(self.packs.len()));
-                    for x in self.x.chunks(LANES) {
-                        match S::extra(x, &d, t) {
-                            Some(e) => {
-                                self.extra_of.push(self.extra.len() as u32);
-                                self.extra.push(e);
-                            }
-                            None => self.extra_of.push(u32::MAX),
-                        }
-                    }
+                    self.build_extra();
                 }
             }
         }
