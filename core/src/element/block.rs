@@ -575,7 +575,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
 
     /// Co-rotational forces (`element::corot`, its module doc) of the elements `range`, `f[c]
     /// +=`, pack by pack with the blocked kernel: each lane's rotation and local displacements
-    /// (`CorotBlock::local`'s arithmetic, lane by lane, so that it vectorises), the pack's forces
+    /// (`element::corot::frame`, lane by lane, so that it vectorises), the pack's forces
     /// by `Blocked::forces` on the local displacements, rotated back and added in element
     /// order. One thread; the same bits from every `simd` (each lane does the same IEEE
     /// operations). Needs the packs (`prepare_packs`).
@@ -586,7 +586,6 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         if range.is_empty() {
             return;
         }
-        let inv = 1.0 / N as f64;
         for p in range.start / LANES..=(range.end - 1) / LANES {
             let e0 = p * LANES;
             let e1 = (e0 + LANES).min(self.conn.len());
@@ -603,33 +602,8 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
                     xc[a][1][l] = xe[a][1] + ua[1];
                 }
             }
-            let (mut cs, mut sn, mut ul) = ([1.0; LANES], [0.0; LANES], [[[0.0; LANES]; 2]; N]);
-            for l in 0..LANES {
-                let (mut c0, mut c1) = ([0.0; 2], [0.0; 2]);
-                for a in 0..N {
-                    for d in 0..2 {
-                        c0[d] += inv * x0[a][d][l];
-                        c1[d] += inv * xc[a][d][l];
-                    }
-                }
-                let (mut sx, mut dx) = (0.0, 0.0);
-                for a in 0..N {
-                    let (p, q) = ([x0[a][0][l] - c0[0], x0[a][1][l] - c0[1]], [xc[a][0][l] - c1[0], xc[a][1][l] - c1[1]]);
-                    sx += p[0] * q[1] - p[1] * q[0];
-                    dx += p[0] * q[0] + p[1] * q[1];
-                }
-                let r = (sx * sx + dx * dx).sqrt();
-                let pos = r > 0.0;
-                let rd = if pos { r } else { 1.0 };
-                let (c, s) = (if pos { dx / rd } else { 1.0 }, if pos { sx / rd } else { 0.0 });
-                for a in 0..N {
-                    let q = [xc[a][0][l] - c1[0], xc[a][1][l] - c1[1]];
-                    ul[a][0][l] = c * q[0] + s * q[1] - (x0[a][0][l] - c0[0]);
-                    ul[a][1][l] = -s * q[0] + c * q[1] - (x0[a][1][l] - c0[1]);
-                }
-                cs[l] = c;
-                sn[l] = s;
-            }
+            let (mut cs, mut sn, mut ul) = ([0.0; LANES], [0.0; LANES], [[[0.0; LANES]; 2]; N]);
+            element::corot::frame(&x0, &xc, &mut cs, &mut sn, &mut ul);
             let mut fg = [[[0.0; LANES]; 2]; N];
             match self.extra_of[p] {
                 u32::MAX => S::forces(&self.packs[p], &self.dk, &ul, &mut fg),

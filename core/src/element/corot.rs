@@ -20,7 +20,7 @@
 //!
 //! How it runs (ours, session 21): pack by pack with the linear block's own blocked kernel
 //! (`ElementBlock::corot_body`): the rotation and the local displacements of the pack's 8
-//! elements as loops over the lanes (the arithmetic of `local`, which vectorises), then
+//! elements as loops over the lanes (`frame`, the arithmetic of `local`, in a loop that vectorises), then
 //! `Blocked::forces` on the local displacements, the forces rotated back and added in element
 //! order, compiled for the widest vector unit of the CPU (the same bits from each). Before, each
 //! element called the one-element reference `Blocked::force_ref` (shape gradients, Jacobian
@@ -46,6 +46,44 @@ use crate::element::{self, Material};
 use crate::ids::ElemId;
 use crate::mesh::CellKind;
 
+/// The best-fit rotations `(cos, sin)` of `W` elements whose reference corners are `x0` and
+/// current corners `x` (`[corner][dim][lane]`), and their local displacements `R^T x~ - X~`
+/// (the module doc's formulas, centroids removed), written into `cs`, `sn`, `ul`. One function for `CorotBlock::local`
+/// (`W = 1`) and for a pack of `ElementBlock::corot_body` (`W = LANES`), so the two passes see
+/// the same local displacements bit for bit; a loop over the lanes without a branch (a
+/// select) so that it vectorises.
+#[inline(always)]
+pub(crate) fn frame<const N: usize, const W: usize>(x0: &[[[f64; W]; 2]; N], x: &[[[f64; W]; 2]; N], cs: &mut [f64; W], sn: &mut [f64; W], ul: &mut [[[f64; W]; 2]; N]) {
+    let inv = 1.0 / N as f64;
+    for l in 0..W {
+        let (mut c0, mut c1) = ([0.0; 2], [0.0; 2]);
+        for a in 0..N {
+            for d in 0..2 {
+                c0[d] += inv * x0[a][d][l];
+                c1[d] += inv * x[a][d][l];
+            }
+        }
+        let (mut sx, mut dx) = (0.0, 0.0);
+        for a in 0..N {
+            let (p, q) = ([x0[a][0][l] - c0[0], x0[a][1][l] - c0[1]], [x[a][0][l] - c1[0], x[a][1][l] - c1[1]]);
+            sx += p[0] * q[1] - p[1] * q[0];
+            dx += p[0] * q[0] + p[1] * q[1];
+        }
+        let r = (sx * sx + dx * dx).sqrt();
+        let pos = r > 0.0;
+        let rd = if pos { r } else { 1.0 };
+        let (c, s) = (if pos { dx / rd } else { 1.0 }, if pos { sx / rd } else { 0.0 });
+        for a in 0..N {
+            let q = [x[a][0][l] - c1[0], x[a][1][l] - c1[1]];
+            // R^T q - X~
+            ul[a][0][l] = c * q[0] + s * q[1] - (x0[a][0][l] - c0[0]);
+            ul[a][1][l] = -s * q[0] + c * q[1] - (x0[a][1][l] - c0[1]);
+        }
+        cs[l] = c;
+        sn[l] = s;
+    }
+}
+
 /// An [`ElementBlock`] with co-rotational kinematics.
 pub struct CorotBlock<S: Blocked<N>, const N: usize>(pub ElementBlock<S, N>);
 
@@ -56,32 +94,14 @@ impl<S: Blocked<N>, const N: usize> CorotBlock<S, N> {
         let b = &self.0;
         let c = &b.conn[i];
         let x0 = &b.x[i];
-        let x: [[f64; 2]; N] = std::array::from_fn(|a| {
+        let x0l: [[[f64; 1]; 2]; N] = std::array::from_fn(|a| [[x0[a][0]], [x0[a][1]]]);
+        let xl: [[[f64; 1]; 2]; N] = std::array::from_fn(|a| {
             let ua = u[c[a] as usize];
-            [x0[a][0] + ua[0], x0[a][1] + ua[1]]
+            [[x0[a][0] + ua[0]], [x0[a][1] + ua[1]]]
         });
-        let inv = 1.0 / N as f64;
-        let (mut c0, mut c1) = ([0.0; 2], [0.0; 2]);
-        for a in 0..N {
-            for d in 0..2 {
-                c0[d] += inv * x0[a][d];
-                c1[d] += inv * x[a][d];
-            }
-        }
-        let (mut sx, mut dx) = (0.0, 0.0);
-        for a in 0..N {
-            let (p, q) = ([x0[a][0] - c0[0], x0[a][1] - c0[1]], [x[a][0] - c1[0], x[a][1] - c1[1]]);
-            sx += p[0] * q[1] - p[1] * q[0];
-            dx += p[0] * q[0] + p[1] * q[1];
-        }
-        let r = (sx * sx + dx * dx).sqrt();
-        let (cs, sn) = if r > 0.0 { (dx / r, sx / r) } else { (1.0, 0.0) };
-        let ul = std::array::from_fn(|a| {
-            let q = [x[a][0] - c1[0], x[a][1] - c1[1]];
-            // R^T q - X~
-            [cs * q[0] + sn * q[1] - (x0[a][0] - c0[0]), -sn * q[0] + cs * q[1] - (x0[a][1] - c0[1])]
-        });
-        ([cs, sn], ul)
+        let (mut cs, mut sn, mut ul) = ([0.0; 1], [0.0; 1], [[[0.0; 1]; 2]; N]);
+        frame(&x0l, &xl, &mut cs, &mut sn, &mut ul);
+        ([cs[0], sn[0]], std::array::from_fn(|a| [ul[a][0][0], ul[a][1][0]]))
     }
 
     /// The co-rotational forces element by element with the one-element reference kernel
@@ -152,10 +172,9 @@ impl<S: Blocked<N>, const N: usize> Block for CorotBlock<S, N> {
     /// The blocked kernel on each pack's local displacements (`ElementBlock::corot_body`), with
     /// the widest vector unit of this CPU (the same bits from each).
     fn add_internal_forces_range(&self, range: std::ops::Range<usize>, u: &[[f64; 2]], f: &mut [[f64; 2]]) {
-        let simd = Simd::best();
-        if !self.0.corot_forces_simd(range.clone(), u, f, simd) {
-            self.0.corot_forces_simd(range, u, f, Simd::Plain);
-        }
+        // `Simd::best` is one this CPU has, so the pass runs.
+        let ran = self.0.corot_forces_simd(range, u, f, Simd::best());
+        debug_assert!(ran, "Simd::best is detected");
     }
     fn add_mass(&self, m: &mut [f64]) {
         self.0.add_mass(m)
