@@ -72,6 +72,11 @@ pub struct Cracking {
     /// Of `path.refused`, the moves refused because the point is held (`path_held`). A
     /// checkpoint keeps it (section "path_held", written when not zero).
     pub held_refused: u64,
+    /// Ours (issue 36): the change of strain energy made by the path method's node moves at
+    /// the last check (`Model::strain_energy_at` of the moved node's elements after the move
+    /// less before, the displacement kept); the solver takes it into the ledger's
+    /// `relocation` term. 0 unless a node moved.
+    pub move_strain: f64,
     /// The nonlocal average (`[cracking] nonlocal`, ours); `None`: the paper's corner mean.
     pub nonlocal: Option<nonlocal::Nonlocal>,
     /// The certified skip (ours, issue 24, `skip.rs`): on by default (it changes no result);
@@ -127,6 +132,7 @@ impl Cracking {
             path: path::PathState::default(),
             path_held: Vec::new(),
             held_refused: 0,
+            move_strain: 0.0,
             nonlocal,
             certified_skip: true,
             skip_margin_factor: 1.0,
@@ -369,8 +375,14 @@ impl Cracking {
                         // refuses every move: its tips are cut along the nearest link.)
                         // A point that carries a boundary condition (`path_held`) is refused
                         // at once, counted apart (`held_refused`): the link is cut where it lies.
+                        // The strain energy the move changes (displacement kept): booked in
+                        // the ledger's `relocation` term by the solver (issue 36).
+                        let e0 = model.strain_energy_at(q, ug);
                         match [1.0, 0.5, 0.25].into_iter().map(at).find(|&x| path::check_move_held(model, &self.path_held, q, x).is_ok()).map(|x| (x, model.move_point(q, x))) {
-                            Some((x, Ok(()))) => moved = Some((q, from, x)),
+                            Some((x, Ok(()))) => {
+                                moved = Some((q, from, x));
+                                self.move_strain += model.strain_energy_at(q, ug) - e0;
+                            }
                             _ => {
                                 self.path.refused += 1;
                                 self.held_refused += (path::check_move_held(model, &self.path_held, q, to) == Err(path::HELD_MSG)) as u64;
@@ -387,7 +399,9 @@ impl Cracking {
             let mut r = model.topo.cut(cid, &prop.edges, true);
             if r.is_empty() {
                 if let Some((q, from, _)) = moved {
+                    let e1 = model.strain_energy_at(q, ug);
                     model.move_point(q, from).map_err(crate::FlemError::Other)?;
+                    self.move_strain += model.strain_energy_at(q, ug) - e1;
                 }
                 continue;
             }

@@ -412,6 +412,30 @@ impl Model {
         self.pool.as_ref().map_or(1, |p| p.current_num_threads())
     }
 
+    /// Strain energy of the elements with a corner at point `p`, `sum_e 1/2 u_e . K_e u_e` (ours,
+    /// issue 36: what a node relocation of the path method changes, `Cracking::move_strain`).
+    /// Linear blocks only (a model with stateful or co-rotational blocks never moves a node).
+    pub fn strain_energy_at(&self, p: PointId, u: &[[f64; 2]]) -> f64 {
+        let mut k = Vec::new();
+        let mut e = 0.0;
+        for &c in self.topo.point_copies.row(p.idx()) {
+            let el = self.topo.copy_elem[c.idx()];
+            let (b, i) = self.elem_slot[el.idx()];
+            let blk = &self.blocks[b as usize];
+            let n2 = 2 * blk.nodes_per_elem();
+            k.clear();
+            k.resize(n2 * n2, 0.0);
+            blk.stiffness(i as usize, &mut k);
+            let conn = blk.conn(i as usize);
+            let ue = |r: usize| u[conn[r / 2] as usize][r % 2];
+            for r in 0..n2 {
+                let row: f64 = (0..n2).map(|s| k[r * n2 + s] * ue(s)).sum();
+                e += 0.5 * ue(r) * row;
+            }
+        }
+        e
+    }
+
     /// Strain energy at `u`: each co-rotational block's own, plus `1/2 u . F_int` of the
     /// linear blocks (computed into `scratch`).
     pub fn strain_energy(&self, u: &[[f64; 2]], scratch: &mut Vec<[f64; 2]>) -> f64 {

@@ -245,6 +245,11 @@ impl Checkpoint {
         if let Some(c) = sim.cracking.as_ref().filter(|c| c.held_refused > 0) {
             ck.put_section("path_held", 1, &c.held_refused)?;
         }
+        // Ours (issue 36): the ledger's relocation term (the path method's node moves), only
+        // when a node moved (postcard lays the ledger out without it).
+        if sim.ledger.relocation != 0.0 {
+            ck.put_section("ledger_relocation", 1, &sim.ledger.relocation)?;
+        }
         // The run's warnings so far (issue 35: a resumed run kept only those of building the
         // model and lost the earlier stages'). Absent in older checkpoints: the new
         // simulation's own are kept then.
@@ -339,6 +344,7 @@ impl Checkpoint {
         st.step = self.step;
         sim.dt = self.dt;
         sim.ledger = self.ledger;
+        sim.ledger.relocation = self.section("ledger_relocation", 1)?.unwrap_or(0.0);
         sim.last_ratio = self.last_ratio;
         let s = self.stats;
         sim.stats = StepStats { step: s.0, dt: s.1, omega_max: s.2, kinetic: s.3, u_f_int: s.4, u_m_u: s.5 };

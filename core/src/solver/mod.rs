@@ -123,6 +123,14 @@ pub struct Ledger {
     /// residual. Per unit crack length: `crate::output::tips`.
     #[serde(default)]
     pub fracture: f64,
+    /// Ours (issue 36): energy put into the discrete system by the path method's node moves
+    /// (`cracking::path`): the change of strain energy of the moved node's elements (displacement
+    /// kept) and of kinetic energy (masses relumped, velocities kept), cumulative. A move is not
+    /// physics: this term keeps it out of the residual and says how large it is. 0 for every
+    /// rule that moves no node. Not in the checkpoint's ledger (postcard layout): section
+    /// `ledger_relocation`.
+    #[serde(skip)]
+    pub relocation: f64,
 }
 
 impl Ledger {
@@ -132,15 +140,21 @@ impl Ledger {
     pub fn dissipated(&self) -> f64 {
         self.damping - self.pending_damp
     }
-    /// `W_ext - (KE + U + D + E_contact + D_contact)`.
+    /// `W_ext + W_relocation - (KE + U + D + E_contact + D_contact)`.
     pub fn residual(&self) -> f64 {
-        self.external() - (self.kinetic + self.strain + self.dissipated() + self.contact_energy + self.contact_dissipated)
+        self.external() + self.relocation - (self.kinetic + self.strain + self.dissipated() + self.contact_energy + self.contact_dissipated)
     }
     /// The ledger as `summary.json` writes it (2D and 3D runs): the terms of the balance, the
     /// fracture part of `contact_dissipated`, the work contact forces did on the nodes, and the
     /// residual, absolute and relative.
     pub fn summary_json(&self) -> serde_json::Value {
-        serde_json::json!({"external_work": self.external(), "kinetic": self.kinetic, "strain": self.strain, "damping": self.dissipated(), "contact_energy": self.contact_energy, "contact_dissipated": self.contact_dissipated, "fracture": self.fracture, "residual": self.residual(), "relative_residual": self.relative_residual()})
+        let mut j = serde_json::json!({"external_work": self.external(), "kinetic": self.kinetic, "strain": self.strain, "damping": self.dissipated(), "contact_energy": self.contact_energy, "contact_dissipated": self.contact_dissipated, "fracture": self.fracture, "residual": self.residual(), "relative_residual": self.relative_residual()});
+        if self.relocation != 0.0 {
+            // Only runs that moved a node (the path method) have the key: every other summary
+            // is as before.
+            j["relocation"] = serde_json::json!(self.relocation);
+        }
+        j
     }
     /// Residual relative to the largest term.
     pub fn relative_residual(&self) -> f64 {
@@ -1404,10 +1418,20 @@ impl Simulation {
         let Some(cr) = self.cracking.as_mut() else { return Ok(0) };
         let cfg = self.scene.file.cracking.as_ref().expect("cracking config");
         let (rec, events) = cr.check(cfg, &mut self.model, &self.state.u, &self.x0, self.state.time, self.state.step)?;
+        let move_strain = std::mem::take(&mut cr.move_strain);
         if rec.is_empty() {
             return Ok(0);
         }
+        // Node moves (ours, the path method): the energy they change goes to the ledger's
+        // `relocation` term (strain: the moved elements' change at the kept displacement;
+        // kinetic: the relumped masses at the kept velocities). Only when a node moved: the
+        // other rules' ledgers are untouched, bit for bit.
+        let ke = |m: &[f64], v: &[[f64; 2]]| 0.5 * m.iter().zip(v).map(|(m, v)| m * (v[0] * v[0] + v[1] * v[1])).sum::<f64>();
+        let ke0 = (!rec.moved.is_empty()).then(|| ke(&self.state.mass, &self.state.v));
         self.apply_split_record(&rec);
+        if let Some(ke0) = ke0 {
+            self.ledger.relocation += move_strain + ke(&self.state.mass, &self.state.v) - ke0;
+        }
         obs.splits(self, &rec, &events)?;
         Ok(events.len())
     }
