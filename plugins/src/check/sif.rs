@@ -223,13 +223,21 @@ fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 fn near_tip(model: &Model, tip: &CrackTip, r_out: f64) -> (Vec<(u32, u32)>, Vec<EdgeId>) {
     let topo = &model.topo;
     let pts = &model.mesh.points;
-    let mut seen = std::collections::BTreeSet::new();
+    // The visited elements and corners as sorted vectors (a binary search and an insert each:
+    // the sets hold a few hundred ids; cheaper than a tree's nodes, same members).
+    let insert = |set: &mut Vec<usize>, x: usize| match set.binary_search(&x) {
+        Ok(_) => false,
+        Err(at) => {
+            set.insert(at, x);
+            true
+        }
+    };
     let mut stack: Vec<usize> = topo.point_copies.row(tip.point).iter().map(|&k| topo.copy_elem[k.idx()].idx()).collect();
-    for &e in &stack {
-        seen.insert(e);
-    }
+    let mut seen: Vec<usize> = stack.clone();
+    seen.sort_unstable();
+    seen.dedup();
     let mut inside: Vec<usize> = Vec::new();
-    let mut corners = std::collections::BTreeSet::new();
+    let mut corners: Vec<usize> = Vec::new();
     while let Some(e) = stack.pop() {
         let cs = model.mesh.cells[e].corners();
         let n = cs.len();
@@ -240,10 +248,10 @@ fn near_tip(model: &Model, tip: &CrackTip, r_out: f64) -> (Vec<(u32, u32)>, Vec<
         }
         inside.push(e);
         for &c in cs {
-            if corners.insert(c as usize) {
+            if insert(&mut corners, c as usize) {
                 for &k in topo.point_copies.row(c as usize) {
                     let f = topo.copy_elem[k.idx()].idx();
-                    if seen.insert(f) {
+                    if insert(&mut seen, f) {
                         stack.push(f);
                     }
                 }
@@ -435,11 +443,14 @@ pub fn domain_sif_tol(model: &Model, u: &[[f64; 2]], fix: &[u8], f_ext: &[[f64; 
     let (q4, t3) = (gauss_q4(), gauss_t3());
     // The blocks' linearity is checked at their first element with a non-zero weight.
     let mut linear_checked: Option<u32> = None;
+    // One buffer each for the element's weights and displacements (not one allocation per element).
+    let (mut q, mut ue): (Vec<f64>, Vec<[f64; 2]>) = (Vec::new(), Vec::new());
     for &(b, i) in &near {
         let (blk, i) = (&model.blocks[b as usize], i as usize);
         {
             let x = blk.coords(i);
-            let q: Vec<f64> = x.iter().map(|&p| fr.q(p)).collect();
+            q.clear();
+            q.extend(x.iter().map(|&p| fr.q(p)));
             if q.iter().all(|&v| v == 0.0) {
                 continue;
             }
@@ -477,7 +488,8 @@ pub fn domain_sif_tol(model: &Model, u: &[[f64; 2]], fix: &[u8], f_ext: &[[f64; 
             if q.iter().all(|&v| v == q[0]) {
                 continue;
             }
-            let ue: Vec<[f64; 2]> = conn.iter().map(|&c| u[c as usize]).collect();
+            ue.clear();
+            ue.extend(conn.iter().map(|&c| u[c as usize]));
             match blk.element() {
                 "q4" => element_sums::<Q4, 4>(&fr, &m, &arr(x), &arr(&ue), &arr(&q), &q4, &mut s),
                 "t3" => element_sums::<T3, 3>(&fr, &m, &arr(x), &arr(&ue), &arr(&q), &t3, &mut s),

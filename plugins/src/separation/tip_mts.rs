@@ -228,19 +228,25 @@ impl TipMts {
         let tip = CrackTip { point: q.idx(), x: xq, dir: e1, edge: ctx.face.idx(), h: ctx.h, faces: 1 };
         let re = [self.reradius];
         let radii: &[f64] = if ctx.planned.is_none() { &[1.0, 0.5] } else { &re };
+        // The last refused domain (its radius, and whether it left the body): `shrink` would
+        // evaluate the same domain again first (the same function of the same arguments).
+        let mut refused: Option<(f64, bool)> = None;
         for f in radii.iter().map(|f| f * self.radius).filter(|f| (self.every * f * ctx.h).min(piece) <= straight) {
             let r_out = f * ctx.h;
             let d = match frame {
                 None => domain_sif(m, ctx.u, &[], &[], &tip, 0.5 * r_out, r_out),
                 Some(_) => domain_sif_tol(m, ctx.u, &[], &[], &tip, 0.5 * r_out, r_out, 2.0 * self.staircase * ctx.h),
             };
-            if let Ok(d) = d {
-                let th = kink_angle(d.k1, d.k2)?;
-                let dir = angle_of(e1) + th;
-                return Some((xq, dir, dir));
+            match d {
+                Ok(d) => {
+                    let th = kink_angle(d.k1, d.k2)?;
+                    let dir = angle_of(e1) + th;
+                    return Some((xq, dir, dir));
+                }
+                Err(e) => refused = Some((r_out, matches!(e, SifError::DomainLeavesBody { .. }))),
             }
         }
-        if let Some(th) = self.near_boundary_kink(ctx, &tip, frame.is_some(), straight, piece) {
+        if let Some(th) = self.near_boundary_kink(ctx, &tip, frame.is_some(), straight, piece, refused) {
             let dir = angle_of(e1) + th?;
             return Some((xq, dir, dir));
         }
@@ -261,7 +267,9 @@ impl TipMts {
     /// domain leaves it and the crack is straight over `every` of the smaller radii behind the
     /// tip. `None`: not used (off, a first evaluation, the full domain not refused for the
     /// boundary, or no smaller domain fits); `Some(None)`: a closed tip.
-    fn near_boundary_kink(&self, ctx: &TipContext, tip: &CrackTip, staircase: bool, straight: f64, piece: f64) -> Option<Option<f64>> {
+    /// `refused`: the caller's last refused domain (radius, left the body), reused when it is
+    /// this one's full domain.
+    fn near_boundary_kink(&self, ctx: &TipContext, tip: &CrackTip, staircase: bool, straight: f64, piece: f64, refused: Option<(f64, bool)>) -> Option<Option<f64>> {
         if self.shrink <= 0.0 || ctx.planned.is_none() {
             return None;
         }
@@ -269,7 +277,14 @@ impl TipMts {
         let tol = 2.0 * self.staircase * ctx.h;
         let eval = |r: f64| if staircase { domain_sif_tol(m, ctx.u, &[], &[], tip, 0.5 * r, r, tol) } else { domain_sif(m, ctx.u, &[], &[], tip, 0.5 * r, r) };
         let full = self.reradius * self.radius * ctx.h;
-        if (self.every * full).min(piece) > straight || !matches!(eval(full), Err(SifError::DomainLeavesBody { .. })) {
+        if (self.every * full).min(piece) > straight {
+            return None;
+        }
+        let leaves = match refused {
+            Some((r, leaves)) if r.to_bits() == full.to_bits() => leaves,
+            _ => matches!(eval(full), Err(SifError::DomainLeavesBody { .. })),
+        };
+        if !leaves {
             return None;
         }
         let mut r = 0.8 * full;
