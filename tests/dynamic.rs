@@ -405,7 +405,7 @@ fn verlet_list_patched_at_splits_is_a_full_build() {
 /// measure of tools/dynamic_tables.py's `angle_splits`); no split at x < 30 mm (no tensile crack
 /// from the compressed impact zone); the cohesive law releases G_c per area of traction-free
 /// face (Hillerborg et al. 1976): fracture / (G_c x free faces) within 5 %; the ledger closes to
-/// 1e-3 of the work with the path method's node moves booked as `relocation` (without that term
+/// 1e-4 of the work (must-show 3: 1e-3) with the path method's node moves booked as `relocation` (without that term
 /// the residual is above 1e-3: the moves put energy into the discrete system, and the test
 /// fails if the booking is lost); the crack runs at least 60 mm (session 14's run of this rule
 /// stopped after 10.8 mm).
@@ -449,7 +449,9 @@ fn kalthoff_on_the_path_method_kinks_at_the_experiments_angle() {
     assert!(reach > 0.060, "the crack reached {reach} m from the notch tip");
     assert_eq!(impact, 0, "splits in the impact zone");
     assert!((ratio - 1.0).abs() < 0.05, "fracture / (G_c free) = {ratio}");
-    assert!(resid <= 1e-3, "ledger residual {resid:e}");
+    // Must-show 3 asks 1e-3; measured 2.7e-6 (3.6e-5 at most over the settings study): 1e-4
+    // catches a booking wrong by a few per cent of the term (6.4e-3 of the work).
+    assert!(resid <= 1e-4, "ledger residual {resid:e}");
     assert!(reloc.abs() > 1e-3 * work, "relocation {reloc:e} against the work {work:e}: the moves should be booked");
     let _ = std::fs::remove_dir_all(&dir);
 }

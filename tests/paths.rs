@@ -160,7 +160,7 @@ fn move_point_in_place_equals_a_fresh_model() {
 }
 
 /// What the ledger books for a node move of the path method (`Model::strain_energy_at`, the
-/// `relocation` term; docs/dynamic.md "Path method"). Reference: the whole model's strain energy
+/// `relocation` term; docs/dynamic.md "Session 22"). Reference: the whole model's strain energy
 /// (`Model::strain_energy`: 1/2 u . F_int of the blocked force kernel, another route than the
 /// element stiffness matrices of `strain_energy_at`) before and after moving one node with the
 /// displacements kept: the change of the moved node's elements must equal the change of the
@@ -233,13 +233,36 @@ fn tip_mts_in_the_explicit_march() {
     assert!(ks[0].reached && (c - mts).abs() <= 5.0, "chord {c:.2} deg against {mts:.2}");
     assert!(!s.cracking.as_ref().unwrap().path.moves.is_empty());
     assert!(fragment_sizes(&s.model).iter().all(|&n| n >= 3));
-    // The ledger (docs/dynamic.md "Path method"): the node moves' energy booked as
+    // The ledger (docs/dynamic.md "Session 22"): the node moves' energy booked as
     // `relocation` closes it to 1e-5 of the work (measured 4.7e-7); without that term the
     // residual would be the moves' 4e-4 of the work.
     let l = &s.ledger;
     let without = (l.residual() - l.relocation).abs() / l.external();
     eprintln!("ledger: relocation {:e}, work {:e}, relative residual {:e}, without the relocation term {without:e}", l.relocation, l.external(), l.relative_residual());
     assert!(l.relative_residual() < 1e-5 && without > 1e-4, "residual {:e}, without the relocation term {without:e}", l.relative_residual());
+}
+
+/// The events solver books no node move (review r22): its ledger is the event state's strain
+/// energy alone (external work = strain: a residual of exactly 0 at every event), and a move
+/// booked there would show as a false residual of the size of the move's energy in the history
+/// rows. Reference: the events part's own definition (tolerance: exact). Shear test `sen_q4_1`
+/// with `tip_mts`, nodes moved.
+#[test]
+fn events_solver_books_no_node_move() {
+    let dir = crate::ckpt::tmp("paths-events-ledger");
+    let mut s = sim(&text("sen_q4_1", "tip_mts"));
+    let mut w = flem_core::output::OutputWriter::new(&dir, &s).unwrap();
+    s.run(&mut w).unwrap();
+    drop(w);
+    assert!(!s.cracking.as_ref().unwrap().path.moves.is_empty(), "no node moved");
+    assert_eq!(s.ledger.relocation, 0.0);
+    // Every history row (written after each event's check): with moves booked, 15 of the 67
+    // rows had a non-zero residual (measured on the binary before the fix).
+    let hist = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    let col = hist.lines().next().unwrap().split(',').position(|h| h == "energy_residual").unwrap();
+    let rows: Vec<f64> = hist.lines().skip(1).map(|l| l.split(',').nth(col).unwrap().parse().unwrap()).collect();
+    assert!(rows.len() > 20 && rows.iter().all(|&r| r == 0.0), "residuals {rows:?}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The explicit march of the test above, interrupted after nodes moved and resumed from its

@@ -32,7 +32,9 @@ use crate::common::root;
 /// structured `_q4_` files are generated rectangles like many other scenes here, and the
 /// costliest: 29 s), and of the centre-crack scenes only beta = 45 deg (the 30 and 60 deg files
 /// are the same scene with other load values: 60 s of the three tests' 200 s of CPU, measured); of the events solver's notched plate only h = 0.25 (h = 0.125 is the same scene
-/// on the finer mesh: 11.5 s); none of Bittencourt's beam (configs/beam/, tests/beam.rs). To keep
+/// on the finer mesh: 11.5 s); none of Bittencourt's beam (configs/beam/, tests/beam.rs); none of
+/// the Kalthoff scenes on the path method (`kalthoff_*_path.toml`: the edge rule's scenes with
+/// `tip_mts`; tests/dynamic.rs runs h = 1 mm to its end, `flem check` reads both). To keep
 /// the suite quick (CI time of a fresh clone).
 fn scenes() -> Vec<PathBuf> {
     let mut out = Vec::new();

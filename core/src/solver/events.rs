@@ -537,7 +537,7 @@ impl Simulation {
             let mut fs = FactorStats::default();
             let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck.get(*c).copied().unwrap_or(false)).map(|(_, p)| *p).collect();
             let (crit, _) = smallest_failure(criterion(), &live, 0.0, CRIT_MAX, &mut fs)?;
-            let n = self.check_failure(obs)?;
+            let n = self.check_failure_with(obs, false)?;
             checks += 1;
             if n > 0 {
                 splits += n;

@@ -1415,6 +1415,14 @@ impl Simulation {
 
     /// Failure check: proposes and applies splits, then makes every per-cluster array follow.
     fn check_failure(&mut self, obs: &mut dyn Observer) -> Result<usize> {
+        self.check_failure_with(obs, true)
+    }
+
+    /// [`Self::check_failure`]; `book_moves`: the path method's node moves go to the ledger's
+    /// `relocation` term (a march: explicit steps, the events solver's hand-over). The events
+    /// part passes false: its ledger is the event state's strain energy alone (external work =
+    /// strain, no balance), which a booked move would turn into a false residual.
+    pub(crate) fn check_failure_with(&mut self, obs: &mut dyn Observer, book_moves: bool) -> Result<usize> {
         let Some(cr) = self.cracking.as_mut() else { return Ok(0) };
         let cfg = self.scene.file.cracking.as_ref().expect("cracking config");
         let (rec, events) = cr.check(cfg, &mut self.model, &self.state.u, &self.x0, self.state.time, self.state.step)?;
@@ -1427,7 +1435,7 @@ impl Simulation {
         // kinetic: the relumped masses at the kept velocities). Only when a node moved: the
         // other rules' ledgers are untouched, bit for bit.
         let ke = |m: &[f64], v: &[[f64; 2]]| 0.5 * m.iter().zip(v).map(|(m, v)| m * (v[0] * v[0] + v[1] * v[1])).sum::<f64>();
-        let ke0 = (!rec.moved.is_empty()).then(|| ke(&self.state.mass, &self.state.v));
+        let ke0 = (book_moves && !rec.moved.is_empty()).then(|| ke(&self.state.mass, &self.state.v));
         self.apply_split_record(&rec);
         if let Some(ke0) = ke0 {
             self.ledger.relocation += move_strain + ke(&self.state.mass, &self.state.v) - ke0;
