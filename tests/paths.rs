@@ -128,6 +128,16 @@ fn move_point_rebuilds_geometry_and_refuses_bad_moves() {
     assert_eq!(m.mesh.points[p.idx()], [2.25, 1.8]);
 }
 
+/// A 4 x 4 grid of `element` (4 x 4 in size) in `plane`, a non-trivial displacement of every
+/// node, and the interior point at (2, 2).
+fn strained_grid(element: &str, plane: &str) -> (Simulation, Vec<[f64; 2]>, PointId) {
+    let s = sim(&format!("[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 4.0\nnx = 4\nny = 4\nelement = \"{element}\"\n[model]\nplane = \"{plane}\"\n\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n\n[[stage]]\nname = \"none\"\n"));
+    let n = s.model.cluster_x0().len();
+    let u: Vec<[f64; 2]> = (0..n).map(|i| [1e-3 * (i as f64).sin(), 1e-3 * (2.0 * i as f64).cos()]).collect();
+    let p = (0..s.model.mesh.points.len()).find(|&i| s.model.mesh.points[i] == [2.0, 2.0]).map(PointId::new).unwrap();
+    (s, u, p)
+}
+
 /// `Model::move_point` updates the moved node's elements in place (`Block::move_elem`: the
 /// tip's neighbourhood, not the block; issue 34 must-show 5). Reference: a model built afresh
 /// from the moved mesh (`Model::new`, the whole-block path). Internal forces for a non-trivial
@@ -135,14 +145,11 @@ fn move_point_rebuilds_geometry_and_refuses_bad_moves() {
 /// bit, with the block's caches (corner gradients, bound) built before the move and after it.
 #[test]
 fn move_point_in_place_equals_a_fresh_model() {
-    let mut s =
-        sim("[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 4.0\nnx = 4\nny = 4\n\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n\n[[stage]]\nname = \"none\"\n");
-    let n = s.model.cluster_x0().len();
-    let u: Vec<[f64; 2]> = (0..n).map(|i| [1e-3 * (i as f64).sin(), 1e-3 * (2.0 * i as f64).cos()]).collect();
+    let (mut s, u, p) = strained_grid("q4", "stress");
+    let n = u.len();
     let mut cs = Vec::new();
     s.model.corner_stresses(&u, &mut cs);
     let _ = s.model.blocks.iter().map(|b| b.max_omega_bound()).fold(0.0, f64::max);
-    let p = (0..s.model.mesh.points.len()).find(|&i| s.model.mesh.points[i] == [2.0, 2.0]).map(PointId::new).unwrap();
     s.model.move_point(p, [2.25, 1.8]).unwrap();
     let fresh = flem_core::element::model::Model::new(s.model.mesh.clone(), &s.scene.file.materials, s.scene.file.model.plane, "fresh").unwrap();
     let (mut f1, mut f2) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
@@ -168,19 +175,18 @@ fn move_point_in_place_equals_a_fresh_model() {
 /// quarter of an element changes its energy by per cents).
 #[test]
 fn strain_energy_at_a_node_measures_what_a_move_changes() {
-    let mut s =
-        sim("[mesh]\ntype = \"rectangle\"\nwidth = 4.0\nheight = 4.0\nnx = 4\nny = 4\n\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\n\n[[stage]]\nname = \"none\"\n");
-    let n = s.model.cluster_x0().len();
-    let u: Vec<[f64; 2]> = (0..n).map(|i| [1e-3 * (i as f64).sin(), 1e-3 * (2.0 * i as f64).cos()]).collect();
-    let p = (0..s.model.mesh.points.len()).find(|&i| s.model.mesh.points[i] == [2.0, 2.0]).map(PointId::new).unwrap();
-    let mut scratch = Vec::new();
-    let (whole0, local0) = (s.model.strain_energy(&u, &mut scratch), s.model.strain_energy_at(p, &u));
-    s.model.move_point(p, [2.25, 1.8]).unwrap();
-    let (whole1, local1) = (s.model.strain_energy(&u, &mut scratch), s.model.strain_energy_at(p, &u));
-    eprintln!("whole {whole0:e} -> {whole1:e}; the node's elements {local0:e} -> {local1:e}");
-    assert!(((local1 - local0) - (whole1 - whole0)).abs() < 1e-12 * whole0, "local change {} against the whole's {}", local1 - local0, whole1 - whole0);
-    assert!((whole1 - whole0).abs() > 1e-3 * whole0, "the move changed the energy by {:e} only", whole1 - whole0);
-    assert!(local0 < whole0 && local0 > 0.0);
+    // Q4 in plane stress and T3 in plane strain (the element stiffness of either kind and plane).
+    for (element, plane) in [("q4", "stress"), ("t3", "strain")] {
+        let (mut s, u, p) = strained_grid(element, plane);
+        let mut scratch = Vec::new();
+        let (whole0, local0) = (s.model.strain_energy(&u, &mut scratch), s.model.strain_energy_at(p, &u));
+        s.model.move_point(p, [2.25, 1.8]).unwrap();
+        let (whole1, local1) = (s.model.strain_energy(&u, &mut scratch), s.model.strain_energy_at(p, &u));
+        eprintln!("{element} {plane}: whole {whole0:e} -> {whole1:e}; the node's elements {local0:e} -> {local1:e}");
+        assert!(((local1 - local0) - (whole1 - whole0)).abs() < 1e-12 * whole0, "{element}: local change {} against the whole's {}", local1 - local0, whole1 - whole0);
+        assert!((whole1 - whole0).abs() > 1e-3 * whole0, "{element}: the move changed the energy by {:e} only", whole1 - whole0);
+        assert!(local0 < whole0 && local0 > 0.0);
+    }
 }
 
 /// Checkpoints carry the moved coordinates: the shear test with `tip_mts` (nodes moved), stopped
