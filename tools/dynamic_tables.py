@@ -4,7 +4,9 @@
     python3 tools/dynamic_tables.py branching out/branching_h0.5 ...
 Reads crack_tips.csv, splits.csv and summary.json (standard library only). Definitions: the
 front is the tip (with a branch) farthest from the notch tip at each record; its speed is the
-advance of that distance over a 2 us window; the Kalthoff angle is the mean angle (from the
+advance of that distance over a 2 us window; vmean_10_40mm the time it took from 10 to 40 mm,
+vfit_10_40mm the least-squares slope of the distance against time over that window's records
+(vfit_bands_10mm the same over 10 mm bands from 10 to 60 mm: the speed history); the Kalthoff angle is the mean angle (from the
 notch line) of the front while it is 10-20 mm from the notch tip; frac_gc_* is the ledger's
 fracture energy over G_c x the front's chord, its arc along the crack, or the crack-face length;
 symmetry: each split point's distance to the nearest split point mirrored about y = 0.02."""
@@ -51,6 +53,20 @@ def common(d, tip0, gc, cr):
         return next(((t, v[0]) for t, v in fr if v[0] >= dd), None)
     a, b = when(0.010), when(0.040)
     vmean = (b[1] - a[1]) / (b[0] - a[0]) if a and b and b[0] > a[0] else float("nan")
+    # Fitted front speed (session 23): the least-squares slope of the front's distance against
+    # time over every record with the distance in [lo, hi] (crack length against time fitted, as
+    # experiments and the dynamic-fracture papers read a crack speed). It uses all the records of
+    # the window, where the mean speed above uses only the two that first pass 10 and 40 mm.
+    def fit(lo, hi):
+        pts = [(t, v[0]) for t, v in fr if lo <= v[0] <= hi]
+        if len(pts) < 3:
+            return float("nan")
+        mt = sum(t for t, _ in pts) / len(pts); mx = sum(x for _, x in pts) / len(pts)
+        stt = sum((t - mt) ** 2 for t, _ in pts)
+        return sum((t - mt) * (x - mx) for t, x in pts) / stt if stt > 0 else float("nan")
+    vfit = fit(0.010, 0.040)
+    # The speed history as the fitted speed in 10 mm bands of the front's distance.
+    vbands = [round(fit(lo / 1e3, (lo + 10) / 1e3), 1) for lo in (10, 20, 30, 40, 50)]
     en = s["energy"]
     face = f(tips[-1]["crack_length"])
     res = dict(steps=s["steps"], splits=s["splits"], wall=s["stages"][0]["wall_seconds"], dt=s["dt"],
@@ -58,7 +74,7 @@ def common(d, tip0, gc, cr):
                frac=en["fracture"], frac_gc_chord=en["fracture"] / (gc * last[0]) if last[0] else float("nan"),
                frac_gc_arc=en["fracture"] / (gc * last[3]) if last[3] else float("nan"),
                frac_gc_face=en["fracture"] / (gc * face) if face else float("nan"),
-               vmean_10_40mm=vmean, resid=en["relative_residual"], isolated=len({r["time"] for r in tips if r["branch"] == ""}) and sum(1 for r in tips if r["branch"] == "" and r["time"] == tips[-1]["time"]))
+               vmean_10_40mm=vmean, vfit_10_40mm=vfit, vfit_bands_10mm=vbands, resid=en["relative_residual"], isolated=len({r["time"] for r in tips if r["branch"] == ""}) and sum(1 for r in tips if r["branch"] == "" and r["time"] == tips[-1]["time"]))
     # The fracture account of summary.json (docs/dynamic.md "Energy"; absent in older runs).
     acc = s.get("fracture_account") or {}
     if acc:
