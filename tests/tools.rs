@@ -105,12 +105,30 @@ fn tmp(tag: &str, scene: &Path) -> PathBuf {
     std::env::temp_dir().join(format!("flem-test-tools-{}-{tag}-{stem}", std::process::id()))
 }
 
-/// check, run (and plot its folder), compare on every scene.
+/// check, run (and plot its folder), compare on every scene, in three shards (scenes i with
+/// i % 3 == shard) so that the suite's two threads share them: unsharded it was 48 s, the last
+/// test of the suite to end, alone for its last 15 s (CI time of a fresh clone, session 23).
 #[test]
-fn check_run_plot_compare_on_every_scene() {
+fn check_run_plot_compare_on_every_scene_0() {
+    check_run_plot_compare(0);
+}
+
+/// The second third of [`check_run_plot_compare_on_every_scene_0`]'s scenes.
+#[test]
+fn check_run_plot_compare_on_every_scene_1() {
+    check_run_plot_compare(1);
+}
+
+/// The last third of [`check_run_plot_compare_on_every_scene_0`]'s scenes.
+#[test]
+fn check_run_plot_compare_on_every_scene_2() {
+    check_run_plot_compare(2);
+}
+
+fn check_run_plot_compare(shard: usize) {
     let all = scenes();
     assert!(all.len() >= 30, "{} scenes found", all.len());
-    for s in &all {
+    for s in all.iter().skip(shard).step_by(3) {
         assert_eq!(tool("check", s, &[]), Outcome::Ok, "{}", s.display());
         let dir = tmp("run", s);
         let d = dir.to_str().unwrap();
@@ -143,25 +161,33 @@ const FOS_LEFT_OUT: [&str; 6] = [
 const CHART_LEFT_OUT: [&str; 4] = ["verification/strip_footing.toml", "verification/strip_footing_phi30.toml", "verification/strip_footing_phi30_fine.toml", "verification/biaxial_softening.toml"];
 
 /// chart, converge, chart-crack and fos on every scene (fos and chart: see the module doc), in
-/// two tests so that the suite's two threads share them (`tools_on_every_scene`).
+/// three tests so that the suite's two threads share them (`tools_on_every_scene`): chart and
+/// converge on the even-numbered scenes, on the odd ones, and chart-crack and fos on all.
 #[test]
-fn chart_and_converge_on_every_scene() {
-    tools_on_every_scene(&["chart", "converge"]);
+fn chart_and_converge_on_every_scene_0() {
+    tools_on_every_scene(&["chart", "converge"], 0, 2);
+}
+
+/// chart and converge on the odd-numbered scenes.
+#[test]
+fn chart_and_converge_on_every_scene_1() {
+    tools_on_every_scene(&["chart", "converge"], 1, 2);
 }
 
 /// The other half of the tools on every scene: chart-crack and fos.
 #[test]
 fn chart_crack_and_fos_on_every_scene() {
-    tools_on_every_scene(&["chart-crack", "fos"]);
+    tools_on_every_scene(&["chart-crack", "fos"], 0, 1);
 }
 
-/// Runs each of `tools` (of chart, converge, chart-crack, fos) in its quick mode on every scene
-/// and asserts that each did its work on some scene (not only refusals).
-fn tools_on_every_scene(tools: &[&str]) {
+/// Runs each of `tools` (of chart, converge, chart-crack, fos) in its quick mode on the scenes i
+/// with i % shards == shard and asserts that each did its work on some of them (not only
+/// refusals).
+fn tools_on_every_scene(tools: &[&str], shard: usize, shards: usize) {
     let all = scenes();
     let mut ran = std::collections::BTreeMap::<&str, usize>::new();
     let on = |t: &str| tools.contains(&t);
-    for s in &all {
+    for s in all.iter().skip(shard).step_by(shards) {
         let left_out = |list: &[&str]| list.iter().any(|l| s.ends_with(l));
         if on("chart") && !left_out(&CHART_LEFT_OUT) {
             let dir = tmp("chart", s);
@@ -193,7 +219,8 @@ fn tools_on_every_scene(tools: &[&str]) {
         }
     }
     eprintln!("succeeded: {ran:?}");
-    // Each tool did its work on some scene (not only refusals): the default scene among them.
+    // Each tool did its work on some scene of the shard (not only refusals); the default scene has
+    // a test of its own (below).
     for t in tools {
         assert!(ran.get(t).copied().unwrap_or(0) >= 1, "flem {t} succeeded on no scene: {ran:?}");
     }
