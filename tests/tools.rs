@@ -174,7 +174,7 @@ fn chart_and_converge_on_every_scene_1() {
     tools_on_every_scene(&["chart", "converge"], 1, 2);
 }
 
-/// The other half of the tools on every scene: chart-crack and fos.
+/// The rest of the tools on every scene: chart-crack and fos, on all of them.
 #[test]
 fn chart_crack_and_fos_on_every_scene() {
     tools_on_every_scene(&["chart-crack", "fos"], 0, 1);
