@@ -36,9 +36,10 @@ pub(crate) struct Libs {
 /// are reused: only the two small crates compile (a few seconds), not a second copy of the
 /// dependency tree.
 ///
-/// Under cargo-nextest every test is a process of its own: the first one of a run writes what
-/// cargo found to target/<profile>/flem-test-libs.json with the run's id (`NEXTEST_RUN_ID`), and
-/// the others of that run read it instead of asking cargo again (a no-op `cargo build` is 0.45 s
+/// Under cargo-nextest every test is a process of its own: a test of a run that finds no file of
+/// its run asks cargo and writes what cargo found to target/<profile>/flem-test-libs.json with
+/// the run's id (`NEXTEST_RUN_ID`; the tests started before it was written ask too, harmlessly),
+/// and the later tests of that run read it instead of asking cargo again (a no-op `cargo build` is 0.45 s
 /// here, taken under cargo's lock on the target folder). A file of another run, or none, or a
 /// damaged one, or one naming a file that is gone: cargo is asked.
 pub(crate) fn libs() -> &'static Libs {
@@ -80,7 +81,7 @@ fn read_shared(path: &Path, run: &str) -> Option<Found> {
 fn write_shared(path: &Path, run: &str, found: &Found) {
     let text = serde_json::json!({ "run": run, "found": found }).to_string();
     let tmp = path.with_extension(format!("json.{}", std::process::id()));
-    if std::fs::write(&tmp, text).is_ok() && std::fs::rename(&tmp, path).is_err() {
+    if std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path)).is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
 }
