@@ -35,107 +35,60 @@ pub(crate) struct Libs {
 /// the dependencies the same features as `cargo test --workspace`, so their compiled artifacts
 /// are reused: only the two small crates compile (a few seconds), not a second copy of the
 /// dependency tree.
-///
-/// Under cargo-nextest every test is a process of its own: a test of a run that finds no file of
-/// its run asks cargo and writes what cargo found to target/<profile>/flem-test-libs.json with
-/// the run's id (`NEXTEST_RUN_ID`; the tests started before it was written ask too, harmlessly),
-/// and the later tests of that run read it instead of asking cargo again (a no-op `cargo build` is 0.45 s
-/// here, taken under cargo's lock on the target folder). A file of another run, or none, or a
-/// damaged one, or one naming a file that is gone: cargo is asked.
 pub(crate) fn libs() -> &'static Libs {
     static LIBS: OnceLock<Libs> = OnceLock::new();
     LIBS.get_or_init(|| {
         let exe = std::env::current_exe().unwrap();
         let profile_dir = exe.parent().and_then(Path::parent).expect("test binary in target/<profile>/deps");
-        let run = std::env::var("NEXTEST_RUN_ID").ok();
-        let shared = profile_dir.join("flem-test-libs.json");
-        let found = match run.as_deref().and_then(|id| read_shared(&shared, id)) {
-            Some(found) => found,
-            None => {
-                let found = ask_cargo(profile_dir);
-                if let Some(id) = run.as_deref() {
-                    write_shared(&shared, id, &found);
-                }
-                found
-            }
+        let target_dir = profile_dir.parent().expect("target folder");
+        let profile = match profile_dir.file_name().and_then(|s| s.to_str()) {
+            Some("debug") => "dev",
+            Some(p) => p,
+            None => "release",
         };
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let out = Command::new(cargo)
+            // Not the unit-test harnesses (tests/unit/*): `cargo test` builds them as tests only.
+            .args([
+                "build",
+                "--quiet",
+                "--message-format=json",
+                "--workspace",
+                "--exclude",
+                "flem-core-unit",
+                "--exclude",
+                "flem-plugins-unit",
+                "--lib",
+                "--bins",
+                "--examples",
+                "--profile",
+                profile,
+                "--target-dir",
+            ])
+            .arg(target_dir)
+            .current_dir(root())
+            .output()
+            .expect("run cargo");
+        assert!(out.status.success(), "building the plugin libraries failed:\n{}", String::from_utf8_lossy(&out.stderr));
+        let mut found = std::collections::BTreeMap::new();
+        for line in String::from_utf8_lossy(&out.stdout).lines() {
+            let Ok(v) = serde_json::from_str::<serde_json::Value>(line) else { continue };
+            if v["reason"] != "compiler-artifact" {
+                continue;
+            }
+            let name = v["target"]["name"].as_str().unwrap_or_default().to_string();
+            if let Some(exe) = v["executable"].as_str() {
+                found.insert(format!("bin {name}"), PathBuf::from(exe));
+            }
+            for f in v["filenames"].as_array().into_iter().flatten().filter_map(|f| f.as_str()) {
+                if f.ends_with(std::env::consts::DLL_SUFFIX) {
+                    found.insert(name.clone(), PathBuf::from(f));
+                }
+            }
+        }
         let get = |n: &str| found.get(n).cloned().unwrap_or_else(|| panic!("cargo built no shared library or executable for {n}: {found:?}"));
         Libs { example: get("flem_plugin_example"), stale: get("flem_plugin_testlib"), no_entry: get("no_entry"), missing_fn: get("missing_fn"), flem: get("bin flem") }
     })
-}
-
-type Found = std::collections::BTreeMap<String, PathBuf>;
-
-/// The libraries and executables of this run as another test of it wrote them (see `libs`).
-fn read_shared(path: &Path, run: &str) -> Option<Found> {
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()?;
-    if v["run"].as_str()? != run {
-        return None;
-    }
-    let found: Found = v["found"].as_object()?.iter().map(|(k, p)| Some((k.clone(), PathBuf::from(p.as_str()?)))).collect::<Option<_>>()?;
-    found.values().all(|p| p.exists()).then_some(found)
-}
-
-/// Writes what cargo found for the run's other tests: a temporary file renamed into place, so a
-/// reader sees the whole file or none.
-fn write_shared(path: &Path, run: &str, found: &Found) {
-    let text = serde_json::json!({ "run": run, "found": found }).to_string();
-    let tmp = path.with_extension(format!("json.{}", std::process::id()));
-    if std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path)).is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-}
-
-/// `cargo build` of the libraries, examples and binaries with this test binary's profile and
-/// target folder; the files it reports by target name ("bin NAME" for executables).
-fn ask_cargo(profile_dir: &Path) -> Found {
-    let target_dir = profile_dir.parent().expect("target folder");
-    let profile = match profile_dir.file_name().and_then(|s| s.to_str()) {
-        Some("debug") => "dev",
-        Some(p) => p,
-        None => "release",
-    };
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let out = Command::new(cargo)
-        // Not the unit-test harnesses (tests/unit/*): `cargo test` builds them as tests only.
-        .args([
-            "build",
-            "--quiet",
-            "--message-format=json",
-            "--workspace",
-            "--exclude",
-            "flem-core-unit",
-            "--exclude",
-            "flem-plugins-unit",
-            "--lib",
-            "--bins",
-            "--examples",
-            "--profile",
-            profile,
-            "--target-dir",
-        ])
-        .arg(target_dir)
-        .current_dir(root())
-        .output()
-        .expect("run cargo");
-    assert!(out.status.success(), "building the plugin libraries failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    let mut found = Found::new();
-    for line in String::from_utf8_lossy(&out.stdout).lines() {
-        let Ok(v) = serde_json::from_str::<serde_json::Value>(line) else { continue };
-        if v["reason"] != "compiler-artifact" {
-            continue;
-        }
-        let name = v["target"]["name"].as_str().unwrap_or_default().to_string();
-        if let Some(exe) = v["executable"].as_str() {
-            found.insert(format!("bin {name}"), PathBuf::from(exe));
-        }
-        for f in v["filenames"].as_array().into_iter().flatten().filter_map(|f| f.as_str()) {
-            if f.ends_with(std::env::consts::DLL_SUFFIX) {
-                found.insert(name.clone(), PathBuf::from(f));
-            }
-        }
-    }
-    found
 }
 
 /// A scene from text whose relative paths resolve against `base`.

@@ -4,11 +4,10 @@
     python3 tools/dynamic_tables.py branching out/branching_h0.5 ...
 Reads crack_tips.csv, splits.csv and summary.json (standard library only). Definitions: the
 front is the tip (with a branch) farthest from the notch tip at each record; its speed is the
-advance of that distance over a 2 us window; vmean_10_40mm 30 mm over the time the front took from 10 to 40 mm,
-vfit_10_40mm the least-squares slope of the distance against time over that window's records
-(vfit_bands_10mm the same over 10 mm bands from 10 to 60 mm: the speed history); the Kalthoff
-angle is the mean angle (from the
-notch line) of the front while it is 10-20 mm from the notch tip; frac_gc_* is the ledger's
+advance of that distance over a 2 us window; vmean_10_40mm 30 mm over the time the front took
+from 10 to 40 mm, vfit_10_40mm the least-squares slope of the distance against time over that
+window's records (vfit_bands_10mm the same over 10 mm bands from 10 to 60 mm: the speed
+history); the Kalthoff angle is the mean angle (from the notch line) of the front while it is 10-20 mm from the notch tip; frac_gc_* is the ledger's
 fracture energy over G_c x the front's chord, its arc along the crack, or the crack-face length;
 symmetry: each split point's distance to the nearest split point mirrored about y = 0.02."""
 import csv, json, math, sys
