@@ -724,10 +724,6 @@ fn a_second_run_into_a_locked_folder_is_refused() {
     let holder = format!("process {} (", first.id());
     wait_for(|| std::fs::read_to_string(dir.join(".flem.lock")).is_ok_and(|s| s.starts_with(&holder)), "the first run's lock");
     std::thread::sleep(Duration::from_millis(200));
-    // The holder stopped (SIGSTOP): it keeps its lock (the open file) without marching on a core
-    // beside the rest of the suite while the test goes on.
-    // SAFETY: kill(2) on our own child's pid.
-    assert_eq!(unsafe { libc::kill(first.id() as i32, libc::SIGSTOP) }, 0);
     let opening = root().join("configs/paper/opening.toml");
     for args in [vec!["run", opening.to_str().unwrap(), "--quiet", "--out", d], vec!["run", long_path.to_str().unwrap(), "--quiet", "--resume", d]] {
         let t = Instant::now();

@@ -6,8 +6,9 @@
 One row per initial tip of SETTING.json: scene, tip, element size, the MTS angle of the
 implicit solution's factors, the chord over five element sizes and its error (deg; the same run
 in DEFAULTS.json beside it when given, matched by scene and tip), the least-squares angle, node
-moves (refused) and fragments below 3 elements. A summary (tips within 5 deg, largest and median
-error) goes to stderr. Standard library only.
+moves (refused) and fragments below 3 elements; a tip not measured over five element sizes is
+printed `short` and counted as a miss. A summary (tips within 5 deg, largest and median error)
+goes to stderr. Standard library only.
 """
 import json
 import statistics
@@ -29,25 +30,39 @@ def main(argv):
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     errs, berrs = [], []
-    for r in rows:
+    short = 0
+
+    def cell(r):
+        """'chord (error)' of a row, or None when the tip was not measured over 5 h."""
         k = r["kink"]
-        if k.get("chord_deg") is None:
-            print("note: %s tip %s has no chord (path shorter than 5 h)" % (r["scene"], k["tip_point"]), file=sys.stderr)
-            continue
-        name = r["scene"].split("/")[-1].removesuffix(".toml")
-        cells = [name, str(k["tip_point"]), "%.4f" % k["h"], "%.1f" % r["mts_deg"]]
+        if k.get("chord_deg") is None or r.get("error_deg") is None:
+            return None
+        return "%.1f (%.1f)" % (k["chord_deg"], r["error_deg"])
+
+    for r in rows:
+        try:
+            k = r["kink"]
+            name = r["scene"].split("/")[-1].removesuffix(".toml")
+        except (KeyError, TypeError):
+            sys.exit("error: %s is not `flem paths --out` JSON (a row without scene / kink)" % argv[1])
+        mts = "-" if r.get("mts_deg") is None else "%.1f" % r["mts_deg"]
+        cells = [name, str(k["tip_point"]), "%.4f" % k["h"], mts]
         if base:
             b = base.get((r["scene"], k["tip_point"]))
-            if b is None or b["kink"].get("chord_deg") is None:
-                cells.append("-")
-            else:
-                cells.append("%.1f (%.1f)" % (b["kink"]["chord_deg"], b["error_deg"]))
-                berrs.append(abs(b["error_deg"]))
-        cells += ["%.1f (%.1f)" % (k["chord_deg"], r["error_deg"]), "%.1f" % k["lsq_deg"], "%d (%d)" % (r["moves"], r["refused_moves"]), str(r["small_fragments"])]
-        errs.append(abs(r["error_deg"]))
+            c = None if b is None else cell(b)
+            cells.append(c or "short")
+            berrs.append(abs(b["error_deg"]) if c else float("inf"))
+        c = cell(r)
+        if c is None:
+            short += 1
+        lsq = "-" if k.get("lsq_deg") is None else "%.1f" % k["lsq_deg"]
+        cells += [c or "short", lsq, "%d (%d)" % (r["moves"], r["refused_moves"]), str(r["small_fragments"])]
+        # An unmeasured tip (its path shorter than 5 h, or no MTS angle) counts as a miss.
+        errs.append(abs(r["error_deg"]) if c else float("inf"))
         print("| " + " | ".join(cells) + " |")
     runs = len({r["scene"] for r in rows})
-    summary = lambda e: "%d of %d within 5 deg, largest %.1f, median %.1f" % (sum(x <= 5.0 for x in e), len(e), max(e), statistics.median(e))
+    summary = lambda e: "%d of %d within 5 deg (%d not measured), largest measured %.1f, median %.1f" % (
+        sum(x <= 5.0 for x in e), len(e), sum(x == float("inf") for x in e), max([x for x in e if x != float("inf")] or [float("nan")]), statistics.median(e))
     print("%d tips in %d runs: %s" % (len(errs), runs, summary(errs)), file=sys.stderr)
     if berrs:
         print("defaults: %s" % summary(berrs), file=sys.stderr)
