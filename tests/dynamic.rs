@@ -140,6 +140,25 @@ fn fracture_energy_is_gc_times_the_separated_length() {
     assert_eq!(c.zones(law), [0.0; 3], "every pair opened past delta_f");
 }
 
+/// The test above with Petersson's bilinear softening (`softening = "petersson"`, the L-panel's
+/// law; delta_f = delta_0 + 3.6 g / sigma_t, 1.8 times the linear law's, so the strip is pulled
+/// longer). Reference: the same, G_f b per unit thickness (the area under Petersson's curve is
+/// G_f by construction, Petersson 1981), within 1 % (measured 2e-16); the ledger closes to 1e-3
+/// (measured 2.2e-7). An envelope of the wrong area fails here; a knee missing from the law's
+/// kink work fails the law's unit test (`work_of_the_forces_equals_stored_plus_dissipated`, 1e-9).
+#[test]
+fn petersson_softening_releases_gc_times_the_separated_length() {
+    let (gf, b) = (0.01, 1.0);
+    let mut s = pulled_strip_law(gf, 0.6, ", softening = \"petersson\"");
+    let l = &s.ledger;
+    eprintln!("petersson: fracture {} against G_f b = {}, residual {:e}", l.fracture, gf * b, l.relative_residual());
+    assert!(rel(l.fracture, gf * b) < 0.01, "fracture energy {} against G_f b = {}", l.fracture, gf * b);
+    assert!(l.relative_residual() < 1e-3, "residual {:e}", l.relative_residual());
+    let c = s.contact.as_mut().expect("contact");
+    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+    assert_eq!(c.zones(law), [0.0; 3], "every pair opened past delta_f");
+}
+
 /// The fracture account in a half-open cohesive zone (issue 36 must-show 3, docs/dynamic.md
 /// "Energy"): the strip of the test above pulled only until its faces opened into the
 /// softening branch (delta_0 < delta < delta_f). Reference: the linear-softening law's energy
@@ -166,8 +185,13 @@ fn fracture_account_of_a_half_open_cohesive_zone() {
 /// A 1 x 0.5 strip cut along y = 0.25 at the start, top and bottom pulled apart at 0.05 each,
 /// cohesive faces (sigma_t = 1, G_f = `gf`), run to `end`.
 fn pulled_strip(gf: f64, end: f64) -> Simulation {
+    pulled_strip_law(gf, end, "")
+}
+
+/// [`pulled_strip`] with `extra` appended to the cohesive law's table (e.g. a softening key).
+fn pulled_strip_law(gf: f64, end: f64, extra: &str) -> Simulation {
     let text = format!(
-        "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 0.5\nnx = 16\nny = 8\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ndt_safety = 0.5\ndamping = {{ type = \"none\" }}\n[[load]]\nname = \"up\"\ntype = \"velocity\"\nnodes = \"top\"\ny = 0.05\n[[load]]\nname = \"down\"\ntype = \"velocity\"\nnodes = \"bottom\"\ny = -0.05\n[contact]\nlaw = {{ type = \"cohesive\", normal_stiffness = 16000.0, shear_stiffness = 16000.0, tensile_strength = 1.0, fracture_energy = {gf}, friction = 0.0 }}\n[[stage]]\nlevels = {{ up = 1.0, down = 1.0 }}\ndynamic = true\nend_time = {end}\nmax_steps = 200000\n"
+        "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 0.5\nnx = 16\nny = 8\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ndt_safety = 0.5\ndamping = {{ type = \"none\" }}\n[[load]]\nname = \"up\"\ntype = \"velocity\"\nnodes = \"top\"\ny = 0.05\n[[load]]\nname = \"down\"\ntype = \"velocity\"\nnodes = \"bottom\"\ny = -0.05\n[contact]\nlaw = {{ type = \"cohesive\", normal_stiffness = 16000.0, shear_stiffness = 16000.0, tensile_strength = 1.0, fracture_energy = {gf}, friction = 0.0{extra} }}\n[[stage]]\nlevels = {{ up = 1.0, down = 1.0 }}\ndynamic = true\nend_time = {end}\nmax_steps = 200000\n"
     );
     let mut s = sim(&text);
     let on_line: Vec<flem_core::ids::EdgeId> = (0..s.model.topo.edges.len())

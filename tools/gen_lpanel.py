@@ -121,7 +121,10 @@ HEADER = """# Winkler's L-shaped panel (issue 34 must-show 3, second half; docs/
 # experimental/Winkler_Abb-7.12_Versuchsreihe-A.csv). Copies in configs/lpanel/winkler_band.csv.
 # FLEM (units m, Pa, N per metre of thickness: the force of the experiment is t = 0.1 times the
 # reaction): nodes split by Rankine at f_t = 2.7 MPa; the new faces carry the `cohesive` contact
-# law (ours: linear softening, G_f = G_c = 90 N/m, frictionless; k_n = k_s = 10 E / h, ours);
+# law with Petersson's bilinear softening for concrete (P.-E. Petersson 1981, Lund TVBM-1006:
+# knee at f_t / 3, `softening = "petersson"`), G_f = G_c = 90 N/m, frictionless; k_n = k_s =
+# 10 E / h (ours). The law's linear softening (the key removed) gave peaks of 8.5-12.5 kN
+# (docs/paths.md, "Winkler's L-panel", session 26);
 # explicit march, adaptive dynamic relaxation (the default damping), displacement in stages
 # (the ramp below), cracking checked at rest (at_equilibrium, FLEM's default, ours) and when the
 # relaxation stalls (stall_steps, below).
@@ -149,7 +152,7 @@ def scene(kind, i, ne, h):
     t += "[solver]\ntolerance = 1e-4   # the reaction within about 1 % of the converged one (docs/paths.md)\n\n"
     t += '[[support]]\nnodes = "bottom"\nfix = "xy"\n\n'
     t += '[[load]]\nname = "lift"\ntype = "displacement"\nnodes = "lift"\ny = 1e-3   # m per unit level: level 0.2 = 0.2 mm\n\n'
-    t += f'[contact]\nlaw = {{ type = "cohesive", normal_stiffness = {kn:.4e}, shear_stiffness = {kn:.4e}, tensile_strength = 2.7e6, fracture_energy = 90.0, friction = 0.0 }}\n\n'
+    t += f'[contact]\nlaw = {{ type = "cohesive", normal_stiffness = {kn:.4e}, shear_stiffness = {kn:.4e}, tensile_strength = 2.7e6, fracture_energy = 90.0, friction = 0.0, softening = "petersson" }}\n\n'
     t += "[cracking]\n# Checks at rest (at_equilibrium, the default), and also when the relaxation stalls (its best\n# unbalanced ratio not halved in 30 000 steps): with cohesive faces softening, a stage often never\n# comes to rest to 1e-4, and without stall_steps its checks would never run (docs/paths.md).\nstall_steps = 30000\nmax_splits_per_check = 1\n\n"
     t += '[cracking.criterion]\ntype = "rankine"\ntensile_strength = 2.7e6\n\n'
     t += '[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\n\n'

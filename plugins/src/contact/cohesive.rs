@@ -1,4 +1,4 @@
-//! `cohesive`: linear-softening cohesion on freshly split faces, then pure contact
+//! `cohesive`: linear- (or bilinear-) softening cohesion on freshly split faces, then pure contact
 //! (METHOD section 6; our extension of the paper's no-tension law, eq. 10-14).
 //!
 //! A pair joining the two faces of an edge split during the run (`fresh`) carries tension:
@@ -10,6 +10,22 @@
 //!          = sigma_t (delta_f - delta) / (delta_f - delta_0)   delta_0 < delta < delta_f
 //!          = 0                                                 delta >= delta_f
 //! ```
+//!
+//! With `softening = "petersson"` the softening branch is Petersson's bilinear law for concrete
+//! (P.-E. Petersson 1981, *Crack growth and development of fracture zones in plain concrete*,
+//! Lund, report TVBM-1006; the law of code_aster's Petersson beam, ../shared/BENCHMARKS.md): with
+//! `g = G_f - sigma_t delta_0 / 2` (the energy beyond the elastic triangle; `g = G_f` as
+//! `k_n -> inf`), `delta_1 = delta_0 + 0.8 g / sigma_t`, `delta_f = delta_0 + 3.6 g / sigma_t`,
+//!
+//! ```text
+//! T(delta) = sigma_t - (2/3) sigma_t (delta - delta_0) / (delta_1 - delta_0)   delta_0 < delta <= delta_1
+//!          = (sigma_t / 3) (delta_f - delta) / (delta_f - delta_1)             delta_1 < delta < delta_f
+//! ```
+//!
+//! (the linear law is the same with `delta_f = delta_0 + 2 g / sigma_t` and no knee). Its
+//! initial softening slope is 5/3 of the linear law's for the same `G_f`, which lowers the peak
+//! load of structures whose fracture zone is long against their size (the L-panel of
+//! docs/paths.md).
 //!
 //! Unloading goes back to the origin along the secant `T(delta_max) / delta_max`; the area
 //! under the envelope up to `delta_f` is `G_f`. The tangential spring
@@ -34,7 +50,7 @@
 //! - kinks: the normal traction along the step's path (`gap - dgap` to `gap`; envelope beyond
 //!   `delta_max`, secant below, `-k_n gap` in compression, 0 when open and not cohesive) is
 //!   piecewise linear, so its work is exact as a sum of trapezoids between the kinks (0,
-//!   `delta_0`, `delta_f`, `delta_max`); the ledger's one trapezoid over the step differs
+//!   `delta_0`, `delta_f`, `delta_max`, and `delta_1` when bilinear); the ledger's one trapezoid over the step differs
 //!   when a kink lies inside it, and `A (W_path - W_trap)` is added (of either sign). At a
 //!   contact born from an open gap `g_0 = gap - dgap > 0` it is `+1/2 N g_0` (the explicit
 //!   scheme's impact loss: the step's whole approach is credited `1/2 N (-dgap)`, the spring
@@ -65,6 +81,13 @@
 //! [contact]
 //! law = { type = "cohesive", normal_stiffness = 1e6, shear_stiffness = 4e5, tensile_strength = 1.0, fracture_energy = 0.01, friction = 0.577 }
 //! ```
+//!
+//! Petersson's bilinear softening:
+//!
+//! ```toml
+//! [contact]
+//! law = { type = "cohesive", normal_stiffness = 1e6, shear_stiffness = 4e5, tensile_strength = 1.0, fracture_energy = 0.01, softening = "petersson" }
+//! ```
 use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
@@ -80,14 +103,51 @@ pub struct Cohesive {
     pub fracture_energy: f64,
     #[serde(default)]
     pub friction: f64,
+    /// Shape of the softening branch: `"linear"` (the default, as before) or `"petersson"`
+    /// (Petersson 1981's bilinear law for concrete). Not written to resolved scenes when linear.
+    #[serde(default, skip_serializing_if = "Softening::is_linear")]
+    pub softening: Softening,
+}
+
+/// The softening branch of [`Cohesive`]'s envelope (see the module doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Softening {
+    /// Straight from `(delta_0, sigma_t)` to `(delta_f, 0)`.
+    #[default]
+    Linear,
+    /// Petersson (1981), bilinear: from `(delta_0, sigma_t)` to the knee `(delta_1, sigma_t / 3)`,
+    /// then to `(delta_f, 0)`, with `delta_1 = delta_0 + 0.8 g / sigma_t`,
+    /// `delta_f = delta_0 + 3.6 g / sigma_t` and `g = G_f - sigma_t delta_0 / 2`.
+    Petersson,
+}
+
+impl Softening {
+    fn is_linear(&self) -> bool {
+        *self == Softening::Linear
+    }
 }
 
 impl Cohesive {
     fn d0(&self) -> f64 {
         self.tensile_strength / self.normal_stiffness
     }
+    /// The softening energy beyond the elastic triangle, `g = G_f - sigma_t delta_0 / 2`.
+    fn g(&self) -> f64 {
+        self.fracture_energy - 0.5 * self.tensile_strength * self.d0()
+    }
     fn df(&self) -> f64 {
-        2.0 * self.fracture_energy / self.tensile_strength
+        match self.softening {
+            Softening::Linear => 2.0 * self.fracture_energy / self.tensile_strength,
+            Softening::Petersson => self.d0() + 3.6 * self.g() / self.tensile_strength,
+        }
+    }
+    /// The knee of a bilinear envelope, `(delta_1, T(delta_1))`; `None` when linear.
+    fn knee(&self) -> Option<(f64, f64)> {
+        match self.softening {
+            Softening::Linear => None,
+            Softening::Petersson => Some((self.d0() + 0.8 * self.g() / self.tensile_strength, self.tensile_strength / 3.0)),
+        }
     }
     /// Envelope traction at opening `d`.
     pub fn envelope(&self, d: f64) -> f64 {
@@ -95,7 +155,11 @@ impl Cohesive {
         if d <= d0 {
             self.normal_stiffness * d
         } else if d < df {
-            self.tensile_strength * (df - d) / (df - d0)
+            match self.knee() {
+                None => self.tensile_strength * (df - d) / (df - d0),
+                Some((d1, t1)) if d < d1 => self.tensile_strength - (self.tensile_strength - t1) * (d - d0) / (d1 - d0),
+                Some((d1, t1)) => t1 * (df - d) / (df - d1),
+            }
         } else {
             0.0
         }
@@ -107,7 +171,10 @@ impl Cohesive {
             0.5 * self.normal_stiffness * d * d
         } else {
             let e = d.min(df);
-            0.5 * self.tensile_strength * d0 + 0.5 * (self.tensile_strength + self.envelope(e)) * (e - d0)
+            match self.knee() {
+                Some((d1, t1)) if e > d1 => 0.5 * self.tensile_strength * d0 + 0.5 * (self.tensile_strength + t1) * (d1 - d0) + 0.5 * (t1 + self.envelope(e)) * (e - d1),
+                _ => 0.5 * self.tensile_strength * d0 + 0.5 * (self.tensile_strength + self.envelope(e)) * (e - d0),
+            }
         }
     }
     /// Normal traction on the slave (per area, > 0 pushes the faces apart) at opening `d` on
@@ -130,7 +197,8 @@ impl Cohesive {
     /// the ledger credits. Zero when no kink lies strictly between `a` and `b`.
     fn kink_work(&self, a: f64, b: f64, mo: f64, cohesive: bool) -> f64 {
         let (lo, hi) = (a.min(b), a.max(b));
-        let mut kinks = [0.0, self.d0(), self.df(), mo];
+        let knee = self.knee().map_or(mo, |(d1, _)| d1);
+        let mut kinks = [0.0, self.d0(), self.df(), mo, knee];
         let mut n = 0;
         for i in 0..kinks.len() {
             let x = kinks[i];
@@ -265,7 +333,34 @@ mod tests {
     use super::*;
 
     fn law() -> Cohesive {
-        Cohesive { normal_stiffness: 1000.0, shear_stiffness: 1000.0, tensile_strength: 1.0, fracture_energy: 0.01, friction: 0.5 }
+        Cohesive { normal_stiffness: 1000.0, shear_stiffness: 1000.0, tensile_strength: 1.0, fracture_energy: 0.01, friction: 0.5, softening: Softening::Linear }
+    }
+
+    fn petersson() -> Cohesive {
+        Cohesive { softening: Softening::Petersson, ..law() }
+    }
+
+    /// Petersson's envelope against its closed form: the knee at `(delta_0 + 0.8 g / sigma_t,
+    /// sigma_t / 3)`, zero at `delta_0 + 3.6 g / sigma_t`, the area `G_f` (Petersson 1981, for
+    /// `delta_0 -> 0`: knee at `0.8 G_f / f_t`, end at `3.6 G_f / f_t`). Exact to round-off.
+    #[test]
+    fn petersson_envelope_is_the_bilinear_law() {
+        let l = petersson();
+        let (d0, g) = (1e-3, 0.01 - 0.5 * 1e-3);
+        let (d1, df) = (d0 + 0.8 * g, d0 + 3.6 * g);
+        assert!((l.df() - df).abs() < 1e-15 && (l.envelope(d1) - 1.0 / 3.0).abs() < 1e-12);
+        assert!((l.envelope(0.5 * (d0 + d1)) - 2.0 / 3.0).abs() < 1e-12);
+        assert!((l.envelope(0.5 * (d1 + df)) - 1.0 / 6.0).abs() < 1e-12 && l.envelope(df) == 0.0);
+        assert!((l.work(df) - 0.01).abs() < 1e-15 && (l.work(2.0 * df) - 0.01).abs() < 1e-15);
+        // The initial softening slope is 5/3 of the linear law's, for the same G_f.
+        let slope = |c: &Cohesive| (c.envelope(d0 + 1e-5) - c.envelope(d0 + 2e-5)) / 1e-5;
+        assert!((slope(&l) / slope(&law()) - 5.0 / 3.0).abs() < 1e-9);
+        // A scene's [contact] with the key, and without it (linear, as before).
+        let c: Cohesive = toml::from_str("normal_stiffness = 1e3\nshear_stiffness = 1e3\ntensile_strength = 1.0\nfracture_energy = 0.01\nsoftening = \"petersson\"").unwrap();
+        assert_eq!(c.softening, Softening::Petersson);
+        let c: Cohesive = toml::from_str("normal_stiffness = 1e3\nshear_stiffness = 1e3\ntensile_strength = 1.0\nfracture_energy = 0.01").unwrap();
+        assert_eq!(c.softening, Softening::Linear);
+        assert!(!toml::to_string(&c).unwrap().contains("softening"), "a linear law is written as before");
     }
 
     /// Opening a fresh pair monotonically: the traction follows the bilinear envelope (peak
@@ -273,13 +368,18 @@ mod tests {
     /// it then no longer carries tension. Reference: the closed-form envelope; 1e-9 and 1 %.
     #[test]
     fn monotonic_opening_releases_the_fracture_energy() {
-        let l = law();
+        for l in [law(), petersson()] {
+            monotonic_opening(&l);
+        }
+    }
+
+    fn monotonic_opening(l: &Cohesive) {
         let area = 2.0;
         let mut h = [PairState { fresh: true, ..Default::default() }];
         let mut o = [PairForce::default()];
         let mut diss = 0.0;
         let n = 20000;
-        let df = 2.0 * 0.01 / 1.0;
+        let df = l.df();
         let mut peak: f64 = 0.0;
         for i in 1..=n {
             let gap = 1.1 * df * i as f64 / n as f64;
@@ -323,9 +423,13 @@ mod tests {
     /// was off by the slip rectangle, the birth/release at gap 0, the peak and the area change.
     #[test]
     fn work_of_the_forces_equals_stored_plus_dissipated() {
-        let l = law();
         // (gap, steps to get there): 1e-3 = delta_0, 2e-2 = delta_f.
-        let legs = [(-4e-4, 37), (3e-3, 53), (-2e-4, 41), (8e-3, 67), (2.5e-2, 71), (1e-3, 29), (-3e-4, 31), (2e-3, 23)];
+        energy_path(&law(), &[(-4e-4, 37), (3e-3, 53), (-2e-4, 41), (8e-3, 67), (2.5e-2, 71), (1e-3, 29), (-3e-4, 31), (2e-3, 23)]);
+        // Petersson: delta_1 = 8.6e-3 (crossed while reloading past delta_max), delta_f = 3.52e-2.
+        energy_path(&petersson(), &[(-4e-4, 37), (3e-3, 53), (-2e-4, 41), (1.2e-2, 67), (4e-2, 71), (1e-3, 29), (-3e-4, 31), (2e-3, 23)]);
+    }
+
+    fn energy_path(l: &Cohesive, legs: &[(f64, usize)]) {
         let slip = |i: usize| 5e-3 * (i as f64 * 0.131).sin();
         let (mut area, area_cut, cut_at): (f64, f64, usize) = (2.0, 1.5, 150);
         let mut pair = Some(PairState { fresh: true, ..Default::default() });
@@ -333,7 +437,7 @@ mod tests {
         let (mut w, mut w_abs, mut d, mut e) = (0.0, 0.0, 0.0, 0.0);
         let (mut i, mut tension, mut slipped, mut failed, mut born) = (0, 0, 0, 0, 0);
         let mut o = [PairForce::default()];
-        for (target, n) in legs {
+        for &(target, n) in legs {
             let start = g0;
             for j in 1..=n {
                 i += 1;
@@ -364,7 +468,7 @@ mod tests {
                     pair = Some(hs[0]);
                 } else {
                     (pair, e) = (None, 0.0);
-                    failed += (hs[0].fresh && hs[0].max_open >= 0.02) as usize;
+                    failed += (hs[0].fresh && hs[0].max_open >= l.df()) as usize;
                 }
             }
         }
