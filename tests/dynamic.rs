@@ -159,6 +159,27 @@ fn petersson_softening_releases_gc_times_the_separated_length() {
     assert_eq!(c.zones(law), [0.0; 3], "every pair opened past delta_f");
 }
 
+/// Petersson's softening in the account (the shape seen, not only its area): the strip pulled
+/// until its faces have opened past the linear law's delta_f (2 g / sigma_t) but not past
+/// Petersson's (3.6 g / sigma_t). Reference: Petersson's law (1981) and the account's identity
+/// (docs/dynamic.md "Energy"): every pair is still softening, none free, and fracture energy +
+/// the zone's pending energy = G_f x the zone's area (1e-9). With the key ignored (a linear
+/// law) the faces would be traction-free here and the test fails.
+#[test]
+fn petersson_softening_is_still_cohesive_past_the_linear_laws_end() {
+    let (gf, b) = (0.01, 1.0);
+    let mut s = pulled_strip_law(gf, 0.28, ", softening = \"petersson\"");
+    let fracture = s.ledger.fracture;
+    let c = s.contact.as_mut().expect("contact");
+    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+    let [intact, soft, pending] = c.zones(law);
+    eprintln!("petersson half open: fracture {fracture}, intact {intact}, softening {soft}, pending {pending}");
+    assert_eq!(intact, 0.0, "every pair passed the peak");
+    assert!(rel(soft, b) < 1e-12, "softening area {soft} against b = {b}");
+    assert!(fracture > 0.5 * gf * b && pending > 0.01 * gf * b, "past the linear law's end, short of Petersson's: fracture {fracture}, pending {pending}");
+    assert!(rel(fracture + pending, gf * soft) < 1e-9, "fracture {fracture} + pending {pending} against G_f A = {}", gf * soft);
+}
+
 /// The fracture account in a half-open cohesive zone (issue 36 must-show 3, docs/dynamic.md
 /// "Energy"): the strip of the test above pulled only until its faces opened into the
 /// softening branch (delta_0 < delta < delta_f). Reference: the linear-softening law's energy

@@ -25,8 +25,8 @@ const KINDS: [&str; 3] = ["t3", "quad", "q4"];
 /// point inside the cut-out), the load acts on the arm's underside at 470-500 mm, the support on
 /// the leg's bottom, plane stress, E and nu as published, the criterion's and the cohesive law's
 /// strength and the fracture energy inside the published ranges (f_t 2.65-2.7 MPa, G_c 89-95
-/// N/m), the softening Petersson's bilinear law for concrete. A scene with the load on the wrong edge, a cut-out on the wrong side or a strength off
-/// the published range fails here.
+/// N/m), the softening Petersson's bilinear law for concrete. A scene with the load on the
+/// wrong edge, a cut-out on the wrong side or a strength off the published range fails here.
 #[test]
 fn lpanel_scenes_are_winklers_specimen() {
     for kind in KINDS {

@@ -121,9 +121,9 @@ HEADER = """# Winkler's L-shaped panel (issue 34 must-show 3, second half; docs/
 # experimental/Winkler_Abb-7.12_Versuchsreihe-A.csv). Copies in configs/lpanel/winkler_band.csv.
 # FLEM (units m, Pa, N per metre of thickness: the force of the experiment is t = 0.1 times the
 # reaction): nodes split by Rankine at f_t = 2.7 MPa; the new faces carry the `cohesive` contact
-# law with Petersson's bilinear softening for concrete (P.-E. Petersson 1981, Lund TVBM-1006:
-# knee at f_t / 3, `softening = "petersson"`), G_f = G_c = 90 N/m, frictionless; k_n = k_s =
-# 10 E / h (ours). The law's linear softening (the key removed) gave peaks of 8.5-12.5 kN
+# law (ours) with Petersson's bilinear softening for concrete (published: P.-E. Petersson 1981,
+# Lund TVBM-1006, knee at f_t / 3; `softening = "petersson"`), G_f = G_c = 90 N/m, frictionless;
+# k_n = k_s = 10 E / h (ours). The law's linear softening (the key removed) gave peaks of 8.5-12.5 kN
 # (docs/paths.md, "Winkler's L-panel", session 26);
 # explicit march, adaptive dynamic relaxation (the default damping), displacement in stages
 # (the ramp below), cracking checked at rest (at_equilibrium, FLEM's default, ours) and when the

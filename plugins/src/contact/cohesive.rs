@@ -13,9 +13,11 @@
 //!
 //! With `softening = "petersson"` the softening branch is Petersson's bilinear law for concrete
 //! (P.-E. Petersson 1981, *Crack growth and development of fracture zones in plain concrete*,
-//! Lund, report TVBM-1006; the law of code_aster's Petersson beam, ../shared/BENCHMARKS.md): with
-//! `g = G_f - sigma_t delta_0 / 2` (the energy beyond the elastic triangle; `g = G_f` as
-//! `k_n -> inf`), `delta_1 = delta_0 + 0.8 g / sigma_t`, `delta_f = delta_0 + 3.6 g / sigma_t`,
+//! Lund, report TVBM-1006; its constants 1/3, 0.8 and 3.6 are recalled, not read in a source
+//! here): with `g = G_f - sigma_t delta_0 / 2` (the energy beyond the elastic triangle; `g = G_f`
+//! as `k_n -> inf`), `delta_1 = delta_0 + 0.8 g / sigma_t`, `delta_f = delta_0 + 3.6 g / sigma_t`
+//! (the shift by `delta_0` and `g` in place of `G_f`, so that the area stays `G_f` with a finite
+//! `k_n`, are ours),
 //!
 //! ```text
 //! T(delta) = sigma_t - (2/3) sigma_t (delta - delta_0) / (delta_1 - delta_0)   delta_0 < delta <= delta_1
@@ -29,7 +31,9 @@
 //!
 //! Unloading goes back to the origin along the secant `T(delta_max) / delta_max`; the area
 //! under the envelope up to `delta_f` is `G_f`. The tangential spring
-//! (`e_s += -k_s A dslip`) is capped by `mu N + sigma_t A (1 - delta_max / delta_f)`.
+//! (`e_s += -k_s A dslip`) is capped by `mu N + sigma_t A (1 - delta_max / delta_f)` (with
+//! Petersson's softening `mu N + A T(max(delta_max, delta_0))`: the cohesion left follows the
+//! envelope).
 //! Once `delta_max >= delta_f` (or for faces that were never cohesive) the pair is pure
 //! contact: normal `k_n A max(-gap, 0)` (total gap), Coulomb `|e_s| <= mu N`.
 //!
@@ -193,7 +197,7 @@ impl Cohesive {
     }
     /// `W_law - W_trap` (per area) over a step from opening `a` to `b`: the exact work of
     /// [`Self::path_traction`] (piecewise linear: the sum of the trapezoids between its kinks
-    /// at 0, `delta_0`, `delta_f` and `mo`) less the trapezoid `1/2 (F(a) + F(b)) (b - a)` that
+    /// at 0, `delta_0`, `delta_f` and `mo`, and `delta_1` when bilinear) less the trapezoid `1/2 (F(a) + F(b)) (b - a)` that
     /// the ledger credits. Zero when no kink lies strictly between `a` and `b`.
     fn kink_work(&self, a: f64, b: f64, mo: f64, cohesive: bool) -> f64 {
         let (lo, hi) = (a.min(b), a.max(b));
@@ -220,6 +224,16 @@ impl Cohesive {
             (x0, f0) = (x, f1);
         }
         w - 0.5 * (f(a) + f(b)) * (b - a)
+    }
+    /// The cohesion the tangential cap keeps on `area` after a largest opening `mo < delta_f`:
+    /// linear `sigma_t A (1 - mo / delta_f)` (as before); Petersson's, the envelope's traction
+    /// `A T(max(mo, delta_0))`, so that the shear cap falls with the normal traction (at the knee
+    /// `sigma_t / 3`, where the linear form would keep 0.78 sigma_t).
+    fn cohesion_left(&self, area: f64, mo: f64) -> f64 {
+        match self.softening {
+            Softening::Linear => self.tensile_strength * area * (1.0 - mo / self.df()).max(0.0),
+            Softening::Petersson => area * self.envelope(mo.max(self.d0())),
+        }
     }
     /// Energy released (per area) once the opening has reached `d`.
     fn released(&self, d: f64) -> f64 {
@@ -308,10 +322,10 @@ impl ContactLaw for Cohesive {
                 diss += f;
                 frac += f;
                 let t = if k.gap >= h.max_open { self.envelope(k.gap) } else { self.envelope(h.max_open) / h.max_open * k.gap };
-                (-t * k.area, 0.5 * t * k.gap * k.area, self.tensile_strength * k.area * (1.0 - h.max_open / df).max(0.0))
+                (-t * k.area, 0.5 * t * k.gap * k.area, self.cohesion_left(k.area, h.max_open))
             } else {
                 let n = -kn * k.gap;
-                let extra = if cohesive { self.tensile_strength * k.area * (1.0 - h.max_open / df) } else { 0.0 };
+                let extra = if cohesive { self.cohesion_left(k.area, h.max_open) } else { 0.0 };
                 (n, 0.5 * n * n / kn, extra)
             };
             h.en = normal;
@@ -394,6 +408,32 @@ mod tests {
         assert!(!o[0].active);
         assert!((peak - area * 1.0).abs() < 1e-2 * area, "peak {peak}");
         assert!((diss - 0.01 * area).abs() < 0.01 * 0.01 * area, "dissipated {diss}");
+    }
+
+    /// The shear cap keeps the cohesion the envelope has left. Reference: the law's definition
+    /// (module doc): a fresh pair opened to `delta_max` and then slid far, without friction,
+    /// carries at most `A T(delta_max)` in shear with Petersson's softening (`A sigma_t / 3` at
+    /// the knee), and `A sigma_t (1 - delta_max / delta_f)` with the linear law. Exact to 1e-12.
+    #[test]
+    fn the_shear_cap_follows_the_cohesion_left() {
+        for l in [law(), petersson()] {
+            let l = Cohesive { friction: 0.0, ..l };
+            let d1 = l.knee().map_or(0.5 * l.df(), |(d1, _)| d1);
+            let want = match l.softening {
+                Softening::Linear => 1.0 - d1 / l.df(),
+                Softening::Petersson => 1.0 / 3.0,
+            };
+            let mut h = [PairState { fresh: true, ..Default::default() }];
+            let mut o = [PairForce::default()];
+            let n = 200;
+            for i in 1..=n {
+                let gap = d1 * i as f64 / n as f64;
+                l.evaluate(&[PairKinematics { gap, dgap: d1 / n as f64, area: 1.0, dt: 1.0, ..Default::default() }], &mut h, &mut o);
+            }
+            // Slide by 100 x delta_f at the same opening (a little below delta_max: the secant).
+            l.evaluate(&[PairKinematics { gap: 0.99 * d1, dgap: -0.01 * d1, dslip: 100.0 * l.df(), area: 1.0, dt: 1.0, ..Default::default() }], &mut h, &mut o);
+            assert!((o[0].tangential.abs() - want).abs() < 1e-12, "{:?}: shear {} against {want}", l.softening, o[0].tangential);
+        }
     }
 
     /// A pair that is not fresh never pulls; compression is a total-gap penalty.
