@@ -124,60 +124,27 @@ fn tip_tracker_follows_a_prescribed_crack_and_its_branch() {
 /// 3 %), and the ledger must close to 1e-3 of the work (issue 36 must-show 3).
 #[test]
 fn fracture_energy_is_gc_times_the_separated_length() {
-    let (gf, b) = (0.01, 1.0);
-    let mut s = pulled_strip(gf, 0.35);
-    let l = &s.ledger;
-    eprintln!("fracture {} against G_f b = {}, residual {:e}", l.fracture, gf * b, l.relative_residual());
-    assert!(rel(l.fracture, gf * b) < 0.01, "fracture energy {} against G_f b = {}", l.fracture, gf * b);
-    let (one, two) = s.model.topo.crack_counts();
-    assert_eq!((one, two), (0, 16), "the mid-height line is cracked through");
-    assert!(l.relative_residual() < 1e-3, "residual {:e}", l.relative_residual());
-    // The fracture account (summary.json `fracture_account`): the faces made are the line
-    // (b x thickness 1), all traction-free, no cohesive zone left.
-    let c = s.contact.as_mut().expect("contact");
-    assert!(rel(c.fresh_face_area(&s.model), b) < 1e-12, "face area {}", c.fresh_face_area(&s.model));
-    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
-    assert_eq!(c.zones(law), [0.0; 3], "every pair opened past delta_f");
-}
-
-/// The test above with Petersson's bilinear softening (`softening = "petersson"`, the L-panel's
-/// law; delta_f = delta_0 + 3.6 g / sigma_t, 1.8 times the linear law's, so the strip is pulled
-/// longer). Reference: the same, G_f b per unit thickness (the area under Petersson's curve is
-/// G_f by construction, Petersson 1981), within 1 % (measured 2e-16); the ledger closes to 1e-3
-/// (measured 2.2e-7). An envelope of the wrong area fails here; a knee missing from the law's
-/// kink work fails the law's unit test (`work_of_the_forces_equals_stored_plus_dissipated`, 1e-9).
-#[test]
-fn petersson_softening_releases_gc_times_the_separated_length() {
-    let (gf, b) = (0.01, 1.0);
-    let mut s = pulled_strip_law(gf, 0.6, ", softening = \"petersson\"");
-    let l = &s.ledger;
-    eprintln!("petersson: fracture {} against G_f b = {}, residual {:e}", l.fracture, gf * b, l.relative_residual());
-    assert!(rel(l.fracture, gf * b) < 0.01, "fracture energy {} against G_f b = {}", l.fracture, gf * b);
-    assert!(l.relative_residual() < 1e-3, "residual {:e}", l.relative_residual());
-    let c = s.contact.as_mut().expect("contact");
-    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
-    assert_eq!(c.zones(law), [0.0; 3], "every pair opened past delta_f");
-}
-
-/// Petersson's softening in the account (the shape seen, not only its area): the strip pulled
-/// until its faces have opened past the linear law's delta_f (2 g / sigma_t) but not past
-/// Petersson's (3.6 g / sigma_t). Reference: Petersson's law (1981) and the account's identity
-/// (docs/dynamic.md "Energy"): every pair is still softening, none free, and fracture energy +
-/// the zone's pending energy = G_f x the zone's area (1e-9). With the key ignored (a linear
-/// law) the faces would be traction-free here and the test fails.
-#[test]
-fn petersson_softening_is_still_cohesive_past_the_linear_laws_end() {
-    let (gf, b) = (0.01, 1.0);
-    let mut s = pulled_strip_law(gf, 0.28, ", softening = \"petersson\"");
-    let fracture = s.ledger.fracture;
-    let c = s.contact.as_mut().expect("contact");
-    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
-    let [intact, soft, pending] = c.zones(law);
-    eprintln!("petersson half open: fracture {fracture}, intact {intact}, softening {soft}, pending {pending}");
-    assert_eq!(intact, 0.0, "every pair passed the peak");
-    assert!(rel(soft, b) < 1e-12, "softening area {soft} against b = {b}");
-    assert!(fracture > 0.5 * gf * b && pending > 0.01 * gf * b, "past the linear law's end, short of Petersson's: fracture {fracture}, pending {pending}");
-    assert!(rel(fracture + pending, gf * soft) < 1e-9, "fracture {fracture} + pending {pending} against G_f A = {}", gf * soft);
+    // The linear law, pulled to t = 0.35; Petersson's bilinear softening (session 26, the
+    // L-panel's law: the area under its curve is G_f by construction, Petersson 1981), pulled
+    // to 0.6 since its delta_f is 1.8 times the linear law's (measured: 2e-16, ledger 2.1e-7).
+    // A knee missing from the law's kink work fails the law's unit test instead
+    // (`work_of_the_forces_equals_stored_plus_dissipated`, 1e-9).
+    for (end, extra) in [(0.35, ""), (0.6, ", softening = \"petersson\"")] {
+        let (gf, b) = (0.01, 1.0);
+        let mut s = pulled_strip_law(gf, end, extra);
+        let l = &s.ledger;
+        eprintln!("law{extra}: fracture {} against G_f b = {}, residual {:e}", l.fracture, gf * b, l.relative_residual());
+        assert!(rel(l.fracture, gf * b) < 0.01, "law{extra}: fracture energy {} against G_f b = {}", l.fracture, gf * b);
+        let (one, two) = s.model.topo.crack_counts();
+        assert_eq!((one, two), (0, 16), "the mid-height line is cracked through");
+        assert!(l.relative_residual() < 1e-3, "law{extra}: residual {:e}", l.relative_residual());
+        // The fracture account (summary.json `fracture_account`): the faces made are the line
+        // (b x thickness 1), all traction-free, no cohesive zone left.
+        let c = s.contact.as_mut().expect("contact");
+        assert!(rel(c.fresh_face_area(&s.model), b) < 1e-12, "face area {}", c.fresh_face_area(&s.model));
+        let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+        assert_eq!(c.zones(law), [0.0; 3], "law{extra}: every pair opened past delta_f");
+    }
 }
 
 /// The fracture account in a half-open cohesive zone (issue 36 must-show 3, docs/dynamic.md
@@ -187,29 +154,31 @@ fn petersson_softening_is_still_cohesive_past_the_linear_laws_end() {
 /// release G_f - R; so fracture energy + the zone's pending energy = G_f x the zone's area,
 /// and the zone's area is the face area b. Tolerances: 1e-9 (sums of the same terms); a pair
 /// area off by a face end, or a pending energy that ignored the released part, fails by 3 % or
-/// more.
+/// more. Then the same with Petersson's softening (session 26: the shape seen, not only its
+/// area), pulled past the linear law's delta_f (2 g / sigma_t) but not past Petersson's
+/// (3.6 g / sigma_t): every pair still softening and the same identity; with the key ignored
+/// (a linear law) the faces would be traction-free there and the test fails (checked).
 #[test]
 fn fracture_account_of_a_half_open_cohesive_zone() {
-    let (gf, b) = (0.01, 1.0);
-    let mut s = pulled_strip(gf, 0.12);
-    let fracture = s.ledger.fracture;
-    let c = s.contact.as_mut().expect("contact");
-    let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
-    let [intact, soft, pending] = c.zones(law);
-    eprintln!("half open: fracture {fracture}, intact {intact}, softening {soft}, pending {pending}");
-    assert_eq!(intact, 0.0, "every pair passed the peak");
-    assert!(rel(soft, b) < 1e-12, "softening area {soft} against b = {b}");
-    assert!(fracture > 0.05 * gf * b && pending > 0.05 * gf * b, "the zone is part-way: fracture {fracture}, pending {pending}");
-    assert!(rel(fracture + pending, gf * soft) < 1e-9, "fracture {fracture} + pending {pending} against G_f A = {}", gf * soft);
+    // (end, law's extra keys, least released and least pending energy as fractions of G_f b)
+    for (end, extra, f_min, p_min) in [(0.12, "", 0.05, 0.05), (0.28, ", softening = \"petersson\"", 0.5, 0.01)] {
+        let (gf, b) = (0.01, 1.0);
+        let mut s = pulled_strip_law(gf, end, extra);
+        let fracture = s.ledger.fracture;
+        let c = s.contact.as_mut().expect("contact");
+        let law = s.scene.file.contact.as_ref().unwrap().law.as_ref();
+        let [intact, soft, pending] = c.zones(law);
+        eprintln!("half open{extra}: fracture {fracture}, intact {intact}, softening {soft}, pending {pending}");
+        assert_eq!(intact, 0.0, "every pair passed the peak");
+        assert!(rel(soft, b) < 1e-12, "law{extra}: softening area {soft} against b = {b}");
+        assert!(fracture > f_min * gf * b && pending > p_min * gf * b, "law{extra}: the zone is part-way: fracture {fracture}, pending {pending}");
+        assert!(rel(fracture + pending, gf * soft) < 1e-9, "fracture {fracture} + pending {pending} against G_f A = {}", gf * soft);
+    }
 }
 
 /// A 1 x 0.5 strip cut along y = 0.25 at the start, top and bottom pulled apart at 0.05 each,
-/// cohesive faces (sigma_t = 1, G_f = `gf`), run to `end`.
-fn pulled_strip(gf: f64, end: f64) -> Simulation {
-    pulled_strip_law(gf, end, "")
-}
-
-/// [`pulled_strip`] with `extra` appended to the cohesive law's table (e.g. a softening key).
+/// cohesive faces (sigma_t = 1, G_f = `gf`, `extra` appended to the law's table, e.g. a
+/// softening key), run to `end`.
 fn pulled_strip_law(gf: f64, end: f64, extra: &str) -> Simulation {
     let text = format!(
         "[mesh]\ntype = \"rectangle\"\nwidth = 1.0\nheight = 0.5\nnx = 16\nny = 8\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.2\ndensity = 1.0\n[solver]\ndt_safety = 0.5\ndamping = {{ type = \"none\" }}\n[[load]]\nname = \"up\"\ntype = \"velocity\"\nnodes = \"top\"\ny = 0.05\n[[load]]\nname = \"down\"\ntype = \"velocity\"\nnodes = \"bottom\"\ny = -0.05\n[contact]\nlaw = {{ type = \"cohesive\", normal_stiffness = 16000.0, shear_stiffness = 16000.0, tensile_strength = 1.0, fracture_energy = {gf}, friction = 0.0{extra} }}\n[[stage]]\nlevels = {{ up = 1.0, down = 1.0 }}\ndynamic = true\nend_time = {end}\nmax_steps = 200000\n"
