@@ -225,13 +225,14 @@ impl Cohesive {
         }
         w - 0.5 * (f(a) + f(b)) * (b - a)
     }
-    /// The cohesion the tangential cap keeps on `area` after a largest opening `mo < delta_f`:
-    /// linear `sigma_t A (1 - mo / delta_f)` (as before); Petersson's, the envelope's traction
+    /// The cohesion the tangential cap keeps on `area` after a largest opening `mo < delta_f`
+    /// (`df` = [`Self::df`], hoisted by the caller's pair loop): linear
+    /// `sigma_t A (1 - mo / delta_f)` (as before); Petersson's, the envelope's traction
     /// `A T(max(mo, delta_0))`, so that the shear cap falls with the normal traction (at the knee
     /// `sigma_t / 3`, where the linear form would keep 0.78 sigma_t).
-    fn cohesion_left(&self, area: f64, mo: f64) -> f64 {
+    fn cohesion_left(&self, area: f64, mo: f64, df: f64) -> f64 {
         match self.softening {
-            Softening::Linear => self.tensile_strength * area * (1.0 - mo / self.df()).max(0.0),
+            Softening::Linear => self.tensile_strength * area * (1.0 - mo / df).max(0.0),
             Softening::Petersson => area * self.envelope(mo.max(self.d0())),
         }
     }
@@ -322,10 +323,10 @@ impl ContactLaw for Cohesive {
                 diss += f;
                 frac += f;
                 let t = if k.gap >= h.max_open { self.envelope(k.gap) } else { self.envelope(h.max_open) / h.max_open * k.gap };
-                (-t * k.area, 0.5 * t * k.gap * k.area, self.cohesion_left(k.area, h.max_open))
+                (-t * k.area, 0.5 * t * k.gap * k.area, self.cohesion_left(k.area, h.max_open, df))
             } else {
                 let n = -kn * k.gap;
-                let extra = if cohesive { self.cohesion_left(k.area, h.max_open) } else { 0.0 };
+                let extra = if cohesive { self.cohesion_left(k.area, h.max_open, df) } else { 0.0 };
                 (n, 0.5 * n * n / kn, extra)
             };
             h.en = normal;
