@@ -548,3 +548,84 @@ fn whole_path_to_clamped_edge(name: &str, scene: &str) -> (Simulation, Kink) {
     assert!(k.boundary_at.is_some() && end[1].abs() < 1e-9, "{name}: the path ends at {end:?}");
     (s, k)
 }
+
+/// A 2 x 1 Q4 grid (h = 0.05) with a slit along y = 0.5 from the left edge to x = 1, `tip_mts`
+/// with `shield` (0: the key left out), Rankine at 1.
+fn shield_text(shield: f64) -> String {
+    let key = if shield > 0.0 { format!("shield = {shield}\n") } else { String::new() };
+    format!(
+        r#"title = "shield"
+[mesh]
+type = "rectangle"
+width = 2.0
+height = 1.0
+nx = 40
+ny = 20
+
+[[set]]
+name = "crack"
+segment = [[0.0, 0.5], [1.0, 0.5]]
+boundary = false
+tolerance = 1e-9
+
+[model]
+plane = "strain"
+separated = ["crack"]
+
+[[material]]
+young_modulus = 1000.0
+poisson_ratio = 0.0
+density = 1.0
+
+[cracking]
+max_splits_per_check = 1
+
+[cracking.criterion]
+type = "rankine"
+tensile_strength = 1.0
+
+[cracking.separation]
+type = "tip_mts"
+{key}
+[[support]]
+nodes = "bottom"
+fix = "xy"
+
+[[stage]]
+name = "s"
+"#
+    )
+}
+
+/// Ours (session 27), `tip_mts`'s `shield` (`SeparationRule::shield_radius`): a failed point
+/// that no tip takes and that lies within `shield` element sizes of a crack edge is not cut.
+/// Reference: the key's definition (exact), on a displacement field made by hand so that the
+/// points that fail lie 1 to 3 element sizes above the slit, 14 or more from its tip, and the
+/// most critical is (0.2, 0.6): `u_x = e0 (F(x) - F(0.2)) g(y)`, `F' = f` a hat of half-width
+/// 2 h at x = 0.2, `g` one at y = 0.6, so that `e_xx = e0 f g` and the shear vanishes on x = 0.2
+/// (sigma1 there 0.75 e0 E in the corner mean, 2.0 times the strength; the shear of the rows
+/// beyond x = 0.3, where `u_x` no longer changes with x, stays at 0.68 of it). Without the key that
+/// point (2 h from the slit, beyond `route` = 3 h of the tip) starts a crack; with `shield = 4`
+/// nothing is cut; with `shield = 1.5` the point is outside the shield and is cut again.
+#[test]
+fn tip_mts_shield_keeps_new_cracks_off_a_crack() {
+    let (h, x0, y0) = (0.05, 0.2, 0.6);
+    let first_split = |shield: f64| -> Option<[f64; 2]> {
+        let mut s = sim(&shield_text(shield));
+        let w = 2.0 * h;
+        let fd = |t: f64| if t.abs() <= w { t - t.signum() * t * t / (2.0 * w) } else { t.signum() * w / 2.0 };
+        let g = |y: f64| (1.0 - (y - y0).abs() / w).max(0.0);
+        let u: Vec<[f64; 2]> = s.x0.iter().map(|x| [0.0027 * fd(x[0] - x0) * g(x[1]), 0.0]).collect();
+        let cfg = s.scene.file.cracking.as_ref().unwrap();
+        let cr = s.cracking.as_mut().unwrap();
+        let (_, ev) = cr.check(cfg, &mut s.model, &u, &s.x0, 0.0, 0).unwrap();
+        ev.first().map(|e| s.model.mesh.points[e.point.idx()])
+    };
+    let at_target = |x: [f64; 2]| (x[0] - x0).abs() < 1e-9 && (x[1] - y0).abs() < 1e-9;
+    let off = first_split(0.0).expect("without the shield the check cuts");
+    assert!(at_target(off), "without the shield the first cut is at {off:?}, not ({x0}, {y0})");
+    let shielded = first_split(4.0);
+    assert!(shielded.is_none(), "shield 4: a cut at {shielded:?}");
+    let narrow = first_split(1.5).expect("shield 1.5 cuts");
+    assert!(at_target(narrow), "shield 1.5: the first cut is at {narrow:?}");
+}

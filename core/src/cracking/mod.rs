@@ -317,6 +317,10 @@ impl Cracking {
         // The path method (ours, `path.rs`): only when the rule grows tips.
         let grows = cfg.separation.grows_tips();
         let mut tips: Option<Vec<path::Tip>> = None;
+        // The shield (ours, session 27; `SeparationRule::shield_radius`): the crack's edges,
+        // found when a candidate first asks and again after a cut, as the tips are.
+        let shield = if grows { cfg.separation.shield_radius() } else { 0.0 };
+        let mut crack_segs: Option<Vec<[[f64; 2]; 2]>> = None;
         for (idx, c) in cands {
             if events.len() >= cfg.max_splits_per_check {
                 break;
@@ -332,6 +336,16 @@ impl Cracking {
                     // tip: the path method grows cracks at their tips only (no branch, no
                     // sliver cut beside a crack).
                     None if path::on_or_beside_crack(&model.topo, model.topo.cluster_point[c as usize]) => continue,
+                    // Within the shield of a crack (and not routed to a tip): not cut either, no
+                    // new crack beside one (crack tracking's exclusion radius).
+                    None if shield > 0.0 && {
+                        let p = model.topo.cluster_point[c as usize];
+                        let segs = crack_segs.get_or_insert_with(|| path::crack_segments(&model.topo, &model.mesh.points));
+                        path::near_crack(segs, model.mesh.points[p.idx()], shield * path::size_at(&model.topo, &model.mesh.points, p))
+                    } =>
+                    {
+                        continue
+                    }
                     None => {}
                 }
             }
@@ -415,6 +429,7 @@ impl Cracking {
             model.apply_record(&r);
             if grows {
                 tips = None;
+                crack_segs = None;
             }
             if let Some((q, from, to)) = moved {
                 self.path.moves.push(path::PathMove { cut: self.cuts.len() as u32, point: q.0, from, to });

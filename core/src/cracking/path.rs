@@ -84,6 +84,30 @@ pub fn on_or_beside_crack(topo: &Topology, p: PointId) -> bool {
     topo.point_clusters[p.idx()].len() > 1 || topo.point_edges.row(p.idx()).iter().any(|&e| topo.point_clusters[topo.other_end(e, p).idx()].len() > 1)
 }
 
+/// The crack's edges as segments (reference coordinates of their ends): every interior edge
+/// separated at one end or both (`Topology::crack_state` >= 1), in edge order. What
+/// [`near_crack`] measures against (the shield of a rule that grows tips, ours, session 27).
+pub fn crack_segments(topo: &Topology, x: &[[f64; 2]]) -> Vec<[[f64; 2]; 2]> {
+    (0..topo.edges.len())
+        .filter(|&e| topo.edges[e].sides[1].is_some() && topo.crack_state(EdgeId::new(e)) > 0)
+        .map(|e| {
+            let [a, b] = topo.edges[e].points;
+            [x[a.idx()], x[b.idx()]]
+        })
+        .collect()
+}
+
+/// Whether some segment of `segs` passes within `d` of `xp` (Euclidean distance to the
+/// segment, its ends included).
+pub fn near_crack(segs: &[[[f64; 2]; 2]], xp: [f64; 2], d: f64) -> bool {
+    segs.iter().any(|&[xa, xb]| {
+        let (dx, dy) = (xb[0] - xa[0], xb[1] - xa[1]);
+        let l2 = dx * dx + dy * dy;
+        let t = if l2 > 0.0 { (((xp[0] - xa[0]) * dx + (xp[1] - xa[1]) * dy) / l2).clamp(0.0, 1.0) } else { 0.0 };
+        (xa[0] + t * dx - xp[0]).hypot(xa[1] + t * dy - xp[1]) <= d
+    })
+}
+
 /// Mean length of the edges through `p`.
 pub fn size_at(topo: &Topology, x: &[[f64; 2]], p: PointId) -> f64 {
     let row = topo.point_edges.row(p.idx());

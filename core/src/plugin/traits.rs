@@ -338,6 +338,14 @@ pub trait SeparationRule: Debug + Send + Sync {
     fn route_radius(&self) -> f64 {
         0.0
     }
+    /// Ours (session 27; a rule that grows tips only): a failed point that no tip takes (farther
+    /// than [`Self::route_radius`] from every tip) and that lies within this many element sizes
+    /// (at the point) of a crack edge is not cut: no new crack starts beside a crack (the
+    /// exclusion radius of crack-tracking schemes, Cervera & Chiumenti 2006). 0: off (such a
+    /// point starts a crack of its own, by [`Self::propose`], as before).
+    fn shield_radius(&self) -> f64 {
+        0.0
+    }
     /// The plan at a crack tip (see [`TipContext`]); `None`: nothing is cut there.
     fn propose_tip(&self, _ctx: &TipContext) -> Option<TipPlan> {
         None
