@@ -149,15 +149,33 @@ fn lpanel_peak_inside_the_experimental_band() {
     assert!((6.7..=7.6).contains(&peak), "peak {peak:.2} kN: {:?}", log.force);
 }
 
+/// The experiments' band at `u` mm (configs/lpanel/winkler_band.csv, linear between its rows):
+/// (lower, upper) bound of the force in kN.
+fn band_at(u: f64) -> (f64, f64) {
+    let t = std::fs::read_to_string(root().join("configs/lpanel/winkler_band.csv")).unwrap();
+    let rows: Vec<[f64; 3]> = t
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("U_mm"))
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    let k = rows.windows(2).position(|w| w[0][0] <= u && u <= w[1][0]).unwrap_or_else(|| panic!("u = {u} mm outside the band's rows"));
+    let (a, b) = (rows[k], rows[k + 1]);
+    let f = (u - a[0]) / (b[0] - a[0]);
+    (a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2]))
+}
+
 /// Reference: the experiments' band (configs/lpanel/winkler_band.csv: peak 6.7-7.6 kN; at
 /// u = 0.30 mm 4.0-6.0 kN), on the coarsest committed structured grid (q4_1, h = 12.5 mm) with
 /// the scenes' setting (session 27: `tip_mts` with `shield = 4`, local damping; docs/paths.md):
 /// the peak inside the band (measured 7.36 kN at 0.16 mm), the force falling after it, and at
 /// 0.30 mm inside the band (4.48 kN). Every stage at rest, no fragment of fewer than 3 elements.
 /// With the linear softening instead of Petersson's the peak is 8.47 kN and the test fails
-/// (checked). On this grid the shield changes nothing; on the finer ones it is what makes the
-/// panel soften (docs/paths.md, "Session 27"). The other eight meshes peak at 7.57-7.99 kN (not
-/// all in the band); about 10 s of CPU.
+/// (checked). On this grid the shield changes nothing (the next test shows it where it acts).
+/// The other eight meshes peak at 7.57-7.99 kN (not all in the band), and the q4 peaks rise with
+/// refinement (7.36, 7.65, 7.75 kN): this one is not a converged value; about 10 s of CPU.
 #[test]
 fn lpanel_q4_1_peak_and_softening_inside_the_band() {
     let (s, log) = up_to(text("lpanel_q4_1"), 0.3);
@@ -165,7 +183,24 @@ fn lpanel_q4_1_peak_and_softening_inside_the_band() {
     assert!((6.7..=7.6).contains(&peak), "peak {peak:.2} kN at {upk} mm: {:?}", log.force);
     assert!(log.force[ipk..].windows(2).all(|w| w[1].1 < w[0].1), "not softening after the peak: {:?}", log.force);
     let &(u_end, f_end) = log.force.last().unwrap();
-    assert!((u_end - 0.3).abs() < 1e-12 && (4.0..=6.0).contains(&f_end), "{f_end:.2} kN at {u_end} mm: {:?}", log.force);
+    let (lo, hi) = band_at(0.3);
+    assert!((u_end - 0.3).abs() < 1e-12 && (lo..=hi).contains(&f_end), "{f_end:.2} kN at {u_end} mm, band {lo:.2}-{hi:.2}: {:?}", log.force);
     assert!(s.stages_done.iter().all(|st| st.converged), "a stage not at rest: {:?}", s.stages_done.iter().map(|st| st.converged).collect::<Vec<_>>());
     assert!(flem_plugins::check::paths::fragment_sizes(&s.model).iter().all(|&n| n >= 3));
+}
+
+/// Reference: the experiments' band after the peak (configs/lpanel/winkler_band.csv: 5.80-7.30
+/// kN at u = 0.24 mm), on q4_2 (h = 8.9 mm) with the scenes' setting up to 0.24 mm: the force
+/// there inside the band and at least 10 % below the run's peak (measured 6.37 kN against the
+/// peak 7.65 kN at 0.18 mm). Without the shield (`shield` removed, the same local damping) the
+/// edge rule starts parallel cracks beside the main one and the panel holds a plateau: 7.57 kN
+/// at 0.24 mm (peak 7.73 kN at 0.28 mm; docs/paths.md, "Session 27"), and the test fails.
+/// About 20 s of CPU.
+#[test]
+fn lpanel_q4_2_softens_with_the_shield() {
+    let (_s, log) = up_to(text("lpanel_q4_2"), 0.24);
+    let peak = log.force.iter().map(|f| f.1).fold(0.0, f64::max);
+    let &(u_end, f_end) = log.force.last().unwrap();
+    let (lo, hi) = band_at(0.24);
+    assert!((u_end - 0.24).abs() < 1e-12 && (lo..=hi).contains(&f_end) && f_end <= 0.9 * peak, "{f_end:.2} kN at {u_end} mm (band {lo:.2}-{hi:.2}, peak {peak:.2}): {:?}", log.force);
 }

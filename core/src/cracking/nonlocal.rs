@@ -46,8 +46,8 @@ fn elem_gauss(kind: CellKind, x: &[[f64; 2]], out: &mut Vec<([f64; 2], f64)>) {
     }
 }
 
-/// Squared distance from `x` to the segment `a`-`b`.
-fn segment_distance2(x: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+/// Squared distance from `x` to the segment `a`-`b` (also `path::near_crack`'s).
+pub(crate) fn segment_distance2(x: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let (d, w) = ([b[0] - a[0], b[1] - a[1]], [x[0] - a[0], x[1] - a[1]]);
     let l2 = d[0] * d[0] + d[1] * d[1];
     let t = if l2 > 0.0 { ((w[0] * d[0] + w[1] * d[1]) / l2).clamp(0.0, 1.0) } else { 0.0 };

@@ -98,14 +98,12 @@ pub fn crack_segments(topo: &Topology, x: &[[f64; 2]]) -> Vec<[[f64; 2]; 2]> {
 }
 
 /// Whether some segment of `segs` passes within `d` of `xp` (Euclidean distance to the
-/// segment, its ends included).
+/// segment, its ends included), with a relative margin of 1e-9: a point exactly `d` away (a
+/// structured grid's row `shield` element sizes from a crack along a grid line) counts as within,
+/// whatever the round-off of its coordinates.
 pub fn near_crack(segs: &[[[f64; 2]; 2]], xp: [f64; 2], d: f64) -> bool {
-    segs.iter().any(|&[xa, xb]| {
-        let (dx, dy) = (xb[0] - xa[0], xb[1] - xa[1]);
-        let l2 = dx * dx + dy * dy;
-        let t = if l2 > 0.0 { (((xp[0] - xa[0]) * dx + (xp[1] - xa[1]) * dy) / l2).clamp(0.0, 1.0) } else { 0.0 };
-        (xa[0] + t * dx - xp[0]).hypot(xa[1] + t * dy - xp[1]) <= d
-    })
+    let d2 = (d * (1.0 + 1e-9)).powi(2);
+    segs.iter().any(|&[xa, xb]| super::nonlocal::segment_distance2(xp, xa, xb) <= d2)
 }
 
 /// Mean length of the edges through `p`.

@@ -340,9 +340,11 @@ pub trait SeparationRule: Debug + Send + Sync {
     }
     /// Ours (session 27; a rule that grows tips only): a failed point that no tip takes (farther
     /// than [`Self::route_radius`] from every tip) and that lies within this many element sizes
-    /// (at the point) of a crack edge is not cut: no new crack starts beside a crack (the
-    /// exclusion radius of crack-tracking schemes, Cervera & Chiumenti 2006). 0: off (such a
-    /// point starts a crack of its own, by [`Self::propose`], as before).
+    /// (at the point) of a crack edge is not cut: no new crack starts beside a crack, nor in the
+    /// ring between `route` and `shield` around a tip (the exclusion radius of crack-tracking
+    /// schemes, Cervera & Chiumenti 2006). 0: off (such a point starts a crack of its own, by
+    /// [`Self::propose`], as before). `route` is measured in the tip's element size, `shield` in
+    /// the failed point's.
     fn shield_radius(&self) -> f64 {
         0.0
     }

@@ -72,7 +72,8 @@
 //! `shield` (element sizes at the failed point, default 0: off; ours, session 27): a failed
 //! point that no tip takes (farther than `route` from every tip) and that lies within `shield`
 //! element sizes of a crack edge (`cracking::path::near_crack`: the Euclidean distance to any
-//! edge separated at one end or both) is not cut. Without it such a point starts a crack by the
+//! edge separated at one end or both, with a relative margin of 1e-9) is not cut; this includes
+//! failed points ahead of a tip between `route` and `shield`. Without it such a point starts a crack by the
 //! edge rule, and a crack with cohesive faces grows a band of parallel cracks beside it (the
 //! L-panel's fine grids, docs/paths.md "Session 27"). The exclusion radius of crack-tracking
 //! schemes (Cervera & Chiumenti 2006; the nonlocal check's `exclusion` does the same for the
