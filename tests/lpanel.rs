@@ -66,7 +66,10 @@ fn lpanel_scenes_are_winklers_specimen() {
             assert!(t.contains("softening = \"petersson\""), "{name}: not Petersson's softening");
             // Session 27 (docs/paths.md): local damping (the fine unstructured meshes come to
             // rest) and the shield (no parallel cracks beside the main one).
-            assert!(t.contains("damping = { type = \"local\", ratio = 0.8 }") && t.contains("shield = 4.0"), "{name}: not session 27's setting");
+            // The shield is 40 mm, in element sizes: shield h = 0.040 m, h = 10 E / k_n.
+            let shield = num("shield = ");
+            let h = 10.0 * 25.85e9 / num("normal_stiffness = ");
+            assert!(t.contains("damping = { type = \"local\", ratio = 0.8 }") && (shield * h / 0.040 - 1.0).abs() < 0.02, "{name}: not session 27's setting (shield {shield} x h {h})");
         }
     }
 }
@@ -169,7 +172,7 @@ fn band_at(u: f64) -> (f64, f64) {
 
 /// Reference: the experiments' band (configs/lpanel/winkler_band.csv: peak 6.7-7.6 kN; at
 /// u = 0.30 mm 4.0-6.0 kN), on the coarsest committed structured grid (q4_1, h = 12.5 mm) with
-/// the scenes' setting (session 27: `tip_mts` with `shield = 4`, local damping; docs/paths.md):
+/// the scenes' setting (session 27: `tip_mts` with a 40 mm shield, local damping; docs/paths.md):
 /// the peak inside the band (measured 7.36 kN at 0.16 mm), the force falling after it, and at
 /// 0.30 mm inside the band (4.48 kN). Every stage at rest, no fragment of fewer than 3 elements.
 /// With the linear softening instead of Petersson's the peak is 8.47 kN and the test fails

@@ -97,7 +97,7 @@
 //! shrink = 2.0
 //! slide = true
 //! piece = 0.0        # ours (session 19): 0 = off; e.g. 0.05 with shrink = 1.5 (docs/paths.md)
-//! shield = 0.0       # ours (session 27): 0 = off; 4 in the L-panel scenes (docs/paths.md)
+//! shield = 0.0       # ours (session 27): 0 = off; 40 mm / h in the L-panel scenes (docs/paths.md)
 //! ```
 use serde::{Deserialize, Serialize};
 
