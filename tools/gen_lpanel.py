@@ -25,8 +25,10 @@ gmsh = None  # imported by write() only: `--scenes` writes the scenes without it
 
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "configs", "lpanel")
 
-# The shield of `tip_mts` (m; session 27): no new crack within this distance of a crack. The
-# parallel cracks it keeps off started 16-19 mm beside the main one on every grid (docs/paths.md).
+# The shield of `tip_mts` (m; session 27): no new crack within this distance of a crack, written
+# as SHIELD / h element sizes, so that the radius is SHIELD in the refined band (about twice it
+# outside the band on the t3 and quad meshes, whose elements are 2 h there). The parallel cracks
+# it keeps off started 16-19 mm beside the main one on q4_2, q4_4 and quad_4 (docs/paths.md).
 SHIELD = 0.040
 
 # Element size in the crack band (m) per refinement; q4: cells per 0.25 m.
@@ -140,7 +142,8 @@ HEADER = """# Winkler's L-shaped panel (issue 34 must-show 3, second half; docs/
 # checked at rest (at_equilibrium, FLEM's default, ours) and when the relaxation stalls
 # (stall_steps, below).
 # Separation rule: `tip_mts` (ours, issue 34) with `shield` (ours, session 27: no new crack
-# within 40 mm of a crack, written in element sizes, 40 mm / h); the same scene with
+# within 40 mm of a crack in the refined band, written in element sizes, 40 mm / h; about 80 mm
+# where the unstructured meshes have 2 h); the same scene with
 # type = "sigma1_nearest" and without the shield line is the paper's edge rule (the `lpe_` runs
 # of docs/paths.md). Density
 # 2400 kg/m^3 (only the explicit march's time scale; quasi-static).
