@@ -550,10 +550,10 @@ fn whole_path_to_clamped_edge(name: &str, scene: &str) -> (Simulation, Kink) {
 }
 
 /// The shear test's scene `sen_q4_1` (a unit square, 20 x 20 Q4, h = 0.05, a slit along y = 0.5
-/// from the left edge to its tip at (0.5, 0.5)) with `tip_mts` and `shield` (0: the key left
-/// out), nu = 0 (the failure indices below are computed for it).
-fn shield_text(shield: f64) -> String {
-    let rule = if shield > 0.0 { format!("tip_mts\"\nshield = {shield}\n#\"") } else { "tip_mts".to_string() };
+/// from the left edge to its tip at (0.5, 0.5)) with `tip_mts` and the shield's `key` line ("":
+/// none), nu = 0 (the failure indices below are computed for it).
+fn shield_text(key: &str) -> String {
+    let rule = if key.is_empty() { "tip_mts".to_string() } else { format!("tip_mts\"\n{key}\n#\"") };
     let t = text("sen_q4_1", &rule);
     assert!(t.contains("poisson_ratio = 0.3\n") && t.contains("nx = 20\nny = 20\n"), "sen_q4_1 changed: update the test");
     t.replace("poisson_ratio = 0.3\n", "poisson_ratio = 0.0\n")
@@ -568,7 +568,8 @@ fn shield_text(shield: f64) -> String {
 /// (sigma1 there 0.75 e0 E in the corner mean, 2.0 times the strength; the shear of the rows
 /// beyond x = 0.3, where `u_x` no longer changes with x, stays at 0.68 of it). Without the key that
 /// point (2 h from the slit, beyond `route` = 3 h of the tip) starts a crack; with `shield = 4`
-/// nothing is cut; with `shield = 1.5` the point is outside the shield and is cut again. The
+/// nothing is cut; with `shield = 1.5` the point is outside the shield and is cut again; the same
+/// with `shield_length = 0.2` and `0.075` (4 h and 1.5 h as lengths). The
 /// same hat centred past the slit's end, at (0.75, 0.55), 1 h from the slit's line but 5.1 h
 /// from the slit: cut with `shield = 4` (the distance is to the segment, not to its line). The
 /// order of routing before the shield is not pinned here (on a first version of this fixture, a
@@ -579,8 +580,8 @@ fn shield_text(shield: f64) -> String {
 fn tip_mts_shield_keeps_new_cracks_off_a_crack() {
     let h = 0.05;
     // The first split of one check, with the hat centred on (x0, y0).
-    let first_split = |shield: f64, x0: f64, y0: f64| -> Option<[f64; 2]> {
-        let mut s = sim(&shield_text(shield));
+    let first_split = |key: &str, x0: f64, y0: f64| -> Option<[f64; 2]> {
+        let mut s = sim(&shield_text(key));
         let w = 2.0 * h;
         let fd = |t: f64| if t.abs() <= w { t - t.signum() * t * t / (2.0 * w) } else { t.signum() * w / 2.0 };
         let g = |y: f64| (1.0 - (y - y0).abs() / w).max(0.0);
@@ -591,15 +592,18 @@ fn tip_mts_shield_keeps_new_cracks_off_a_crack() {
         ev.first().map(|e| s.model.mesh.points[e.point.idx()])
     };
     let at = |x: [f64; 2], t: [f64; 2]| (x[0] - t[0]).abs() < 1e-9 && (x[1] - t[1]).abs() < 1e-9;
-    let off = first_split(0.0, 0.2, 0.6).expect("without the shield the check cuts");
+    let off = first_split("", 0.2, 0.6).expect("without the shield the check cuts");
     assert!(at(off, [0.2, 0.6]), "without the shield the first cut is at {off:?}, not (0.2, 0.6)");
-    let shielded = first_split(4.0, 0.2, 0.6);
-    assert!(shielded.is_none(), "shield 4: a cut at {shielded:?}");
-    let narrow = first_split(1.5, 0.2, 0.6).expect("shield 1.5 cuts");
-    assert!(at(narrow, [0.2, 0.6]), "shield 1.5: the first cut is at {narrow:?}");
+    // The same radii in element sizes (`shield`) and as lengths (`shield_length`, h = 0.05).
+    for (wide, narrow) in [("shield = 4.0", "shield = 1.5"), ("shield_length = 0.2", "shield_length = 0.075")] {
+        let shielded = first_split(wide, 0.2, 0.6);
+        assert!(shielded.is_none(), "{wide}: a cut at {shielded:?}");
+        let cut = first_split(narrow, 0.2, 0.6).unwrap_or_else(|| panic!("{narrow} cuts"));
+        assert!(at(cut, [0.2, 0.6]), "{narrow}: the first cut is at {cut:?}");
+    }
     // Beyond the slit's end: (0.75, 0.55) is 1 h from the slit's line but 5.1 h from the slit
     // (its end, the tip) and so outside the shield and beyond `route`: cut (a distance to the
     // line instead of the segment would shield it).
-    let past = first_split(4.0, 0.75, 0.55).expect("shield 4 cuts past the slit's end");
+    let past = first_split("shield = 4.0", 0.75, 0.55).expect("shield 4 cuts past the slit's end");
     assert!(at(past, [0.75, 0.55]), "shield 4, past the end: the first cut is at {past:?}");
 }

@@ -25,10 +25,9 @@ gmsh = None  # imported by write() only: `--scenes` writes the scenes without it
 
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "configs", "lpanel")
 
-# The shield of `tip_mts` (m; session 27): no new crack within this distance of a crack, written
-# as SHIELD / h element sizes, so that the radius is SHIELD in the refined band (about twice it
-# outside the band on the t3 and quad meshes, whose elements are 2 h there). The parallel cracks
-# it keeps off started 16-19 mm beside the main one on q4_2, q4_4 and quad_4 (docs/paths.md).
+# The shield of `tip_mts` (m; session 27, `shield_length`): no new crack within this distance of
+# a crack, on every mesh and in every region. The parallel cracks it keeps off started 16-19 mm
+# beside the main one on q4_2, q4_4 and quad_4 (docs/paths.md).
 SHIELD = 0.040
 
 # Element size in the crack band (m) per refinement; q4: cells per 0.25 m.
@@ -141,10 +140,9 @@ HEADER = """# Winkler's L-shaped panel (issue 34 must-show 3, second half; docs/
 # their reaction 5-16 % high, docs/paths.md), displacement in stages (the ramp below), cracking
 # checked at rest (at_equilibrium, FLEM's default, ours) and when the relaxation stalls
 # (stall_steps, below).
-# Separation rule: `tip_mts` (ours, issue 34) with `shield` (ours, session 27: no new crack
-# within 40 mm of a crack in the refined band, written in element sizes, 40 mm / h; about 80 mm
-# where the unstructured meshes have 2 h); the same scene with
-# type = "sigma1_nearest" and without the shield line is the paper's edge rule (the `lpe_` runs
+# Separation rule: `tip_mts` (ours, issue 34) with `shield_length` (ours, session 27: no new
+# crack within 40 mm of a crack); the same scene with
+# type = "sigma1_nearest" and without the shield_length line is the paper's edge rule (the `lpe_` runs
 # of docs/paths.md). Density
 # 2400 kg/m^3 (only the explicit march's time scale; quasi-static).
 # Mesh: {mesh_doc}. Written by tools/gen_lpanel.py.
@@ -172,7 +170,7 @@ def scene(kind, i, ne, h):
     t += f'[contact]\nlaw = {{ type = "cohesive", normal_stiffness = {kn:.4e}, shear_stiffness = {kn:.4e}, tensile_strength = 2.7e6, fracture_energy = 90.0, friction = 0.0, softening = "petersson" }}\n\n'
     t += "[cracking]\n# Checks at rest (at_equilibrium, the default), and also when the relaxation stalls (its best\n# unbalanced ratio not halved in 30 000 steps): with cohesive faces softening, a stage often never\n# comes to rest to 1e-4, and without stall_steps its checks would never run (docs/paths.md).\nstall_steps = 30000\nmax_splits_per_check = 1\n\n"
     t += '[cracking.criterion]\ntype = "rankine"\ntensile_strength = 2.7e6\n\n'
-    t += f'[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\nshield = {SHIELD / h:.1f}   # ours (session 27): no new crack within 40 mm of a crack (40 mm / h)\n\n'
+    t += f'[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\nshield_length = {SHIELD}   # ours (session 27): no new crack within 40 mm of a crack\n\n'
     t += '[output]\nhistory_every = 5000\nreactions = ["lift"]\n\n'
     levels = [round(0.025 * k, 3) for k in range(1, 5)] + [round(0.1 + 0.02 * k, 3) for k in range(1, 11)] + [0.35, 0.4]
     for k, v in enumerate(levels):

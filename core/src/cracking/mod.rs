@@ -319,7 +319,7 @@ impl Cracking {
         let mut tips: Option<Vec<path::Tip>> = None;
         // The shield (ours, session 27; `SeparationRule::shield_radius`): the crack's edges,
         // found when a candidate first asks and again after a cut, as the tips are.
-        let shield = if grows { cfg.separation.shield_radius() } else { 0.0 };
+        let (shield, shield_len) = if grows { (cfg.separation.shield_radius(), cfg.separation.shield_length()) } else { (0.0, 0.0) };
         let mut crack_segs: Option<Vec<[[f64; 2]; 2]>> = None;
         for (idx, c) in cands {
             if events.len() >= cfg.max_splits_per_check {
@@ -338,10 +338,11 @@ impl Cracking {
                     None if path::on_or_beside_crack(&model.topo, model.topo.cluster_point[c as usize]) => continue,
                     // Within the shield of a crack (and not routed to a tip): not cut either, no
                     // new crack beside one (crack tracking's exclusion radius).
-                    None if shield > 0.0 && {
+                    None if (shield > 0.0 || shield_len > 0.0) && {
                         let p = model.topo.cluster_point[c as usize];
                         let segs = crack_segs.get_or_insert_with(|| path::crack_segments(&model.topo, &model.mesh.points));
-                        path::near_crack(segs, model.mesh.points[p.idx()], shield * path::size_at(&model.topo, &model.mesh.points, p))
+                        let d = if shield > 0.0 { (shield * path::size_at(&model.topo, &model.mesh.points, p)).max(shield_len) } else { shield_len };
+                        path::near_crack(segs, model.mesh.points[p.idx()], d)
                     } =>
                     {
                         continue

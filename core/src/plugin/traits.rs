@@ -348,6 +348,11 @@ pub trait SeparationRule: Debug + Send + Sync {
     fn shield_radius(&self) -> f64 {
         0.0
     }
+    /// Ours (session 27): the shield as a length in the mesh's unit (0: none). With both, the
+    /// larger of `shield_radius` element sizes and this length.
+    fn shield_length(&self) -> f64 {
+        0.0
+    }
     /// The plan at a crack tip (see [`TipContext`]); `None`: nothing is cut there.
     fn propose_tip(&self, _ctx: &TipContext) -> Option<TipPlan> {
         None

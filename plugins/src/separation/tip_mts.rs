@@ -77,7 +77,9 @@
 //! edge rule, and a crack with cohesive faces grows a band of parallel cracks beside it (the
 //! L-panel's fine grids, docs/paths.md "Session 27"). The exclusion radius of crack-tracking
 //! schemes (Cervera & Chiumenti 2006; the nonlocal check's `exclusion` does the same for the
-//! paper's rules by routing to the nearest tip instead). The shielded point keeps its stress above
+//! paper's rules by routing to the nearest tip instead). `shield_length` (the mesh's unit, default
+//! 0: off; ours) gives the same radius as a length, the same on every mesh and in every region of
+//! a graded one; with both keys the larger radius counts. The shielded point keeps its stress above
 //! the strength (counted in `beyond_criterion`).
 //!
 //! The setting measured for must-shows 2 and 3 (ours, session 25; docs/paths.md "Session 25"):
@@ -97,7 +99,8 @@
 //! shrink = 2.0
 //! slide = true
 //! piece = 0.0        # ours (session 19): 0 = off; e.g. 0.05 with shrink = 1.5 (docs/paths.md)
-//! shield = 0.0       # ours (session 27): 0 = off; 40 mm / h in the L-panel scenes (docs/paths.md)
+//! shield = 0.0       # ours (session 27): 0 = off (element sizes)
+//! shield_length = 0.0   # ours (session 27): 0 = off (the mesh's unit; 0.04 m in the L-panel scenes)
 //! ```
 use serde::{Deserialize, Serialize};
 
@@ -179,6 +182,11 @@ pub struct TipMts {
     /// such a point starts a crack by the edge rule, as before).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub shield: f64,
+    /// Ours (session 27): the shield as a length in the mesh's unit (the same radius on every
+    /// mesh and in every region of a graded mesh); with `shield` too, the larger of the two.
+    /// 0: off (the default).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub shield_length: f64,
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -187,7 +195,21 @@ fn is_zero(v: &f64) -> bool {
 
 impl Default for TipMts {
     fn default() -> Self {
-        TipMts { radius: 4.0, max_move: 0.5, route: 3.0, relocate: true, cap_unsplit_boundary: false, staircase: 0.5, every: 1.0, reradius: 1.0, shrink: 2.0, slide: true, piece: 0.0, shield: 0.0 }
+        TipMts {
+            radius: 4.0,
+            max_move: 0.5,
+            route: 3.0,
+            relocate: true,
+            cap_unsplit_boundary: false,
+            staircase: 0.5,
+            every: 1.0,
+            reradius: 1.0,
+            shrink: 2.0,
+            slide: true,
+            piece: 0.0,
+            shield: 0.0,
+            shield_length: 0.0,
+        }
     }
 }
 
@@ -397,6 +419,9 @@ impl SeparationRule for TipMts {
         if !(self.shield.is_finite() && (0.0..=20.0).contains(&self.shield)) {
             return Err(ParamError::new("shield", format!("= {} is incorrect; it must be 0 (off) or in (0, 20] (element sizes)", self.shield)));
         }
+        if !(self.shield_length.is_finite() && self.shield_length >= 0.0) {
+            return Err(ParamError::new("shield_length", format!("= {} is incorrect; it must be 0 (off) or a positive length (the mesh's unit)", self.shield_length)));
+        }
         if !(self.every.is_finite() && (1.0..=10.0).contains(&self.every)) {
             return Err(ParamError::new("every", format!("= {} is incorrect; it must be in [1, 10] (domain radii)", self.every)));
         }
@@ -418,6 +443,10 @@ impl SeparationRule for TipMts {
 
     fn shield_radius(&self) -> f64 {
         self.shield
+    }
+
+    fn shield_length(&self) -> f64 {
+        self.shield_length
     }
 
     fn propose_tip(&self, ctx: &TipContext) -> Option<TipPlan> {
@@ -492,5 +521,7 @@ mod tests {
         let e = TipMts { shield: -1.0, ..TipMts::default() }.validate().unwrap_err();
         assert!(format!("{e:?}").contains("shield"), "{e:?}");
         assert!(TipMts { shield: 4.0, ..TipMts::default() }.validate().is_ok());
+        let e = TipMts { shield_length: f64::NAN, ..TipMts::default() }.validate().unwrap_err();
+        assert!(format!("{e:?}").contains("shield_length"), "{e:?}");
     }
 }
