@@ -559,7 +559,7 @@ fn shield_text(key: &str) -> String {
     t.replace("poisson_ratio = 0.3\n", "poisson_ratio = 0.0\n")
 }
 
-/// Ours (session 27), `tip_mts`'s `shield` (`SeparationRule::shield_radius`): a failed point
+/// Ours (session 27), `tip_mts`'s `shield` (`SeparationRule::shield_distance`): a failed point
 /// that no tip takes and that lies within `shield` element sizes of a crack edge is not cut.
 /// Reference: the key's definition (exact), on a displacement field made by hand so that the
 /// points that fail lie 1 to 3 element sizes above the slit, 5 or more from its tip, and the

@@ -317,9 +317,8 @@ impl Cracking {
         // The path method (ours, `path.rs`): only when the rule grows tips.
         let grows = cfg.separation.grows_tips();
         let mut tips: Option<Vec<path::Tip>> = None;
-        // The shield (ours, session 27; `SeparationRule::shield_radius`): the crack's edges,
+        // The shield (ours, session 27; `SeparationRule::shield_distance`): the crack's edges,
         // found when a candidate first asks and again after a cut, as the tips are.
-        let (shield, shield_len) = if grows { (cfg.separation.shield_radius(), cfg.separation.shield_length()) } else { (0.0, 0.0) };
         let mut crack_segs: Option<Vec<[[f64; 2]; 2]>> = None;
         for (idx, c) in cands {
             if events.len() >= cfg.max_splits_per_check {
@@ -338,11 +337,10 @@ impl Cracking {
                     None if path::on_or_beside_crack(&model.topo, model.topo.cluster_point[c as usize]) => continue,
                     // Within the shield of a crack (and not routed to a tip): not cut either, no
                     // new crack beside one (crack tracking's exclusion radius).
-                    None if (shield > 0.0 || shield_len > 0.0) && {
+                    None if {
                         let p = model.topo.cluster_point[c as usize];
-                        let segs = crack_segs.get_or_insert_with(|| path::crack_segments(&model.topo, &model.mesh.points));
-                        let d = if shield > 0.0 { (shield * path::size_at(&model.topo, &model.mesh.points, p)).max(shield_len) } else { shield_len };
-                        path::near_crack(segs, model.mesh.points[p.idx()], d)
+                        let d = cfg.separation.shield_distance(path::size_at(&model.topo, &model.mesh.points, p));
+                        d > 0.0 && path::near_crack(crack_segs.get_or_insert_with(|| path::crack_segments(&model.topo, &model.mesh.points)), model.mesh.points[p.idx()], d)
                     } =>
                     {
                         continue

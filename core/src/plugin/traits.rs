@@ -338,19 +338,14 @@ pub trait SeparationRule: Debug + Send + Sync {
     fn route_radius(&self) -> f64 {
         0.0
     }
-    /// Ours (session 27; a rule that grows tips only): a failed point that no tip takes (farther
-    /// than [`Self::route_radius`] from every tip) and that lies within this many element sizes
-    /// (at the point) of a crack edge is not cut: no new crack starts beside a crack, nor in the
-    /// ring between `route` and `shield` around a tip (the exclusion radius of crack-tracking
-    /// schemes, Cervera & Chiumenti 2006). 0: off (such a point starts a crack of its own, by
-    /// [`Self::propose`], as before). `route` is measured in the tip's element size, `shield` in
-    /// the failed point's.
-    fn shield_radius(&self) -> f64 {
-        0.0
-    }
-    /// Ours (session 27): the shield as a length in the mesh's unit (0: none). With both, the
-    /// larger of `shield_radius` element sizes and this length.
-    fn shield_length(&self) -> f64 {
+    /// Ours (session 27; a rule that grows tips only): the shield's radius, in the mesh's unit, at
+    /// a failed point whose element size (mean length of its edges) is `h`. A failed point that
+    /// no tip takes (farther than [`Self::route_radius`] from every tip) and that lies within it
+    /// of a crack edge is not cut: no new crack starts beside a crack, nor in the ring between
+    /// `route` and the shield around a tip (the exclusion radius of crack-tracking schemes,
+    /// Cervera & Chiumenti 2006). 0 (the default): no shield (such a point starts a crack of its
+    /// own, by [`Self::propose`], as before).
+    fn shield_distance(&self, _h: f64) -> f64 {
         0.0
     }
     /// The plan at a crack tip (see [`TipContext`]); `None`: nothing is cut there.

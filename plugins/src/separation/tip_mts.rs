@@ -178,7 +178,7 @@ pub struct TipMts {
     pub piece: f64,
     /// Ours (session 27): a failed point that no tip takes (farther than `route` from every tip)
     /// and that lies within `shield` element sizes (at the point) of a crack edge is not cut
-    /// (`SeparationRule::shield_radius`): no crack starts beside a crack. 0: off (the default;
+    /// (`SeparationRule::shield_distance`): no crack starts beside a crack. 0: off (the default;
     /// such a point starts a crack by the edge rule, as before).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub shield: f64,
@@ -441,12 +441,8 @@ impl SeparationRule for TipMts {
         self.route
     }
 
-    fn shield_radius(&self) -> f64 {
-        self.shield
-    }
-
-    fn shield_length(&self) -> f64 {
-        self.shield_length
+    fn shield_distance(&self, h: f64) -> f64 {
+        (self.shield * h).max(self.shield_length)
     }
 
     fn propose_tip(&self, ctx: &TipContext) -> Option<TipPlan> {
