@@ -23,7 +23,8 @@ fn u_lin(x: [f64; 2]) -> [f64; 2] {
 /// The patch test (Taylor, Beresford & Wilson 1976; Zienkiewicz & Taylor, The Finite Element
 /// Method vol. 1, ch. 10) for every element kind, plane strain and plane stress, on a 6 x 5
 /// rectangle mesh whose interior points are moved by up to 0.25 of a cell (distorted
-/// quadrilaterals; triangles: each quad split in two). Reference: the exact linear field and
+/// quadrilaterals; triangles: each quad split in two), and on the same mesh undistorted
+/// (rectangles: the parallelogram packs of `q4`, `q4_closed`). Reference: the exact linear field and
 /// its constant stress `D eps`. Tolerance 1e-12 relative for
 /// (A) the internal force at every interior node under the exact nodal values (zero),
 /// (B) the stress at every corner point (0.9999 corners: the nodal-stress rule) and
@@ -34,9 +35,9 @@ fn patch_test_of_every_element_kind_on_distorted_meshes() {
     let ks = kinds();
     assert!(ks.iter().any(|k| k.0 == "qm6") && ks.iter().any(|k| k.0 == "q4") && ks.iter().any(|k| k.0 == "t3"), "{ks:?}");
     for (elem, cell) in ks {
-        for plane in ["strain", "stress"] {
+        for (plane, distort) in [("strain", 0.25), ("stress", 0.25), ("strain", 0.0), ("stress", 0.0)] {
             let text = format!(
-                "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.5\nnx = 6\nny = 5\nelement = \"{cell}\"\ndistort = 0.25\n[model]\nplane = \"{plane}\"\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nthickness = 0.7\nelement = \"{elem}\"\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[stage]]\nlevels = {{}}\n"
+                "[mesh]\ntype = \"rectangle\"\nwidth = 2.0\nheight = 1.5\nnx = 6\nny = 5\nelement = \"{cell}\"\ndistort = {distort}\n[model]\nplane = \"{plane}\"\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nthickness = 0.7\nelement = \"{elem}\"\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[stage]]\nlevels = {{}}\n"
             );
             let s = sim(&text);
             let m = &s.model;
@@ -147,6 +148,53 @@ fn implicit_check_equals_explicit_equilibrium_with_qm6() {
     assert_eq!(c.rows.len(), 1);
     let r = &c.rows[0];
     eprintln!("qm6 check: ratio {:?}, rel_l2 u {:?}, s {:?}", r.unbalanced_ratio, r.rel_l2_displacement, r.rel_l2_nodal_stress);
+    assert!(r.flem_converged && r.implicit_error.is_none(), "{r:?}");
+    assert!(r.rel_l2_displacement.unwrap() < 1e-6 && r.rel_l2_nodal_stress.unwrap() < 1e-6, "{r:?}");
+}
+
+/// `q4_closed` (ours, issue 42) in a model: a cantilever of 32 x 8 rectangles (parallelogram
+/// packs: the closed form runs), tip shear, plane stress. Reference: the implicit (faer Cholesky)
+/// solve of the same model, whose stiffness is the generic 2 x 2 Gauss integral
+/// (`element::stiffness`), through the scene's `[check]`; tolerance: relative L2 of displacements
+/// and nodal stresses below 1e-6 at the damped explicit equilibrium. And the model's internal
+/// forces under a random field equal `q4`'s to 1e-12 of the largest, with some bits different
+/// (the closed form ran, not `q4`'s sum).
+#[test]
+fn q4_closed_explicit_equilibrium_equals_the_implicit_solve() {
+    use flem_core::output::compare::Comparer;
+    use flem_core::solver::NoOutput;
+    let text = |elem: &str| {
+        format!(
+            "[mesh]\ntype = \"rectangle\"\nwidth = 8.0\nheight = 2.0\nnx = 32\nny = 8\n[model]\nplane = \"stress\"\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nelement = \"{elem}\"\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"shear\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [0.0, -1.0]\n[solver]\ntolerance = 1e-10\nmax_steps = 2000000\n[check]\n[[stage]]\nlevels = {{ shear = 1.0 }}\n"
+        )
+    };
+    let (closed, q4) = (sim(&text("q4_closed")), sim(&text("q4")));
+    assert!(closed.model.blocks.iter().all(|b| b.element() == "q4_closed"));
+    let nc = closed.model.topo.n_clusters();
+    let mut seed = 3u64;
+    let u: Vec<[f64; 2]> = (0..nc)
+        .map(|_| {
+            std::array::from_fn(|_| {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                1e-3 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+            })
+        })
+        .collect();
+    let (mut fc, mut fq) = (vec![[0.0; 2]; nc], vec![[0.0; 2]; nc]);
+    closed.model.internal_forces(&u, &mut fc);
+    q4.model.internal_forces(&u, &mut fq);
+    let scale = fq.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let worst = fc.iter().flatten().zip(fq.iter().flatten()).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(worst <= 1e-12 * scale && worst > 0.0, "q4_closed against q4: {worst:e} of {scale:e}");
+    let dir = std::env::temp_dir().join(format!("flem-test-q4-closed-check-{}", std::process::id()));
+    let mut s = closed;
+    let mut quiet = NoOutput;
+    let mut c = Comparer::new(&mut quiet, &dir).unwrap();
+    s.run(&mut c).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(c.rows.len(), 1);
+    let r = &c.rows[0];
+    eprintln!("q4_closed check: ratio {:?}, rel_l2 u {:?}, s {:?}", r.unbalanced_ratio, r.rel_l2_displacement, r.rel_l2_nodal_stress);
     assert!(r.flem_converged && r.implicit_error.is_none(), "{r:?}");
     assert!(r.rel_l2_displacement.unwrap() < 1e-6 && r.rel_l2_nodal_stress.unwrap() < 1e-6, "{r:?}");
 }
@@ -268,7 +316,7 @@ fn element_doc_snippets_build() {
             _ => {}
         }
     }
-    for file in ["plugins/src/elements/q4.rs", "plugins/src/elements/t3.rs", "plugins/src/elements/qm6.rs"] {
+    for file in ["plugins/src/elements/q4.rs", "plugins/src/elements/q4_closed.rs", "plugins/src/elements/t3.rs", "plugins/src/elements/qm6.rs"] {
         let src = std::fs::read_to_string(root().join(file)).unwrap();
         let blocks = flem_plugins::snippets::toml_blocks(&src);
         assert!(!blocks.is_empty(), "{file} has no ```toml block");

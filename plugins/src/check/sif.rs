@@ -491,7 +491,8 @@ pub fn domain_sif_tol(model: &Model, u: &[[f64; 2]], fix: &[u8], f_ext: &[[f64; 
             ue.clear();
             ue.extend(conn.iter().map(|&c| u[c as usize]));
             match blk.element() {
-                "q4" => element_sums::<Q4, 4>(&fr, &m, &arr(x), &arr(&ue), &arr(&q), &q4, &mut s),
+                // `q4_closed` is `q4` (its closed form changes the force kernel's sums only).
+                "q4" | "q4_closed" => element_sums::<Q4, 4>(&fr, &m, &arr(x), &arr(&ue), &arr(&q), &q4, &mut s),
                 "t3" => element_sums::<T3, 3>(&fr, &m, &arr(x), &arr(&ue), &arr(&q), &t3, &mut s),
                 kind => return Err(SifError::UnsupportedElement { point, elem, kind: kind.to_string() }),
             }

@@ -3,10 +3,12 @@
 //! `inventory::submit!` registration line, chosen by `[[material]] element = "name"`; `q4` and
 //! `t3` are the defaults of their cell types (the paper's elements).
 pub mod q4;
+pub mod q4_closed;
 pub mod qm6;
 pub mod t3;
 
 pub use q4::Q4;
+pub use q4_closed::Q4Closed;
 pub use qm6::Qm6;
 pub use t3::T3;
 
@@ -28,6 +30,8 @@ pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts:
     for cell in [CellKind::Q4, CellKind::T3] {
         let b = match elems.kind_of(cell) {
             k if k == <Q4 as Blocked<4>>::NAME => stateful_block::<Q4, L, 4>(law.clone(), region, mat, opts, elems),
+            // A stateful block has no elastic force kernel: `q4_closed` is `q4` there.
+            k if k == <Q4Closed as Blocked<4>>::NAME => stateful_block::<Q4Closed, L, 4>(law.clone(), region, mat, opts, elems),
             k if k == <T3 as Blocked<3>>::NAME => stateful_block::<T3, L, 3>(law.clone(), region, mat, opts, elems),
             k if k == <qm6::Qm6 as Blocked<4>>::NAME => qm6::stateful::<L>(law.clone(), region, mat, opts, elems),
             _ => None,

@@ -227,12 +227,12 @@ fn total_forces_full<const BBAR: bool>(g: &[[f64; LANES]; 5], x: &[[f64; LANES];
 #[derive(Copy, Clone, Debug)]
 #[repr(C, align(64))]
 pub struct Q4Pack {
-    ax: [f64; LANES],
-    bx: [f64; LANES],
-    ay: [f64; LANES],
-    by: [f64; LANES],
+    pub(crate) ax: [f64; LANES],
+    pub(crate) bx: [f64; LANES],
+    pub(crate) ay: [f64; LANES],
+    pub(crate) by: [f64; LANES],
     /// `1 / det J` of the (parallelogram) element, `0` for an empty lane.
-    inv: [f64; LANES],
+    pub(crate) inv: [f64; LANES],
 }
 
 /// The rest of the geometry of a pack holding a non-parallelogram: `h` of x and y and
@@ -260,7 +260,7 @@ fn abh(v0: f64, v1: f64, v2: f64, v3: f64) -> (f64, f64, f64) {
 /// zero (one subtraction per field fewer, issue 42; a zero's sign reaches no node force, see
 /// [`first_point`]).
 #[inline(always)]
-fn abh_u(v0: f64, v1: f64, v2: f64, v3: f64) -> (f64, f64, f64) {
+pub(crate) fn abh_u(v0: f64, v1: f64, v2: f64, v3: f64) -> (f64, f64, f64) {
     let (d10, d23) = (v1 - v0, v2 - v3);
     (0.25 * (d10 + d23), 0.25 * ((v3 - v0) + (v2 - v1)), 0.25 * (d23 - d10))
 }
