@@ -26,7 +26,8 @@ pub struct MaterialCfg {
     #[serde(default)]
     pub corotational: bool,
     /// Element kind of this region's cells of that kind's cell type (`element::registry`,
-    /// docs/elements.md): "q4", "t3", "qm6" (ours: incompatible modes, no bending locking).
+    /// docs/elements.md): "q4", "t3", "qm6" (ours: incompatible modes, no bending locking), "q4_closed" (ours: q4
+    /// with its Gauss sum in closed form on parallelograms).
     /// Default by cell type: quadrilaterals "q4", triangles "t3" (the paper's elements).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub element: Option<String>,

@@ -3,7 +3,7 @@
 //! An element kind is a type implementing [`Blocked`] (the element trait, `element/kernel.rs`)
 //! and one registration line,
 //! `inventory::submit! { ElementKind::new::<MyElem, 4>("summary") }`, in the crate that defines
-//! it. Core defines no kind: the built-ins `q4`, `t3` (the paper's elements) and `qm6` are in
+//! it. Core defines no kind: the built-ins `q4`, `t3` (the paper's elements), `qm6` and `q4_closed` are in
 //! `flem-plugins/src/elements/` (docs/elements.md). The registration carries the monomorphised
 //! constructors of the kind's blocks (the linear block, the co-rotational one, the stateful block
 //! with the linear elastic law) and its per-element geometry (Gauss points, lumped mass), so

@@ -55,7 +55,7 @@
 //! body's outer boundary, must hold no support and no applied nodal force (gravity included:
 //! no body-force or crack-face-traction term is integrated), must see the crack only as straight
 //! faces behind the tip along `-e1` (no kink, no other crack, no other tip), and every element
-//! in it must be a linear elastic `q4` or `t3` of one material.
+//! in it must be a linear elastic `q4` (or `q4_closed`, the same element) or `t3` of one material.
 use flem_core::element::model::Model;
 use flem_core::element::{self, Material, Plane, Shape};
 use flem_core::ids::EdgeId;
@@ -116,7 +116,7 @@ pub enum SifError {
     SupportInDomain { point: usize, r_out: f64, at: usize },
     #[error("crack tip at point {point}: an applied force (a point load, gravity or a crack-face traction) acts inside the domain of radius {r_out:e} (point {at}); the integral has no such term; use a smaller radius or no body force")]
     LoadInDomain { point: usize, r_out: f64, at: usize },
-    #[error("crack tip at point {point}: element {elem} is of kind \"{kind}\"; the interaction integral supports the isoparametric kinds \"q4\" and \"t3\" (\"qm6\" has condensed internal modes)")]
+    #[error("crack tip at point {point}: element {elem} is of kind \"{kind}\"; the interaction integral supports the isoparametric kinds \"q4\", \"q4_closed\" (as q4) and \"t3\" (\"qm6\" has condensed internal modes)")]
     UnsupportedElement { point: usize, elem: usize, kind: String },
     #[error(
         "crack tip at point {point}: element {elem} is not linear elastic (a material law with history, large strain or co-rotational kinematics); the interaction integral needs linear elasticity"

@@ -21,7 +21,7 @@ use flem_core::mesh::CellKind;
 
 /// The stateful blocks of a region for a law defined in a plugin (what its `LawCfg::build`
 /// calls): one block per element kind present, monomorphised per (kind, law). The kinds known
-/// here are the built-ins with a stateful kernel (`q4` with B-bar, `t3`, `qm6`); a kind without one
+/// here are the built-ins with a stateful kernel (`q4` with B-bar, and `q4_closed` as `q4`, `t3`, `qm6`); a kind without one
 /// builds nothing, and `Model::new` then refuses the scene naming `material[i].element`. (The
 /// linear elastic law, a core law, reaches every kind through its registration instead:
 /// `ElementKind::stateful_elastic`.)
@@ -31,7 +31,7 @@ pub fn build_stateful<L: MaterialLaw>(law: L, region: &str, mat: Material, opts:
         let b = match elems.kind_of(cell) {
             k if k == <Q4 as Blocked<4>>::NAME => stateful_block::<Q4, L, 4>(law.clone(), region, mat, opts, elems),
             // A stateful block has no elastic force kernel: `q4_closed` is `q4` there.
-            k if k == <Q4Closed as Blocked<4>>::NAME => stateful_block::<Q4Closed, L, 4>(law.clone(), region, mat, opts, elems),
+            k if k == <Q4Closed as Blocked<4>>::NAME => stateful_block::<Q4, L, 4>(law.clone(), region, mat, opts, elems),
             k if k == <T3 as Blocked<3>>::NAME => stateful_block::<T3, L, 3>(law.clone(), region, mat, opts, elems),
             k if k == <qm6::Qm6 as Blocked<4>>::NAME => qm6::stateful::<L>(law.clone(), region, mat, opts, elems),
             _ => None,

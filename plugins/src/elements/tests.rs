@@ -171,34 +171,33 @@ fn blocked_q4_matches_reference() {
 /// `q4_closed` (ours, issue 42): the closed form of the 2 x 2 Gauss sum on parallelograms
 /// equals `q4`'s Gauss form and the one-element 2 x 2 Gauss reference (`element::internal_force`)
 /// to 1e-12 of the largest force (reference: the same integral, summed point by point), on 200
-/// packs of random parallelograms (edge vectors skewed up to 45 deg, aspect ratios up to 20)
-/// with random displacements (hourglass modes included), plane strain and stress; a
+/// packs of random parallelograms (corners on a 1/1024 grid so that `h` is exactly zero; edge
+/// lengths 0.5-1.5 times an aspect ratio 1 to 20, the second edge at 45 to 135 deg from the
+/// first) with random displacements (hourglass modes included), plane strain and stress; a
+/// partly filled pack of parallelograms gives zero force in its empty lanes; a
 /// non-parallelogram pack takes `q4`'s Gauss form bit for bit.
 #[test]
 fn q4_closed_equals_the_gauss_sum_on_parallelograms() {
     let mut s = 7u64;
-    let (mut worst, mut lean_packs) = (0.0f64, 0);
+    let (mut worst_ref, mut worst_q4, mut worst_q4_ref, mut lean_packs) = (0.0f64, 0.0f64, 0.0f64, 0);
+    let q = |v: f64| (v * 1024.0).round() / 1024.0;
+    let parallelogram = |s: &mut u64| -> [[f64; 2]; 4] {
+        let o = [q(100.0 * lcg(s)), q(100.0 * lcg(s))];
+        let aspect = 20.0f64.powf(lcg(s) + 0.5);
+        let (l1, l2) = (1.0 + lcg(s), (1.0 + lcg(s)) * aspect);
+        let (t1, skew) = (lcg(s) * 6.3, std::f64::consts::FRAC_PI_2 + lcg(s) * std::f64::consts::FRAC_PI_2);
+        let (e1, e2) = ([q(l1 * t1.cos()), q(l1 * t1.sin())], [q(l2 * (t1 + skew).cos()), q(l2 * (t1 + skew).sin())]);
+        [o, [o[0] + e1[0], o[1] + e1[1]], [o[0] + e1[0] + e2[0], o[1] + e1[1] + e2[1]], [o[0] + e2[0], o[1] + e2[1]]]
+    };
     for round in 0..200 {
         let plane = if round % 2 == 0 { Plane::Strain } else { Plane::Stress };
         let d = mat(plane).dmat();
-        let xs: Vec<[[f64; 2]; 4]> = (0..LANES)
-            .map(|_| {
-                let o = [100.0 * lcg(&mut s), 100.0 * lcg(&mut s)];
-                let (l1, l2) = (0.05 + lcg(&mut s) + 0.5, (0.05 + lcg(&mut s) + 0.5) * 20.0f64.powf(lcg(&mut s)));
-                let (t1, t2) = (lcg(&mut s) * 6.3, 0.0);
-                let skew = std::f64::consts::FRAC_PI_2 + lcg(&mut s) * std::f64::consts::FRAC_PI_2;
-                // On a 1/1024 grid: the corner sums are exact, h is exactly zero (a lean pack).
-                let q = |v: f64| (v * 1024.0).round() / 1024.0;
-                let (o, e1, e2) = ([q(o[0]), q(o[1])], [q(l1 * t1.cos()), q(l1 * t1.sin())], [q(l2 * (t1 + skew + t2).cos()), q(l2 * (t1 + skew + t2).sin())]);
-                [o, [o[0] + e1[0], o[1] + e1[1]], [o[0] + e1[0] + e2[0], o[1] + e1[1] + e2[1]], [o[0] + e2[0], o[1] + e2[1]]]
-            })
-            .collect();
-        let (p, e, lean) = super::q4::full_pack(&xs);
+        let xs: Vec<[[f64; 2]; 4]> = (0..LANES).map(|_| parallelogram(&mut s)).collect();
+        let (p, _, lean) = super::q4::full_pack(&xs);
         lean_packs += lean as usize;
         let dk = <Q4 as Blocked<4>>::scaled_d(&d, 0.7);
         let ug: [[[f64; LANES]; 2]; 4] = std::array::from_fn(|_| std::array::from_fn(|_| std::array::from_fn(|_| 1e-3 * lcg(&mut s))));
         let (mut fc, mut fq) = ([[[0.0; LANES]; 2]; 4], [[[0.0; LANES]; 2]; 4]);
-        let _ = e;
         <Q4Closed as Blocked<4>>::forces(&p, &dk, &ug, &mut fc);
         <Q4 as Blocked<4>>::forces(&p, &dk, &ug, &mut fq);
         for l in 0..LANES {
@@ -207,16 +206,27 @@ fn q4_closed_equals_the_gauss_sum_on_parallelograms() {
             let scale = r.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
             for a in 0..4 {
                 for k in 0..2 {
-                    let (c, q) = (fc[a][k][l], fq[a][k][l]);
-                    worst = worst.max((c - r[a][k]).abs() / scale);
-                    assert!((c - r[a][k]).abs() <= 1e-12 * scale && (c - q).abs() <= 1e-12 * scale, "lane {l} corner {a} dim {k}: closed {c}, q4 {q}, reference {}", r[a][k]);
+                    let (c, qq) = (fc[a][k][l], fq[a][k][l]);
+                    worst_ref = worst_ref.max((c - r[a][k]).abs() / scale);
+                    worst_q4 = worst_q4.max((c - qq).abs() / scale);
+                    worst_q4_ref = worst_q4_ref.max((qq - r[a][k]).abs() / scale);
+                    assert!((c - r[a][k]).abs() <= 1e-12 * scale && (c - qq).abs() <= 1e-12 * scale, "lane {l} corner {a} dim {k}: closed {c}, q4 {qq}, reference {}", r[a][k]);
                 }
             }
         }
     }
     assert!(lean_packs == 200, "every pack of parallelograms takes the closed form: {lean_packs}");
-    assert!(worst > 0.0, "the closed form is another sum: some round-off expected");
-    eprintln!("q4_closed against the 2 x 2 Gauss reference: largest difference {worst:.2e} of the largest force");
+    assert!(worst_q4 > 0.0, "the closed form is another sum: some round-off expected");
+    eprintln!("largest difference, of the largest force: q4_closed - q4 {worst_q4:.2e}, q4_closed - reference {worst_ref:.2e}, q4 - reference {worst_q4_ref:.2e}");
+    // A partly filled pack of parallelograms: zero force in the empty lanes.
+    let xs: Vec<[[f64; 2]; 4]> = (0..3).map(|_| parallelogram(&mut s)).collect();
+    let (p, _, lean) = super::q4::full_pack(&xs);
+    assert!(lean);
+    let dk = <Q4 as Blocked<4>>::scaled_d(&mat(Plane::Strain).dmat(), 0.7);
+    let ug: [[[f64; LANES]; 2]; 4] = std::array::from_fn(|_| std::array::from_fn(|_| std::array::from_fn(|_| 1e-3 * lcg(&mut s))));
+    let mut fc = [[[f64::NAN; LANES]; 2]; 4];
+    <Q4Closed as Blocked<4>>::forces(&p, &dk, &ug, &mut fc);
+    assert!((0..4).all(|a| (0..2).all(|k| fc[a][k][..3].iter().all(|v| v.is_finite() && *v != 0.0) && fc[a][k][3..].iter().all(|v| *v == 0.0))), "empty lanes give zero force: {fc:?}");
     // A non-parallelogram pack: q4's Gauss form, bit for bit.
     let xs = vec![DISTORTED; 3];
     let (p, e, lean) = super::q4::full_pack(&xs);
@@ -308,8 +318,8 @@ fn q4_lean_pack_equals_general_bit_for_bit() {
 
 /// Issue 24: the chunk loop compiled for wider vector units (AVX2, AVX-512, when this CPU has
 /// them) gives the same forces bit for bit as the baseline one, on a block mixing lean and
-/// general Q4 packs and on T3; and the blocked block equals the one-element reference
-/// (`add_internal_forces_range`) to 1e-12 relative.
+/// general Q4 packs, the same with `q4_closed`, and on T3; and the blocked Q4 and `q4_closed`
+/// blocks equal the one-element reference (`add_internal_forces_range`) to 1e-12 relative.
 #[test]
 fn simd_chunk_loops_are_bit_identical() {
     use flem_core::element::block::{Block, ElementBlock, Simd};
@@ -322,17 +332,20 @@ fn simd_chunk_loops_are_bit_identical() {
     let u: Vec<[f64; 2]> = (0..pts.len()).map(|_| [1e-3 * lcg(&mut s), 1e-3 * lcg(&mut s)]).collect();
     let m = mat(Plane::Strain);
     let mut q = ElementBlock::<Q4, 4>::new("r".into(), m);
+    let mut qc = ElementBlock::<Q4Closed, 4>::new("r".into(), m);
     let mut t = ElementBlock::<T3, 3>::new("r".into(), m);
     for j in 0..ny {
         for i in 0..nx {
             let c = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
             q.push(ElemId((j * nx + i) as u32), c.map(|c| pts[c as usize]), c);
+            qc.push(ElemId((j * nx + i) as u32), c.map(|c| pts[c as usize]), c);
             for tri in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
                 t.push(ElemId(t.len() as u32), tri.map(|c| pts[c as usize]), tri);
             }
         }
     }
     q.prepare(pts.len());
+    qc.prepare(pts.len());
     t.prepare(pts.len());
     type Run<'a> = &'a dyn Fn(&mut [[f64; 2]], Simd) -> bool;
     let run = |b: Run, simd| {
@@ -340,7 +353,8 @@ fn simd_chunk_loops_are_bit_identical() {
         b(&mut f, simd).then_some(f)
     };
     let (rq, rt): (Run, Run) = (&|f, s| q.add_internal_forces_simd(&u, f, s), &|f, s| t.add_internal_forces_simd(&u, f, s));
-    for b in [rq, rt] {
+    let rqc: Run = &|f, s| qc.add_internal_forces_simd(&u, f, s);
+    for b in [rq, rt, rqc] {
         let plain = run(b, Simd::Plain).expect("the baseline always runs");
         for simd in [Simd::Avx2, Simd::Avx512] {
             if let Some(f) = run(b, simd) {
@@ -353,14 +367,18 @@ fn simd_chunk_loops_are_bit_identical() {
     let plain = run(rq, Simd::Plain).unwrap();
     let scale = r.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     assert!(plain.iter().flatten().zip(r.iter().flatten()).all(|(a, b)| (a - b).abs() <= 1e-12 * scale));
+    // `q4_closed` (lean packs in the lower half take the closed form): the reference too.
+    let closed = run(rqc, Simd::Plain).unwrap();
+    assert!(closed.iter().flatten().zip(r.iter().flatten()).all(|(a, b)| (a - b).abs() <= 1e-12 * scale));
+    assert!(closed.iter().flatten().zip(plain.iter().flatten()).any(|(a, b)| a.to_bits() != b.to_bits()), "q4_closed ran q4's sum");
 }
 
 /// The co-rotational pass (`CorotBlock`: `ElementBlock::corot_forces_simd`, each pack's local
 /// displacements through the blocked kernel) against the element-by-element reference
 /// (`CorotBlock::add_internal_forces_reference`: `Blocked::force_ref` on each element's local
 /// displacements, the formulation of `element::corot`'s module doc): within 1e-12 of the
-/// largest force for Q4 (a grid distorted in its upper half: lean and general packs), T3 and
-/// qm6, on 851 elements (a partial last pack), the grid turned by 0 to 170 degrees with a small
+/// largest force for Q4 and `q4_closed` (a grid distorted in its upper half: lean and general
+/// packs), T3 and qm6, on 851 elements (a partial last pack), the grid turned by 0 to 170 degrees with a small
 /// strain on top; every SIMD variant bit for bit the baseline; the forces of two sub-ranges add
 /// up to the whole range's, bit for bit in this order; a rigid rotation by 170 degrees
 /// gives forces below 1e-9 of the strained grid's (reference: a rigid motion carries no stress,
@@ -387,6 +405,7 @@ fn corotational_blocked_pass_matches_the_reference() {
         b
     }
     let (q, t, qm) = (block::<Q4, 4>(m, &pts, &quads), block::<T3, 3>(m, &pts, &tris), block::<Qm6, 4>(m, &pts, &quads));
+    let qc = block::<Q4Closed, 4>(m, &pts, &quads);
     let turned = |deg: f64, strain: f64| -> Vec<[f64; 2]> {
         let (c, sn) = (deg.to_radians().cos(), deg.to_radians().sin());
         pts.iter()
@@ -397,7 +416,14 @@ fn corotational_blocked_pass_matches_the_reference() {
             .collect()
     };
     type Pass<'a> = &'a dyn Fn(std::ops::Range<usize>, &[[f64; 2]], &mut [[f64; 2]], Option<Simd>) -> bool;
-    let passes: [(&str, usize, Pass); 3] = [
+    let passes: [(&str, usize, Pass); 4] = [
+        ("q4_closed", qc.len(), &|r, u, f, simd| match simd {
+            None => {
+                qc.add_internal_forces_reference(r, u, f);
+                true
+            }
+            Some(s) => qc.0.corot_forces_simd(r, u, f, s),
+        }),
         ("q4", q.len(), &|r, u, f, simd| match simd {
             None => {
                 q.add_internal_forces_reference(r, u, f);
@@ -426,6 +452,7 @@ fn corotational_blocked_pass_matches_the_reference() {
         match name {
             "q4" => q.add_internal_forces(u, &mut f),
             "t3" => t.add_internal_forces(u, &mut f),
+            "q4_closed" => qc.add_internal_forces(u, &mut f),
             _ => qm.add_internal_forces(u, &mut f),
         }
         f
