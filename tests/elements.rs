@@ -200,6 +200,27 @@ fn q4_closed_explicit_equilibrium_equals_the_implicit_solve() {
     assert!(r.rel_l2_displacement.unwrap() < 1e-6 && r.rel_l2_nodal_stress.unwrap() < 1e-6, "{r:?}");
 }
 
+/// `q4_closed` with a plastic law (configs/verification/strip_footing.toml, Tresca, B-bar): its
+/// stateful blocks are `q4`'s (they have no elastic force kernel, docs/elements.md), so the
+/// blocks report `q4` and the stored-state forces under the same displacements are `q4`'s bit for
+/// bit (reference: the scene with `q4`; exact equality).
+#[test]
+fn q4_closed_with_a_plastic_law_is_q4() {
+    let base = std::fs::read_to_string(root().join("configs/verification/strip_footing.toml")).unwrap();
+    let with = |elem: &str| base.replacen("density = 1.0\n", &format!("density = 1.0\nelement = \"{elem}\"\n"), 1);
+    let (mut a, mut b) = (sim(&with("q4")), sim(&with("q4_closed")));
+    assert!(a.model.stateful && b.model.stateful);
+    assert!(b.model.blocks.iter().all(|k| k.element() == "q4"), "{:?}", b.model.blocks.iter().map(|k| k.element()).collect::<Vec<_>>());
+    let n = a.state.u.len();
+    // Large enough to yield under the footing.
+    let u: Vec<[f64; 2]> = (0..n).map(|i| [1e-2 * ((i * 7919) % 13) as f64, -1e-2 * ((i * 104729) % 11) as f64]).collect();
+    let (mut fa, mut fb) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
+    a.model.update_internal_forces(&u, &mut fa);
+    b.model.update_internal_forces(&u, &mut fb);
+    assert!(fa.iter().flatten().any(|v| *v != 0.0));
+    assert!(fa.iter().flatten().zip(fb.iter().flatten()).all(|(x, y)| x.to_bits() == y.to_bits()));
+}
+
 /// An unknown element name is refused naming the key and the nearest kind; a name of another
 /// cell type leaves the cells on their default (the element applies to its own cell type).
 #[test]
