@@ -48,6 +48,13 @@ pub fn assert_same_forces(a: &Simulation, b: &mut Simulation, tol: f64) {
     }
 }
 
+/// A deterministic field of `n` displacements of size up to `amp`, without structure (a sine
+/// hash of the index): every deformation mode of an element, hourglass modes included, is in it.
+pub fn scattered_field(n: usize, amp: f64) -> Vec<[f64; 2]> {
+    let h = |x: f64| ((x.sin() * 43758.5453).fract() - 0.5) * amp;
+    (0..n).map(|i| [h(12.9898 * i as f64 + 1.0), h(78.233 * i as f64 + 2.0)]).collect()
+}
+
 /// The area of a 2D mesh: the shoelace sum over every cell's corners (units of the mesh squared).
 pub fn mesh_area(mesh: &flem_core::mesh::RawMesh) -> f64 {
     let pts = &mesh.points;

@@ -135,22 +135,29 @@ fn cooks_membrane_tip_deflection() {
 /// of displacements and of nodal stresses (with the enhanced field) below 1e-6.
 #[test]
 fn implicit_check_equals_explicit_equilibrium_with_qm6() {
-    use flem_core::output::compare::Comparer;
-    use flem_core::solver::NoOutput;
     let base = std::fs::read_to_string(root().join("configs/verification/cook.toml")).unwrap();
     let text = base.replace("../meshes/cook_8.msh", "meshes/cook_4.msh") + "\n[solver]\ntolerance = 1e-9\nmax_steps = 2000000\n";
-    let dir = std::env::temp_dir().join(format!("flem-test-qm6-check-{}", std::process::id()));
-    let mut s = sim(&text);
+    let s = sim(&text);
     assert_eq!(s.model.blocks[0].element(), "qm6");
+    explicit_equals_implicit(s, "qm6", 1e-6);
+}
+
+/// Runs `s` (one stage, with `[check]`) and asserts that its damped explicit equilibrium equals
+/// the implicit solve of the same model: relative L2 of displacements and nodal stresses below
+/// `tol` (the implicit solve converged, the explicit stage at rest).
+fn explicit_equals_implicit(mut s: Simulation, name: &str, tol: f64) {
+    use flem_core::output::compare::Comparer;
+    use flem_core::solver::NoOutput;
+    let dir = std::env::temp_dir().join(format!("flem-test-{name}-check-{}", std::process::id()));
     let mut quiet = NoOutput;
     let mut c = Comparer::new(&mut quiet, &dir).unwrap();
     s.run(&mut c).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
     assert_eq!(c.rows.len(), 1);
     let r = &c.rows[0];
-    eprintln!("qm6 check: ratio {:?}, rel_l2 u {:?}, s {:?}", r.unbalanced_ratio, r.rel_l2_displacement, r.rel_l2_nodal_stress);
+    eprintln!("{name} check: ratio {:?}, rel_l2 u {:?}, s {:?}", r.unbalanced_ratio, r.rel_l2_displacement, r.rel_l2_nodal_stress);
     assert!(r.flem_converged && r.implicit_error.is_none(), "{r:?}");
-    assert!(r.rel_l2_displacement.unwrap() < 1e-6 && r.rel_l2_nodal_stress.unwrap() < 1e-6, "{r:?}");
+    assert!(r.rel_l2_displacement.unwrap() < tol && r.rel_l2_nodal_stress.unwrap() < tol, "{r:?}");
 }
 
 /// `q4_closed` (ours, issue 42) in a model: a cantilever of 32 x 8 rectangles (parallelogram
@@ -162,8 +169,6 @@ fn implicit_check_equals_explicit_equilibrium_with_qm6() {
 /// (the closed form ran, not `q4`'s sum).
 #[test]
 fn q4_closed_explicit_equilibrium_equals_the_implicit_solve() {
-    use flem_core::output::compare::Comparer;
-    use flem_core::solver::NoOutput;
     let text = |elem: &str| {
         format!(
             "[mesh]\ntype = \"rectangle\"\nwidth = 8.0\nheight = 2.0\nnx = 32\nny = 8\n[model]\nplane = \"stress\"\n[[material]]\nyoung_modulus = 1000.0\npoisson_ratio = 0.3\ndensity = 1.0\nelement = \"{elem}\"\n[[support]]\nnodes = \"left\"\nfix = \"xy\"\n[[load]]\nname = \"shear\"\ntype = \"traction\"\nedges = \"right\"\nvalue = [0.0, -1.0]\n[solver]\ntolerance = 1e-10\nmax_steps = 2000000\n[check]\n[[stage]]\nlevels = {{ shear = 1.0 }}\n"
@@ -172,32 +177,14 @@ fn q4_closed_explicit_equilibrium_equals_the_implicit_solve() {
     let (closed, q4) = (sim(&text("q4_closed")), sim(&text("q4")));
     assert!(closed.model.blocks.iter().all(|b| b.element() == "q4_closed"));
     let nc = closed.model.topo.n_clusters();
-    let mut seed = 3u64;
-    let u: Vec<[f64; 2]> = (0..nc)
-        .map(|_| {
-            std::array::from_fn(|_| {
-                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                1e-3 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
-            })
-        })
-        .collect();
+    let u = crate::common::scattered_field(nc, 1e-3);
     let (mut fc, mut fq) = (vec![[0.0; 2]; nc], vec![[0.0; 2]; nc]);
     closed.model.internal_forces(&u, &mut fc);
     q4.model.internal_forces(&u, &mut fq);
     let scale = fq.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     let worst = fc.iter().flatten().zip(fq.iter().flatten()).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     assert!(worst <= 1e-12 * scale && worst > 0.0, "q4_closed against q4: {worst:e} of {scale:e}");
-    let dir = std::env::temp_dir().join(format!("flem-test-q4-closed-check-{}", std::process::id()));
-    let mut s = closed;
-    let mut quiet = NoOutput;
-    let mut c = Comparer::new(&mut quiet, &dir).unwrap();
-    s.run(&mut c).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
-    assert_eq!(c.rows.len(), 1);
-    let r = &c.rows[0];
-    eprintln!("q4_closed check: ratio {:?}, rel_l2 u {:?}, s {:?}", r.unbalanced_ratio, r.rel_l2_displacement, r.rel_l2_nodal_stress);
-    assert!(r.flem_converged && r.implicit_error.is_none(), "{r:?}");
-    assert!(r.rel_l2_displacement.unwrap() < 1e-6 && r.rel_l2_nodal_stress.unwrap() < 1e-6, "{r:?}");
+    explicit_equals_implicit(closed, "q4_closed", 1e-6);
 }
 
 /// `q4_closed` with a plastic law (configs/verification/strip_footing.toml, Tresca, B-bar): its
