@@ -48,10 +48,11 @@ pub fn assert_same_forces(a: &Simulation, b: &mut Simulation, tol: f64) {
     }
 }
 
-/// A deterministic field of `n` displacements of size up to `amp`, without structure (a sine
-/// hash of the index): every deformation mode of an element, hourglass modes included, is in it.
+/// A deterministic field of `n` displacements in `[-amp / 2, amp / 2)`, without structure (a
+/// sine hash of the index): every deformation mode of an element, hourglass modes included, is
+/// in it.
 pub fn scattered_field(n: usize, amp: f64) -> Vec<[f64; 2]> {
-    let h = |x: f64| ((x.sin() * 43758.5453).fract() - 0.5) * amp;
+    let h = |x: f64| ((x.sin() * 43758.5453).rem_euclid(1.0) - 0.5) * amp;
     (0..n).map(|i| [h(12.9898 * i as f64 + 1.0), h(78.233 * i as f64 + 2.0)]).collect()
 }
 

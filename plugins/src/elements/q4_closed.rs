@@ -3,8 +3,7 @@
 //! terms. The same element (shape functions, Gauss points, mass, stress, stiffness) and, in
 //! exact arithmetic, the same internal force as `q4`; in floating point it differs by round-off
 //! (other operations, other bits: 1.1e-15 of the largest force against `q4` on random
-//! parallelograms, tested to 1e-12), which is why it is
-//! an option and `q4` stays the default.
+//! parallelograms, tested to 1e-12), which is why it is an option and `q4` stays the default.
 //!
 //! **Why it is exact.** On a parallelogram the Jacobian `J` is constant, and the parent
 //! derivatives of `u` are linear in the natural coordinates: `u_,xi = a + eta h`,
@@ -24,8 +23,8 @@
 //! `A = P(c)_s`, `C = P(c)_e`, `B = P(k1)_s / 3`, `E = P(k2)_e / 3`: one full point and two
 //! half points instead of four full points (59 multiplications and 51 additions or subtractions
 //! per element, counted in the source with `abh_u` and the corner rows, against 142 and 122 in
-//! `q4`'s lean `forces` counted the same way, negations not counted). This is the one-point element with its exact hourglass
-//! stiffness (Belytschko & Bachrach 1986; Flanagan & Belytschko 1981 for the centre gradients),
+//! `q4`'s lean `forces` counted the same way, negations not counted). This is the one-point
+//! element with its exact hourglass stiffness (Belytschko & Bachrach 1986; Flanagan & Belytschko 1981 for the centre gradients),
 //! not an hourglass *control*: no coefficient, nothing tuned. Packs holding a
 //! non-parallelogram (`h` of the geometry not zero, where `J` varies over the element) keep
 //! `q4`'s Gauss form.
@@ -93,8 +92,8 @@ impl Shape<4> for Q4Closed {
 
 const THIRD: f64 = 1.0 / 3.0;
 
-/// The closed form of one lane of a parallelogram pack (module doc), `[f_x, f_y]` of the 4 corners
-/// as `[[A, B, C, E]; 2]`.
+/// The closed form of one lane of a parallelogram pack (module doc): the sums `[A, B, C, E]` of
+/// the corner forces along x and along y.
 #[inline(always)]
 fn closed_sums(j: [f64; 4], inv: f64, d: &[f64; 3], a: [f64; 2], b: [f64; 2], h: [f64; 2]) -> [[f64; 4]; 2] {
     let [j11, j12, j21, j22] = j;
