@@ -67,8 +67,6 @@ impl Shape<4> for Q4Closed {
     const KIND: CellKind = CellKind::Q4;
     const CORNERS: [[f64; 2]; 4] = <Q4 as Shape<4>>::CORNERS;
     const GAUSS: &'static [([f64; 2], f64)] = <Q4 as Shape<4>>::GAUSS;
-    const TOTAL_ROWS: usize = <Q4 as Shape<4>>::TOTAL_ROWS;
-    const TOTAL_EXTRA_ROWS: usize = <Q4 as Shape<4>>::TOTAL_EXTRA_ROWS;
     #[inline(always)]
     fn n(xi: [f64; 2]) -> [f64; 4] {
         Q4::n(xi)
@@ -77,17 +75,8 @@ impl Shape<4> for Q4Closed {
     fn dn(xi: [f64; 2]) -> [[f64; 2]; 4] {
         Q4::dn(xi)
     }
-    fn total_geometry(x: &[[[f64; 2]; 4]; LANES], geo: &mut [[f64; LANES]], extra: &mut [[f64; LANES]]) -> bool {
-        Q4::total_geometry(x, geo, extra)
-    }
-    #[inline(always)]
-    fn total_strains<const BBAR: bool>(geo: &[[f64; LANES]], extra: Option<&[[f64; LANES]]>, u: &[[[f64; LANES]; 2]; 4], e: &mut [[[f64; LANES]; 4]; 4]) {
-        Q4::total_strains::<BBAR>(geo, extra, u, e)
-    }
-    #[inline(always)]
-    fn total_forces<const BBAR: bool>(geo: &[[f64; LANES]], extra: Option<&[[f64; LANES]]>, s: &[[[f64; LANES]; 4]; 4], t: f64, f: &mut [[[f64; LANES]; 2]; 4]) {
-        Q4::total_forces::<BBAR>(geo, extra, s, t, f)
-    }
+    // No `total_*` form: the stateful blocks of this kind are `q4`'s (the registration and
+    // `build_stateful`), so a stateful block of `Q4Closed` itself is never built.
 }
 
 const THIRD: f64 = 1.0 / 3.0;
