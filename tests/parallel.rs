@@ -6,6 +6,7 @@
 //! the threads really share the work; the cracking scene splits during the run, so the
 //! schedule is also exercised after `remap`.
 use flem_core::cracking::SplitEvent;
+use flem_core::element::kernel::Dataflow;
 use flem_core::mesh::topology::SplitRecord;
 use flem_core::solver::{Observer, Simulation};
 
@@ -26,10 +27,20 @@ fn bits(v: &[[f64; 2]]) -> Vec<[u64; 2]> {
 
 /// Runs `text` with `threads` and returns (u bits, v bits, ledger bits, split log, threads used).
 fn run(text: &str, threads: usize) -> (Vec<[u64; 2]>, Vec<[u64; 2]>, [u64; 4], Vec<(u64, u32, u32, Vec<u32>)>, usize) {
+    run_with(text, threads, Dataflow::Auto)
+}
+
+/// `run` with the force pass's dataflow set (`Model::set_dataflow`); checks that the blocks
+/// still run it after the run's splits.
+fn run_with(text: &str, threads: usize, d: Dataflow) -> (Vec<[u64; 2]>, Vec<[u64; 2]>, [u64; 4], Vec<(u64, u32, u32, Vec<u32>)>, usize) {
     let text = text.replacen("[solver]\n", &format!("[solver]\nthreads = {threads}\n"), 1);
     let mut sim = Simulation::new(scene(&text)).unwrap_or_else(|e| panic!("{e}"));
+    sim.model.set_dataflow(d);
     let mut log = Splits::default();
     sim.run(&mut log).unwrap_or_else(|e| panic!("{e}"));
+    if d == Dataflow::Local {
+        assert!(sim.model.blocks.iter().all(|b| b.dataflow_local(sim.state.u.len()) == Some(true)), "the local dataflow is kept through the run");
+    }
     let l = &sim.ledger;
     (bits(&sim.state.u), bits(&sim.state.v), [l.external_work.to_bits(), l.kinetic.to_bits(), l.strain.to_bits(), l.damping.to_bits()], log.0, sim.model.threads())
 }
@@ -44,13 +55,16 @@ fn tension_crack_is_bit_identical_with_two_threads() {
     let stages = base.find("[[stage]]").unwrap();
     let text = format!("{}[[stage]]\nname = \"sudden\"\nlevels = {{ pull = 1.2 }}\ndynamic = true\nmax_steps = 600\n", &base[..stages]);
     let one = run(&text, 1);
-    let two = run(&text, 2);
-    assert_eq!((one.4, two.4), (1, 2));
     assert!(!one.3.is_empty(), "the scene must crack for the test to cover splits");
-    assert_eq!(one.3, two.3, "split log differs between 1 and 2 threads");
-    assert!(one.0 == two.0, "displacements differ between 1 and 2 threads");
-    assert!(one.1 == two.1, "velocities differ");
-    assert_eq!(one.2, two.2, "ledger differs");
+    // Both dataflows (session 29; `Auto` runs the phases on a block this small).
+    for d in [Dataflow::Phases, Dataflow::Local] {
+        let two = run_with(&text, 2, d);
+        assert_eq!((one.4, two.4), (1, 2));
+        assert_eq!(one.3, two.3, "{d:?}: split log differs between 1 and 2 threads");
+        assert!(one.0 == two.0, "{d:?}: displacements differ between 1 and 2 threads");
+        assert!(one.1 == two.1, "{d:?}: velocities differ");
+        assert_eq!(one.2, two.2, "{d:?}: ledger differs");
+    }
 }
 
 /// A plain elastic scene (the default bar refined to 160 x 32 Q4, a `q4_closed` and a T3 version)
@@ -73,7 +87,7 @@ fn elastic_scene_is_bit_identical_whatever_the_threads() {
 }
 
 /// The element pass alone (issue 24, session 10: the chunks run as regions, the lead chunks
-/// first) on a 2 x 1 rectangle of 320 x 160 Q4 (51 200 elements: 100 chunks of 512 in 6
+/// first; session 29: or region by region, `Dataflow::Local`) on a 2 x 1 rectangle of 320 x 160 Q4 (51 200 elements: 100 chunks of 512 in 6
 /// regions, whose trailing chunks wait for the next region's lead chunks) and its T3 version
 /// (102 400 elements, 200 chunks in 12 regions), pseudo-random displacements, five calls each:
 /// the forces are the same bits with 1, 2, 3 and 4 threads. Reference: one thread (bits).
@@ -104,7 +118,11 @@ fn element_pass_over_many_regions_is_bit_identical_whatever_the_threads() {
         for t in [2, 3, 4] {
             sim.model.set_threads(t).unwrap();
             assert_eq!(sim.model.threads(), t);
-            assert!(forces(&sim) == one, "{element}: forces differ between 1 and {t} threads");
+            // Both dataflows (session 29): the lead chunks first, or region by region.
+            for d in [Dataflow::Auto, Dataflow::Phases, Dataflow::Local] {
+                sim.model.set_dataflow(d);
+                assert!(forces(&sim) == one, "{element}: forces differ between 1 and {t} threads ({d:?})");
+            }
         }
     }
 }

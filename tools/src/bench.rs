@@ -14,15 +14,17 @@
 //! independent), then the rest of the step (loads, damping coefficients, the sums; serial),
 //! every cost measured on one thread (the least of 5: each chunk over 5 passes). Printed: work,
 //! critical path (and what it is made of), parallelism, and the speed-up on 1, 2, 4, 16 and 64
-//! threads of a list schedule of the graph and of the model of `run_dataflow` (the code as it
-//! runs), beside the measured speed-up of the step and the kernel on the `--threads` counts.
+//! threads of a list schedule of the graph and of the model of the dataflow the block runs
+//! (`kernel_dataflow_model`; both models beside it, `_phases` and `_local`), beside the measured speed-up of the step and the kernel on the `--threads` counts.
 //!
 //! Measured in one process, so every ratio compares figures of the same run:
 //! Sizes are element counts on a 2 x 1 rectangle, `nx = sqrt(2 n)` (T3: two per cell), so
 //! 2048, 32768, 524288 are exactly the peers' meshes n = 64, 256, 1024 (../shared/peers).
 //! - the bare kernel (`Model::internal_forces`: the blocked element loop and its scatter) in
 //!   element-updates per second and ns per element-update, Q4 and T3, at each size, for each
-//!   thread count, with the check that forces are bit-identical to one thread;
+//!   thread count and, on several threads, each dataflow of `--dataflows` (`auto`, `phases`,
+//!   `local`: `flem_core::element::kernel::Dataflow`; `dataflow_runs` says which one ran),
+//!   with the check that forces are bit-identical to one thread;
 //! - memory per element (block: geometry, connectivity, kernel packs, schedule; node state),
 //!   and the bytes an update streams (`Block::kernel_bytes` + 48 per cluster, 64 when the
 //!   force array is zeroed before the pass: `zeroing_sweep`), against the
@@ -44,6 +46,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use flem_core::element::block::Simd;
 use flem_core::element::dag::TaskGraph;
+use flem_core::element::kernel::Dataflow;
 use flem_core::element::model::Model;
 use flem_core::element::Plane;
 use flem_core::mesh::{CellKind, Rectangle, ValidationOptions};
@@ -67,6 +70,14 @@ pub struct StepOpts {
     pub rounds: usize,
     /// Element counts of the task-graph analysis.
     pub graph_sizes: Vec<usize>,
+    /// Dataflows of the kernel runs on several threads (each timed in every round).
+    pub dataflows: Vec<Dataflow>,
+}
+
+/// The (threads, dataflow) pairs of the kernel runs: one thread once (it runs no dataflow),
+/// every other thread count with each dataflow.
+fn kernel_runs(o: &StepOpts) -> Vec<(usize, Dataflow)> {
+    o.threads.iter().flat_map(|&t| if t == 1 { vec![(t, o.dataflows[0])] } else { o.dataflows.iter().map(|&d| (t, d)).collect() }).collect()
 }
 
 /// Median of `v` (the mean of the two middle values for an even count).
@@ -183,6 +194,8 @@ struct KernelCase {
     /// The forces on one thread (the reference of every thread count's bits).
     reference: Vec<[f64; 2]>,
     identical: Vec<bool>,
+    /// Per kernel run, whether a block ran the local dataflow.
+    local: Vec<bool>,
     figs: Vec<Spread>,
     min_bytes: f64,
     zero_free: bool,
@@ -224,15 +237,17 @@ impl KernelCase {
             "kind": kind.name, "nx": nx, "ny": ny, "elements": ne, "clusters": nc,
             "memory_bytes_per_element": {"kernel_packs": kind.bytes_per_elem, "kernel_streamed": block_bytes, "block_total": block as f64 / ne as f64, "node_state": node_bytes as f64 / ne as f64, "block_plus_node_state": (block + node_bytes) as f64 / ne as f64},
         });
-        let n = o.threads.len();
-        Ok(KernelCase { kind, m, u, f, reference, identical: vec![true; n], figs: (0..n).map(|_| Spread::default()).collect(), min_bytes, zero_free, cluster_bytes, fixed })
+        let n = kernel_runs(o).len();
+        Ok(KernelCase { kind, m, u, f, reference, identical: vec![true; n], local: vec![false; n], figs: (0..n).map(|_| Spread::default()).collect(), min_bytes, zero_free, cluster_bytes, fixed })
     }
 
     /// One round: every thread count once; `triad` is this round's.
     fn round(&mut self, o: &StepOpts, triad: &[(usize, f64)]) -> Result<()> {
         let ne = self.m.n_elems() as f64;
-        for (i, &t) in o.threads.iter().enumerate() {
+        for (i, (t, d)) in kernel_runs(o).into_iter().enumerate() {
             self.m.set_threads(t)?;
+            self.m.set_dataflow(d);
+            self.local[i] = self.m.blocks.iter().any(|b| b.dataflow_local(self.u.len()) == Some(true));
             let (m, u, f) = (&self.m, &self.u, &mut self.f);
             let (s, cpu) = time_per_call(o.min_time, || m.internal_forces(u, f));
             self.m.internal_forces(&self.u, &mut self.f);
@@ -252,14 +267,17 @@ impl KernelCase {
     }
 
     fn json(&self, o: &StepOpts) -> Value {
-        let per_thread: Vec<Value> = o
-            .threads
-            .iter()
+        let per_thread: Vec<Value> = kernel_runs(o)
+            .into_iter()
             .enumerate()
-            .map(|(i, &t)| {
+            .map(|(i, (t, d))| {
                 let mut v = self.figs[i].json();
                 let threads = if t == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { t };
                 v["threads"] = json!(threads);
+                if threads > 1 {
+                    v["dataflow"] = json!(d.name());
+                    v["dataflow_runs"] = json!(if self.local[i] { "local" } else { "phases" });
+                }
                 v["bit_identical_to_one_thread"] = json!(self.identical[i]);
                 v["bytes_per_elem_update_min"] = json!(self.min_bytes);
                 v["zeroing_sweep"] = json!(!self.zero_free);
@@ -538,7 +556,8 @@ impl GraphCase {
             let lead: std::collections::BTreeSet<u32> = sched.lead.iter().copied().collect();
             chunk_info.extend((0..cost.len() as u32).map(|k| (bi, lead.contains(&k))));
             kernel_graph = if kernel_graph.is_empty() { g } else { kernel_graph.then(&g) };
-            flow_blocks.push((sched, cost));
+            let local = b.dataflow_local(s.state.u.len()) == Some(true);
+            flow_blocks.push((sched, cost, local));
         }
         let nk = kernel_graph.len();
         // The force pass, the node update and the rest of the lean step, timed inside the
@@ -583,15 +602,18 @@ impl GraphCase {
             .iter()
             .map(|&p| {
                 let list = step_graph.list_schedule(p, &rank);
-                let flow = flow_blocks.iter().map(|(sc, c)| sc.simulate_dataflow(c, p)).sum::<f64>() + node_graph.list_schedule(p, &(0..nn as u32).collect::<Vec<_>>()) + rest;
-                let kflow = flow_blocks.iter().map(|(sc, c)| sc.simulate_dataflow(c, p)).sum::<f64>();
-                json!({"threads": p, "step_list_schedule": w / list, "step_dataflow_model": w / flow, "kernel_list_schedule": kernel_graph.work() / kernel_graph.list_schedule(p, &rank[..nk]), "kernel_dataflow_model": kernel_graph.work() / kflow})
+                // The dataflow each block runs (`Block::dataflow_local`), and each of the two.
+                let model = |pick: Option<bool>| flow_blocks.iter().map(|(sc, c, l)| if pick.unwrap_or(*l) { sc.simulate_dataflow_local(c, p) } else { sc.simulate_dataflow(c, p) }).sum::<f64>();
+                let kflow = model(None);
+                let flow = kflow + node_graph.list_schedule(p, &(0..nn as u32).collect::<Vec<_>>()) + rest;
+                json!({"threads": p, "step_list_schedule": w / list, "step_dataflow_model": w / flow, "kernel_list_schedule": kernel_graph.work() / kernel_graph.list_schedule(p, &rank[..nk]), "kernel_dataflow_model": kernel_graph.work() / kflow, "kernel_dataflow_model_phases": kernel_graph.work() / model(Some(false)), "kernel_dataflow_model_local": kernel_graph.work() / model(Some(true))})
             })
             .collect();
         let sched = &flow_blocks.first().map(|x| &x.0);
         let ne = s.model.n_elems() as f64;
         let fixed = json!({
             "kind": kind.name, "crack": crack, "elements": ne, "clusters": nc,
+            "dataflow_runs": if flow_blocks.iter().any(|x| x.2) { "local" } else { "phases" },
             "chunks": nk, "chunk_packs": sched.map(|s| s.chunk_packs), "regions": sched.map(|s| s.region_start.len() - 1), "lead_chunks": sched.map(|s| s.lead.len()),
             "node_chunks": nn,
             "one_thread_seconds": {"chunks_sum": kernel_graph.work(), "kernel": kernel, "node_update": node, "rest": rest, "lean_step": lean},

@@ -248,6 +248,10 @@ enum BenchWhat {
         /// crack (0: none).
         #[arg(long, value_delimiter = ',', default_value = "100000,1000000")]
         graph_sizes: Vec<usize>,
+        /// Dataflows of the kernel runs on several threads, each timed in every round (auto,
+        /// phases, local: `flem_core::element::kernel::Dataflow`; the same forces bit for bit).
+        #[arg(long, value_delimiter = ',', default_value = "auto")]
+        dataflows: Vec<String>,
     },
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
@@ -387,7 +391,19 @@ fn main() -> ExitCode {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_sizes: Vec<usize>, min_time: f64, nonlocal_radius_h: f64, rounds: usize, graph_sizes: Vec<usize>) -> Result<()> {
+fn bench_step(
+    sizes: Vec<usize>,
+    threads: Vec<usize>,
+    kinds: Vec<String>,
+    step_sizes: Vec<usize>,
+    min_time: f64,
+    nonlocal_radius_h: f64,
+    rounds: usize,
+    graph_sizes: Vec<usize>,
+    dataflows: Vec<String>,
+) -> Result<()> {
+    let dataflows = dataflows.iter().map(|d| d.parse().map_err(|e: String| anyhow::anyhow!("--dataflows: {e}"))).collect::<Result<Vec<flem_core::element::kernel::Dataflow>>>()?;
+    anyhow::ensure!(!dataflows.is_empty(), "--dataflows: give at least one (auto, phases, local)");
     anyhow::ensure!(nonlocal_radius_h > 0.0 && nonlocal_radius_h.is_finite(), "--nonlocal-radius-h = {nonlocal_radius_h} is incorrect; it must be > 0");
     let kinds = kinds
         .iter()
@@ -403,7 +419,7 @@ fn bench_step(sizes: Vec<usize>, threads: Vec<usize>, kinds: Vec<String>, step_s
     anyhow::ensure!(rounds >= 5, "--rounds = {rounds} is incorrect; it must be at least 5 (a median and a range need them)");
     let graph_sizes: Vec<usize> = graph_sizes.into_iter().filter(|&n| n != 0).collect();
     anyhow::ensure!(graph_sizes.iter().all(|&n| (8..=16_000_000).contains(&n)), "--graph-sizes: each must be 0 or in [8, 16000000]");
-    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes, nonlocal_radius_h, rounds, graph_sizes })
+    bench::step(&bench::StepOpts { sizes, threads, kinds, min_time, step_sizes, nonlocal_radius_h, rounds, graph_sizes, dataflows })
 }
 
 fn plugins(libs: &[PathBuf], scene: Option<&Path>) -> Result<()> {
@@ -843,8 +859,8 @@ fn bench(what: BenchWhat) -> Result<()> {
             let b = flem_plugins::check::bench::bench_implicit(&dofs, repeats, &threads)?;
             println!("{}", serde_json::to_string_pretty(&b)?);
         }
-        BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h, rounds, graph_sizes } => {
-            bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h, rounds, graph_sizes)?
+        BenchWhat::Step { sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h, rounds, graph_sizes, dataflows } => {
+            bench_step(sizes, threads, kinds, step_sizes, min_time, nonlocal_radius_h, rounds, graph_sizes, dataflows)?
         }
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Step3(a) => bench3::run(&a)?,

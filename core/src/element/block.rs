@@ -9,7 +9,11 @@
 //! builds the blocks of a `Model`.
 use std::marker::PhantomData;
 
-use crate::element::kernel::{Blocked, Schedule, SharedForces, LANES};
+/// How far ahead the force pass prefetches, in packs (`ElementBlock::prefetch_ahead`; 4 to 16
+/// measured alike at 1e6 Q4 elements, session 29).
+const PREFETCH_PACKS: usize = 8;
+
+use crate::element::kernel::{Blocked, Dataflow, Schedule, SharedForces, LANES};
 use crate::element::{self, Dmat, Material};
 use crate::ids::ElemId;
 use crate::mesh::CellKind;
@@ -123,6 +127,15 @@ pub trait Block: Send + Sync {
     /// the least of `passes` passes in the one-thread order: on a shared machine the least
     /// disturbed; `flem bench step`'s task graph, issue 42). `None` for a block that does not
     /// run the dataflow (the default).
+    /// Which dataflow the block's force pass runs on several threads
+    /// (`element::kernel::Dataflow`; the same bits with either). Ignored by a block that does
+    /// not run the dataflow (the default).
+    fn set_dataflow(&mut self, _d: Dataflow) {}
+    /// Whether the force pass on several threads runs the local dataflow with `n_clusters`
+    /// clusters (`None` for a block that runs no dataflow, the default).
+    fn dataflow_local(&self, _n_clusters: usize) -> Option<bool> {
+        None
+    }
     fn chunk_costs(&self, _u: &[[f64; 2]], _passes: usize) -> Option<(crate::element::kernel::Schedule, Vec<f64>)> {
         None
     }
@@ -279,7 +292,9 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     extra_of: Vec<u32>,
     /// The threads' chunk flags and the last epoch (`Schedule::run_dataflow`); a call that
     /// finds them taken (another thread in the same block) runs on its own thread instead.
-    dataflow: std::sync::Mutex<(u32, Vec<std::sync::atomic::AtomicU32>)>,
+    dataflow: std::sync::Mutex<(u32, Vec<std::sync::atomic::AtomicU32>, Vec<std::sync::atomic::AtomicU32>)>,
+    /// Which dataflow the threads run (`Block::set_dataflow`; the same bits with either).
+    dataflow_mode: Dataflow,
     /// D with thickness and Gauss weight folded in.
     dk: [f64; 3],
     sched: Schedule,
@@ -361,7 +376,8 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             packs: Vec::new(),
             extra: Vec::new(),
             extra_of: Vec::new(),
-            dataflow: std::sync::Mutex::new((0, Vec::new())),
+            dataflow: std::sync::Mutex::new((0, Vec::new(), Vec::new())),
+            dataflow_mode: Dataflow::default(),
             sched: Schedule::default(),
             fw: FirstWriters::default(),
             corner_g: std::sync::OnceLock::new(),
@@ -378,11 +394,25 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     /// `FirstWriters`).
     #[inline(always)]
     fn run_chunk_body<const ZERO: bool, const WIDE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        // Only a pass that streams more than the cache holds prefetches (in cache they have
+        // nothing to fetch); two loops, so that the one without is the loop as before.
+        if self.beyond_cache(u.len()) {
+            self.run_packs::<ZERO, WIDE, true>(k, u, f)
+        } else {
+            self.run_packs::<ZERO, WIDE, false>(k, u, f)
+        }
+    }
+    /// The pack loop of [`Self::run_chunk_body`]; `PF`: with [`Self::prefetch_ahead`].
+    #[inline(always)]
+    fn run_packs<const ZERO: bool, const WIDE: bool, const PF: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
         let cp = self.sched.chunk_packs;
         let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
         let mut ug = [[[0.0; LANES]; 2]; N];
         let mut fg = [[[0.0; LANES]; 2]; N];
         for p in p0..p1 {
+            if PF {
+                self.prefetch_ahead::<ZERO>(p, u, f);
+            }
             if ZERO {
                 let fw = &self.fw;
                 for &c in &fw.ids[fw.start[p] as usize..fw.start[p + 1] as usize] {
@@ -432,6 +462,55 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
                 }
             }
         }
+    }
+    /// The bytes a force pass streams: the block's (`Block::kernel_bytes`), and per cluster
+    /// `u` read, `f` read and written.
+    fn streamed_bytes(&self, n_clusters: usize) -> usize {
+        self.kernel_bytes() + 48 * n_clusters
+    }
+    /// Whether a force pass streams more than the last-level cache holds.
+    fn beyond_cache(&self, n_clusters: usize) -> bool {
+        self.streamed_bytes(n_clusters) > crate::element::kernel::last_level_cache_bytes()
+    }
+    /// Software prefetch (issue 42, session 29; a hint: the forces do not change): the
+    /// streams of the pack [`PREFETCH_PACKS`] after `p` (its geometry, its corners, its first
+    /// writers) and the clusters of the first and last element of the pack half as far ahead
+    /// (whose corners were fetched as many packs ago). The hardware's stream prefetchers stop
+    /// at every 4 KiB page; at 1e6 Q4 elements the pass is 1.05-1.2 x faster with it
+    /// (docs/perf/README.md, session 29). Run only by a pass beyond the cache (`beyond_cache`).
+    #[inline(always)]
+    fn prefetch_ahead<const ZERO: bool>(&self, p: usize, u: &[[f64; 2]], f: SharedForces) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let line = |ptr: *const i8, bytes: usize| {
+                let mut off = 0;
+                while off < bytes {
+                    // SAFETY: a prefetch is a hint that never faults; SSE is baseline on x86_64.
+                    unsafe { _mm_prefetch::<_MM_HINT_T0>(ptr.wrapping_add(off)) };
+                    off += 64;
+                }
+            };
+            let q = (p + PREFETCH_PACKS).min(self.packs.len() - 1);
+            line((&self.packs[q]) as *const S::Pack as *const i8, std::mem::size_of::<S::Pack>());
+            let e = (q * LANES).min(self.conn.len() - 1);
+            line((&self.conn[e]) as *const [u32; N] as *const i8, LANES * std::mem::size_of::<[u32; N]>());
+            if ZERO {
+                if let Some(id) = self.fw.ids.get(self.fw.start[q] as usize) {
+                    line(id as *const u32 as *const i8, 1);
+                }
+            }
+            let h = ((p + PREFETCH_PACKS / 2) * LANES).min(self.conn.len() - 1);
+            for c in [&self.conn[h], &self.conn[(h + LANES - 1).min(self.conn.len() - 1)]] {
+                for &cl in c {
+                    let cl = (cl as usize).min(u.len().saturating_sub(1));
+                    line(u.as_ptr().wrapping_add(cl) as *const i8, 1);
+                    line(f.ptr_at(cl) as *const i8, 1);
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (p, u, f);
     }
     /// [`Self::run_chunk_body`] compiled for the baseline instruction set.
     fn run_chunk_plain<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
@@ -510,16 +589,21 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
                     Err(std::sync::TryLockError::WouldBlock) => None,
                 };
                 if let Some(mut g) = lock {
-                    let (epoch, done) = &mut *g;
+                    let (epoch, done, taken) = &mut *g;
                     if done.len() != self.sched.n_chunks() {
-                        (*epoch, *done) = (0, (0..self.sched.n_chunks()).map(|_| Default::default()).collect());
+                        let n = self.sched.n_chunks();
+                        (*epoch, *done, *taken) = (0, (0..n).map(|_| Default::default()).collect(), (0..n).map(|_| Default::default()).collect());
                     }
                     // A new value, not in any flag (every flag holds an earlier epoch or 0).
                     *epoch = epoch.wrapping_add(1).max(1);
                     if *epoch == 1 {
-                        done.iter_mut().for_each(|d| *d.get_mut() = 0);
+                        done.iter_mut().chain(taken.iter_mut()).for_each(|d| *d.get_mut() = 0);
                     }
-                    self.sched.run_dataflow(pool, done, *epoch, |k| run(self, k, u, shared));
+                    if self.dataflow_local(u.len()) == Some(true) {
+                        self.sched.run_dataflow_local(pool, done, taken, *epoch, |k| run(self, k, u, shared));
+                    } else {
+                        self.sched.run_dataflow(pool, done, *epoch, |k| run(self, k, u, shared));
+                    }
                     return;
                 }
                 // Another thread is in this block's dataflow: this call runs on its own thread.
@@ -804,7 +888,14 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
             + self.extra_of.capacity() * 4
             + (self.sched.order.capacity() + self.sched.lead.capacity() + self.sched.rest.capacity() + self.sched.region_start.capacity()) * 4
             + (self.sched.wait_start.capacity() + self.sched.wait_on.capacity()) * 4
+            + (self.sched.lead_local.capacity() + self.sched.lead_local_start.capacity() + self.sched.trail_start.capacity()) * 4
             + (self.fw.start.capacity() + self.fw.ids.capacity() + self.fw.untouched.capacity()) * 4
+    }
+    fn set_dataflow(&mut self, d: Dataflow) {
+        self.dataflow_mode = d;
+    }
+    fn dataflow_local(&self, n_clusters: usize) -> Option<bool> {
+        Some(self.sched.chain <= Schedule::LOCAL_CHAIN && self.dataflow_mode.local_for(self.streamed_bytes(n_clusters)))
     }
     fn chunk_costs(&self, u: &[[f64; 2]], passes: usize) -> Option<(Schedule, Vec<f64>)> {
         let run = Self::best_chunk_fn::<false>();

@@ -25,7 +25,13 @@
 //! at a time, each chunk waiting for the chunks sharing a cluster with it that come before it
 //! in the sequence (`Schedule::run_dataflow`; issue 24, session 10: the threads seldom wait,
 //! because a region's chunks wait only for lead chunks, run long before, and for their own
-//! region's). The greedy colouring of the chunks (two chunks of one colour share no cluster)
+//! region's). A block larger than the last-level cache runs them region by region instead
+//! (`Schedule::run_dataflow_local`, ours, session 29: each thread takes a region and runs its
+//! lead chunks, its interior, the next region's lead chunks and its trailing chunks, so the
+//! clusters a lead chunk shares are still in cache; with the lead chunks first they were read
+//! from memory twice, and at 1e6 elements the two-thread pass is about 1.2x faster). Either
+//! way the waits fix every cluster's order, so the forces are the same bits (`Dataflow`
+//! chooses; `Model::set_dataflow`). The greedy colouring of the chunks (two chunks of one colour share no cluster)
 //! is kept for the stateful blocks, which run the colours one after the other. A split only
 //! re-points corners at new clusters whose elements shared the parent cluster before, so the
 //! colouring, the lead chunks and the waits stay valid after `remap`.
@@ -36,8 +42,8 @@
 //! others); the parallelism, work over critical path, is about the number of regions. Their
 //! cap (`Schedule::regions_for`) was 64, which held it below 64 at any size; it is 4096, so a
 //! block of 1e6 elements has 122 regions and a parallelism above 100 (`flem bench step`'s
-//! `task_graph` measures it; docs/perf/README.md). `Schedule::simulate_dataflow` models
-//! `run_dataflow` on any number of threads.
+//! `task_graph` measures it; docs/perf/README.md). `Schedule::simulate_dataflow` and
+//! `Schedule::simulate_dataflow_local` model the two dataflows on any number of threads.
 //!
 //! **Zero-free pass** (issue 24, session 11). Since the sequence fixes each cluster's order of
 //! contributions from the mesh alone, the first contribution of every cluster is known before
@@ -121,6 +127,70 @@ pub trait Blocked<const N: usize>: Shape<N> {
     }
 }
 
+/// Which of the two dataflows the threads run (issue 42, session 29; the forces are the same
+/// bits with either, and with one thread): `Phases` is [`Schedule::run_dataflow`] (the lead
+/// chunks of every region first, then the regions), `Local` is
+/// [`Schedule::run_dataflow_local`] (ours: region by region, each lead chunk beside the chunks
+/// that share its clusters), `Auto` (the default) takes `Local` for a block whose streamed
+/// bytes exceed the last-level cache ([`last_level_cache_bytes`]) and `Phases` otherwise.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Dataflow {
+    #[default]
+    Auto,
+    Phases,
+    Local,
+}
+
+impl Dataflow {
+    pub fn name(self) -> &'static str {
+        match self {
+            Dataflow::Auto => "auto",
+            Dataflow::Phases => "phases",
+            Dataflow::Local => "local",
+        }
+    }
+    /// Whether a block that streams `bytes` per force pass runs the local dataflow.
+    pub fn local_for(self, bytes: usize) -> bool {
+        match self {
+            Dataflow::Auto => bytes > last_level_cache_bytes(),
+            Dataflow::Phases => false,
+            Dataflow::Local => true,
+        }
+    }
+}
+
+impl std::str::FromStr for Dataflow {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(Dataflow::Auto),
+            "phases" => Ok(Dataflow::Phases),
+            "local" => Ok(Dataflow::Local),
+            _ => Err(format!("unknown dataflow `{s}` (auto, phases or local)")),
+        }
+    }
+}
+
+/// The size of the largest cache of the first CPU (Linux sysfs,
+/// `/sys/devices/system/cpu/cpu0/cache/index*/size`), read once; 32 MiB where it cannot be read.
+pub fn last_level_cache_bytes() -> usize {
+    static LLC: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *LLC.get_or_init(|| {
+        let parse = |t: &str| {
+            let t = t.trim();
+            let (num, mult) = match t.as_bytes().last() {
+                Some(b'K') => (&t[..t.len() - 1], 1usize << 10),
+                Some(b'M') => (&t[..t.len() - 1], 1 << 20),
+                Some(b'G') => (&t[..t.len() - 1], 1 << 30),
+                _ => (t, 1),
+            };
+            num.parse::<usize>().ok().map(|n| n * mult)
+        };
+        let dir = std::path::Path::new("/sys/devices/system/cpu/cpu0/cache");
+        (0..8).filter_map(|i| parse(&std::fs::read_to_string(dir.join(format!("index{i}/size"))).ok()?)).max().unwrap_or(32 << 20)
+    })
+}
+
 /// Chunks of packs, their colours, and the order in which threads run them (see the module doc).
 #[derive(Clone, Debug, Default)]
 pub struct Schedule {
@@ -144,6 +214,15 @@ pub struct Schedule {
     /// come before it in the schedule's sequence, `lead` then `rest`.
     pub wait_start: Vec<u32>,
     pub wait_on: Vec<u32>,
+    /// The lead chunks of region `r` in index order: `lead_local[lead_local_start[r]..
+    /// lead_local_start[r + 1]]` (the same chunks as `lead`, by region).
+    pub lead_local: Vec<u32>,
+    pub lead_local_start: Vec<u32>,
+    /// Where region `r`'s trailing chunks start in `rest` (its interior ones are
+    /// `rest[region_start[r]..trail_start[r]]`).
+    pub trail_start: Vec<u32>,
+    /// The longest chain of waits, in chunks (`run_dataflow` helps along such a chain).
+    pub chain: u32,
 }
 
 impl Schedule {
@@ -268,8 +347,17 @@ impl Schedule {
         self.lead = (0..deepest).flat_map(|j| lead_of.iter().filter_map(move |l| l.get(j).copied())).collect();
         self.region_start = vec![0];
         self.rest = Vec::with_capacity(n_chunks - self.lead.len());
+        self.lead_local = lead_of.concat();
+        self.lead_local_start = std::iter::once(0)
+            .chain(lead_of.iter().scan(0u32, |a, l| {
+                *a += l.len() as u32;
+                Some(*a)
+            }))
+            .collect();
+        self.trail_start = Vec::with_capacity(n_regions);
         for r in 0..n_regions {
             self.rest.extend_from_slice(&inner_of[r]);
+            self.trail_start.push(self.rest.len() as u32);
             self.rest.extend_from_slice(&trail_of[r]);
             self.region_start.push(self.rest.len() as u32);
         }
@@ -298,6 +386,12 @@ impl Schedule {
         // the one nearest to region by region, interior, then the next region's lead chunks,
         // then the trailing ones (Kahn's algorithm, the nearest first): the clusters a lead
         // chunk shares are still in cache from the chunks before it.
+        let mut depth = vec![0u32; n_chunks];
+        for &k in self.lead.iter().chain(&self.rest) {
+            let k = k as usize;
+            depth[k] = 1 + self.wait_on[self.wait_start[k] as usize..self.wait_start[k + 1] as usize].iter().map(|&w| depth[w as usize]).max().unwrap_or(0);
+        }
+        self.chain = depth.iter().copied().max().unwrap_or(0);
         let mut near_rank = vec![0u32; n_chunks];
         let mut i = 0u32;
         // (Region 0 has no lead chunk: the lead chunks of region r + 1 come after region r's interior.)
@@ -416,6 +510,176 @@ impl Schedule {
         pool.install(|| fan(pool.current_num_threads(), &work));
     }
 
+    /// The longest chain of waits along which [`Self::run_dataflow_local`] may help (its
+    /// recursion depth); a schedule with a longer one runs [`Self::run_dataflow`].
+    pub const LOCAL_CHAIN: u32 = 256;
+
+    /// Runs every chunk once with `run` on the threads of `pool`, region by region (ours,
+    /// session 29: the lead chunks next to the chunks that share their clusters, so that
+    /// those clusters are still in cache). Each thread takes the next region `r` and runs
+    /// those of its lead chunks nobody has taken, its interior chunks, the next region's lead
+    /// chunks nobody has taken, then its trailing chunks. A chunk is *taken* by the thread
+    /// that swaps `epoch` into its `taken` flag first, and runs on that thread only; before
+    /// it runs, each chunk it waits for is either done, or taken by another thread (then
+    /// this one spins until it is done), or not yet taken (then this one takes it and runs
+    /// it first, helping). The same sums as [`Self::run_dataflow`] and as one thread: two
+    /// chunks sharing a cluster run in sequence order (the waits).
+    ///
+    /// No deadlock: a thread spins only on a taken chunk that is not done. Of all taken chunks
+    /// not done, the one earliest in the sequence waits only for chunks earlier still, so for
+    /// done ones or ones nobody has taken, which its thread takes and runs (each earlier
+    /// again): its thread always progresses. The helping recursion is at most `chain` deep
+    /// (at most [`Self::LOCAL_CHAIN`]: the caller runs [`Self::run_dataflow`] otherwise).
+    pub fn run_dataflow_local(&self, pool: &rayon::ThreadPool, done: &[std::sync::atomic::AtomicU32], taken: &[std::sync::atomic::AtomicU32], epoch: u32, run: impl Fn(usize) + Sync) {
+        use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+        debug_assert!(self.chain <= Self::LOCAL_CHAIN);
+        struct Flow<'a, F> {
+            s: &'a Schedule,
+            done: &'a [std::sync::atomic::AtomicU32],
+            taken: &'a [std::sync::atomic::AtomicU32],
+            epoch: u32,
+            poisoned: AtomicBool,
+            run: F,
+        }
+        struct OnPanic<'a>(&'a AtomicBool);
+        impl Drop for OnPanic<'_> {
+            fn drop(&mut self) {
+                if std::thread::panicking() {
+                    self.0.store(true, Ordering::Relaxed);
+                }
+            }
+        }
+        impl<F: Fn(usize) + Sync> Flow<'_, F> {
+            /// Takes chunk `k` if nobody has (the swap orders the takers of one flag).
+            fn take(&self, k: usize) -> bool {
+                self.taken[k].load(Ordering::Relaxed) != self.epoch && self.taken[k].swap(self.epoch, Ordering::Relaxed) != self.epoch
+            }
+            /// Runs chunk `k`, taken by this thread, after its waits.
+            fn go(&self, k: usize) {
+                let s = self.s;
+                for &w in &s.wait_on[s.wait_start[k] as usize..s.wait_start[k + 1] as usize] {
+                    let w = w as usize;
+                    if self.done[w].load(Ordering::Acquire) == self.epoch {
+                        continue;
+                    }
+                    if self.take(w) {
+                        self.go(w);
+                        continue;
+                    }
+                    let mut spins = 0u32;
+                    // Acquire: the forces the waited-for chunk wrote are visible here.
+                    while self.done[w].load(Ordering::Acquire) != self.epoch {
+                        spins += 1;
+                        if spins < 256 {
+                            std::hint::spin_loop();
+                        } else {
+                            if self.poisoned.load(Ordering::Relaxed) {
+                                return;
+                            }
+                            std::thread::yield_now();
+                        }
+                    }
+                }
+                let guard = OnPanic(&self.poisoned);
+                (self.run)(k);
+                drop(guard);
+                // Release: every write of chunk k happens before a waiting chunk's reads.
+                self.done[k].store(self.epoch, Ordering::Release);
+            }
+            fn offer(&self, ks: &[u32]) {
+                for &k in ks {
+                    if self.take(k as usize) {
+                        self.go(k as usize);
+                    }
+                }
+            }
+        }
+        let flow = Flow { s: self, done, taken, epoch, poisoned: AtomicBool::new(false), run };
+        let next_region = AtomicUsize::new(0);
+        let n_regions = self.region_start.len().saturating_sub(1);
+        let lead_of = |r: usize| if r < n_regions { &self.lead_local[self.lead_local_start[r] as usize..self.lead_local_start[r + 1] as usize] } else { &[][..] };
+        let work = || loop {
+            let r = next_region.fetch_add(1, Ordering::Relaxed);
+            if r >= n_regions {
+                break;
+            }
+            flow.offer(lead_of(r));
+            // Only this region's own chunks wait for its interior and trailing chunks, and
+            // they run on this thread: nobody helps with them, no flag is needed.
+            self.rest[self.region_start[r] as usize..self.trail_start[r] as usize].iter().for_each(|&k| flow.go(k as usize));
+            flow.offer(lead_of(r + 1));
+            self.rest[self.trail_start[r] as usize..self.region_start[r + 1] as usize].iter().for_each(|&k| flow.go(k as usize));
+        };
+        fn fan(n: usize, work: &(impl Fn() + Sync)) {
+            if n <= 1 {
+                work()
+            } else {
+                rayon::join(|| fan(n / 2, work), || fan(n - n / 2, work));
+            }
+        }
+        pool.install(|| fan(pool.current_num_threads(), &work));
+    }
+
+    /// The makespan of [`Self::run_dataflow_local`] on `threads` threads when chunk `k` takes
+    /// `cost[k]` (a model, like [`Self::simulate_dataflow`]): the free thread that comes first
+    /// takes the next region and runs its lead chunks not yet taken, its interior ones, the
+    /// next region's lead chunks not yet taken and its trailing ones; a chunk starts when its
+    /// thread is free and its waits are done, and a wait not yet taken is run first on the
+    /// same thread (helping).
+    pub fn simulate_dataflow_local(&self, cost: &[f64], threads: usize) -> f64 {
+        assert_eq!(cost.len(), self.n_chunks(), "one cost per chunk");
+        struct Sim<'a> {
+            s: &'a Schedule,
+            cost: &'a [f64],
+            /// Per chunk: NaN not taken, else the time it is done (known when it is taken).
+            done: Vec<f64>,
+        }
+        impl Sim<'_> {
+            /// Takes and runs chunk `k` on a thread free at `t`; returns when it is done.
+            fn go(&mut self, t: f64, k: usize) -> f64 {
+                let s = self.s;
+                let mut t = t;
+                self.done[k] = f64::INFINITY;
+                for &w in &s.wait_on[s.wait_start[k] as usize..s.wait_start[k + 1] as usize] {
+                    let w = w as usize;
+                    if self.done[w].is_nan() {
+                        t = self.go(t, w);
+                    }
+                    t = t.max(self.done[w]);
+                }
+                self.done[k] = t + self.cost[k];
+                self.done[k]
+            }
+        }
+        let n_regions = self.region_start.len().saturating_sub(1);
+        let lead_of = |r: usize| if r < n_regions { &self.lead_local[self.lead_local_start[r] as usize..self.lead_local_start[r + 1] as usize] } else { &[][..] };
+        let mut sim = Sim { s: self, cost, done: vec![f64::NAN; cost.len()] };
+        // Each thread's time and what is left of its region's chunks; the thread whose time
+        // comes first decides next (takes its next chunk, or the next region), so that a
+        // chunk is found taken when a thread earlier in time took it.
+        let n = threads.max(1);
+        let (mut time, mut todo, mut next_region) = (vec![0.0f64; n], vec![std::collections::VecDeque::<u32>::new(); n], 0);
+        let mut live = vec![true; n];
+        while let Some(th) = (0..n).filter(|&i| live[i]).reduce(|a, b| if time[b] < time[a] { b } else { a }) {
+            let Some(k) = todo[th].pop_front() else {
+                if next_region == n_regions {
+                    live[th] = false;
+                } else {
+                    let r = next_region;
+                    next_region += 1;
+                    let rest = |a: u32, b: u32| &self.rest[a as usize..b as usize];
+                    todo[th].extend(lead_of(r).iter().chain(rest(self.region_start[r], self.trail_start[r])).chain(lead_of(r + 1)).chain(rest(self.trail_start[r], self.region_start[r + 1])));
+                }
+                continue;
+            };
+            if sim.done[k as usize].is_nan() {
+                time[th] = sim.go(time[th], k as usize);
+            }
+        }
+        debug_assert!(!sim.done.iter().any(|d| d.is_nan() || d.is_infinite()), "every chunk ran");
+        time.iter().copied().fold(0.0, f64::max)
+    }
+
     pub fn n_chunks(&self) -> usize {
         self.colours.iter().map(Vec::len).sum()
     }
@@ -491,6 +755,11 @@ unsafe impl Sync for SharedForces {}
 impl SharedForces {
     pub fn new(f: &mut [[f64; 2]]) -> Self {
         SharedForces { ptr: f.as_mut_ptr(), len: f.len() }
+    }
+    /// The address of `f[c]` (for a prefetch hint only; never dereferenced here).
+    #[inline(always)]
+    pub fn ptr_at(&self, c: usize) -> *const [f64; 2] {
+        self.ptr.wrapping_add(c.min(self.len.saturating_sub(1)))
     }
     /// `f[c] += v`.
     ///
@@ -575,6 +844,18 @@ mod tests {
         // The pool still works afterwards.
         s.run_dataflow(&pool, &done, 2, |_| {});
         assert!(done.iter().all(|d| d.load(std::sync::atomic::Ordering::Relaxed) == 2));
+        // The same with the local dataflow (its lead chunks are offered region by region).
+        let taken: Vec<std::sync::atomic::AtomicU32> = (0..s.n_chunks()).map(|_| std::sync::atomic::AtomicU32::new(0)).collect();
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            s.run_dataflow_local(&pool, &done, &taken, 3, |k| {
+                if k == bad {
+                    panic!("chunk {k} fails");
+                }
+            })
+        }));
+        assert!(r.is_err(), "the chunk's panic reaches the caller (local)");
+        s.run_dataflow_local(&pool, &done, &taken, 4, |_| {});
+        assert!(done.iter().all(|d| d.load(std::sync::atomic::Ordering::Relaxed) == 4));
     }
 
     /// A structured `nx` x `ny` grid of quads, row by row.
@@ -691,6 +972,34 @@ mod tests {
             for k in 0..nc {
                 assert!(waits(k).iter().all(|&w| at[w as usize] < at[k]), "{name}: the one-thread order runs {k} before a chunk it waits for");
             }
+            // The local dataflow's tables: the lead chunks by region (the same set as `lead`,
+            // each in its region's chunk range), the interior chunks before `trail_start`
+            // sharing no cluster with another region, and the longest chain of waits.
+            let n_regions = s.region_start.len() - 1;
+            let mut by_region = s.lead_local.clone();
+            by_region.sort_unstable();
+            let mut lead = s.lead.clone();
+            lead.sort_unstable();
+            assert_eq!(by_region, lead, "{name}: lead_local holds the lead chunks");
+            assert_eq!((s.lead_local_start.len(), s.trail_start.len()), (n_regions + 1, n_regions));
+            let mut next = 0u32;
+            for r in 0..n_regions {
+                // Region r is a range of consecutive chunks: its lead chunks and its others.
+                let mut mine: Vec<u32> = s.lead_local[s.lead_local_start[r] as usize..s.lead_local_start[r + 1] as usize].to_vec();
+                mine.extend_from_slice(&s.rest[s.region_start[r] as usize..s.region_start[r + 1] as usize]);
+                mine.sort_unstable();
+                assert!(mine.iter().copied().eq(next..next + mine.len() as u32), "{name}: region {r} is chunks {next}.. ({mine:?})");
+                next += mine.len() as u32;
+                for &k in &s.rest[s.region_start[r] as usize..s.trail_start[r] as usize] {
+                    let in_r = |o: u32| region_of(o) == Some(r) || s.lead_local[s.lead_local_start[r] as usize..s.lead_local_start[r + 1] as usize].contains(&o);
+                    assert!((0..nc).all(|o| !share[k as usize][o] || in_r(o as u32)), "{name}: interior chunk {k} shares a cluster outside region {r}");
+                }
+            }
+            let mut depth = vec![0u32; nc];
+            for &k in &seq {
+                depth[k as usize] = 1 + waits(k as usize).iter().map(|&w| depth[w as usize]).max().unwrap_or(0);
+            }
+            assert_eq!(s.chain, depth.iter().copied().max().unwrap(), "{name}: the longest chain");
             if name == "grid" {
                 assert!(s.region_start.len() > 4 && !s.lead.is_empty(), "{name}: several regions with lead chunks");
                 assert!(s.lead.len() * 5 < nc, "{name}: few lead chunks on a row-by-row grid ({} of {nc})", s.lead.len());
@@ -719,12 +1028,22 @@ mod tests {
             for threads in 1..=4 {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
                 let done: Vec<AtomicU32> = (0..nc).map(|_| AtomicU32::new(0)).collect();
-                for epoch in 1..=2 {
+                let taken: Vec<AtomicU32> = (0..nc).map(|_| AtomicU32::new(0)).collect();
+                // Epochs 1 and 2: `run_dataflow`; 3 and 4: `run_dataflow_local`.
+                for epoch in 1..=4 {
                     // Chunks sharing a cluster never overlap, so the start order gives each
                     // cluster's order; the thread of each chunk gives each thread's order.
                     let log = Mutex::new(Vec::new());
-                    s.run_dataflow(&pool, &done, epoch, |k| log.lock().unwrap().push((k as u32, rayon::current_thread_index().unwrap())));
+                    let run = |k: usize| log.lock().unwrap().push((k as u32, rayon::current_thread_index().unwrap()));
+                    if epoch <= 2 {
+                        s.run_dataflow(&pool, &done, epoch, run);
+                    } else {
+                        s.run_dataflow_local(&pool, &done, &taken, epoch, run);
+                    }
                     let log = log.into_inner().unwrap();
+                    let mut once = log.iter().map(|x| x.0).collect::<Vec<_>>();
+                    once.sort_unstable();
+                    assert!(once.iter().copied().eq(0..nc as u32), "{name}, {threads} threads, epoch {epoch}: every chunk once");
                     let ran: Vec<u32> = log.iter().map(|x| x.0).collect();
                     assert_eq!(per_cluster(&conn, n, ce, &ran), want, "{name}, {threads} threads: a cluster receives its chunks in another order");
                     for t in 0..threads {
@@ -770,11 +1089,13 @@ mod tests {
         let rank = s.sequence_rank();
         for p in [1usize, 2, 4, 16, 64] {
             let bound = (nc as f64 / p as f64).max(17.0);
-            let (list, flow) = (g.list_schedule(p, &rank), s.simulate_dataflow(&unit, p));
+            let (list, flow, local) = (g.list_schedule(p, &rank), s.simulate_dataflow(&unit, p), s.simulate_dataflow_local(&unit, p));
             assert!(list >= bound && list <= 1.1 * bound, "{p} threads: list schedule {list}, bound {bound}");
             assert!(flow >= bound && flow <= 1.1 * bound, "{p} threads: dataflow model {flow}, bound {bound}");
+            assert!(local >= bound && local <= 1.1 * bound, "{p} threads: local dataflow model {local}, bound {bound}");
         }
         assert_eq!(s.simulate_dataflow(&unit, 1), nc as f64, "one thread: the work");
+        assert_eq!(s.simulate_dataflow_local(&unit, 1), nc as f64, "one thread: the work (local)");
     }
 
     /// `simulate_dataflow` by hand, on a schedule written out: chunks 0 and 1 form region 0
@@ -794,11 +1115,21 @@ mod tests {
             rest: vec![0, 1, 3],
             wait_start: vec![0, 0, 0, 0, 1],
             wait_on: vec![2],
+            lead_local: vec![2],
+            lead_local_start: vec![0, 0, 1],
+            trail_start: vec![2, 3],
+            chain: 2,
         };
         let cost = [2.0, 2.0, 1.0, 1.0];
         assert_eq!(s.sequence_rank(), vec![1, 2, 0, 3]);
         assert_eq!(s.simulate_dataflow(&cost, 2), 4.0);
         assert_eq!(s.simulate_dataflow(&cost, 1), 6.0);
+        // The local dataflow: thread 0 takes region 0 and runs chunk 0 (0 to 2); thread 1
+        // region 1: its lead chunk 2 (0 to 1), then 3 (1 to 2); thread 0 runs 1 (2 to 4) and
+        // finds chunk 2 (region 1's lead, offered after region 0's interior) taken: 4. One
+        // thread: 0, 1, then 2 (offered as the next region's lead), then 3: 6.
+        assert_eq!(s.simulate_dataflow_local(&cost, 2), 4.0);
+        assert_eq!(s.simulate_dataflow_local(&cost, 1), 6.0);
         let g = s.task_graph(&cost);
         assert_eq!(g.list_schedule(2, &s.sequence_rank()), 3.0);
         assert_eq!(g.list_schedule(1, &s.sequence_rank()), 6.0);

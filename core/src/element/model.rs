@@ -408,6 +408,12 @@ impl Model {
         Ok(())
     }
 
+    /// Which dataflow the force passes run on several threads (issue 42, session 29; the same
+    /// bits with either: `element::kernel::Dataflow`). `Auto` unless set.
+    pub fn set_dataflow(&mut self, d: crate::element::kernel::Dataflow) {
+        self.blocks.iter_mut().for_each(|b| b.set_dataflow(d));
+    }
+
     /// Threads in use (1 without a pool).
     pub fn threads(&self) -> usize {
         self.pool.as_ref().map_or(1, |p| p.current_num_threads())
