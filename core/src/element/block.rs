@@ -123,19 +123,21 @@ pub trait Block: Send + Sync {
     fn isoparametric(&self) -> bool {
         true
     }
+    /// Which dataflow the block's force pass runs on several threads
+    /// (`element::kernel::Dataflow`; the same bits with either; `Local` also turns on the
+    /// pass's prefetch, which is otherwise on beyond the last-level cache only). Ignored by a
+    /// block that does not run the dataflow (the default).
+    fn set_dataflow(&mut self, _d: Dataflow) {}
+    /// Whether the force pass on several threads runs the local dataflow with `n_clusters`
+    /// clusters (false for a block too small to run any dataflow; `None` for a block that runs
+    /// no dataflow, the default).
+    fn dataflow_local(&self, _n_clusters: usize) -> Option<bool> {
+        None
+    }
     /// The force pass's schedule and the cost of each of its chunks on one thread (seconds,
     /// the least of `passes` passes in the one-thread order: on a shared machine the least
     /// disturbed; `flem bench step`'s task graph, issue 42). `None` for a block that does not
     /// run the dataflow (the default).
-    /// Which dataflow the block's force pass runs on several threads
-    /// (`element::kernel::Dataflow`; the same bits with either). Ignored by a block that does
-    /// not run the dataflow (the default).
-    fn set_dataflow(&mut self, _d: Dataflow) {}
-    /// Whether the force pass on several threads runs the local dataflow with `n_clusters`
-    /// clusters (`None` for a block that runs no dataflow, the default).
-    fn dataflow_local(&self, _n_clusters: usize) -> Option<bool> {
-        None
-    }
     fn chunk_costs(&self, _u: &[[f64; 2]], _passes: usize) -> Option<(crate::element::kernel::Schedule, Vec<f64>)> {
         None
     }
@@ -290,8 +292,9 @@ pub struct ElementBlock<S: Blocked<N>, const N: usize> {
     extra: Vec<S::Extra>,
     /// Per pack, the index of its extra part in `extra`, `u32::MAX` for none.
     extra_of: Vec<u32>,
-    /// The threads' chunk flags and the last epoch (`Schedule::run_dataflow`); a call that
-    /// finds them taken (another thread in the same block) runs on its own thread instead.
+    /// The last epoch and the threads' chunk flags: done (`Schedule::run_dataflow` and
+    /// `run_dataflow_local`) and taken (`run_dataflow_local`'s lead chunks); a call that finds
+    /// them in use (another thread in the same block) runs on its own thread instead.
     dataflow: std::sync::Mutex<(u32, Vec<std::sync::atomic::AtomicU32>, Vec<std::sync::atomic::AtomicU32>)>,
     /// Which dataflow the threads run (`Block::set_dataflow`; the same bits with either).
     dataflow_mode: Dataflow,
@@ -396,7 +399,7 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     fn run_chunk_body<const ZERO: bool, const WIDE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
         // Only a pass that streams more than the cache holds prefetches (in cache they have
         // nothing to fetch); two loops, so that the one without is the loop as before.
-        if self.beyond_cache(u.len()) {
+        if self.beyond_cache(u.len()) || self.dataflow_mode == Dataflow::Local {
             self.run_packs::<ZERO, WIDE, true>(k, u, f)
         } else {
             self.run_packs::<ZERO, WIDE, false>(k, u, f)
@@ -477,7 +480,8 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     /// writers) and the clusters of the first and last element of the pack half as far ahead
     /// (whose corners were fetched as many packs ago). The hardware's stream prefetchers stop
     /// at every 4 KiB page; at 1e6 Q4 elements the pass is 1.05-1.2 x faster with it
-    /// (docs/perf/README.md, session 29). Run only by a pass beyond the cache (`beyond_cache`).
+    /// (docs/perf/README.md, session 29). Run only by a pass beyond the cache (`beyond_cache`)
+    /// or with `Dataflow::Local` set (so that tests on small meshes run it too).
     #[inline(always)]
     fn prefetch_ahead<const ZERO: bool>(&self, p: usize, u: &[[f64; 2]], f: SharedForces) {
         #[cfg(target_arch = "x86_64")]
@@ -895,7 +899,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         self.dataflow_mode = d;
     }
     fn dataflow_local(&self, n_clusters: usize) -> Option<bool> {
-        Some(self.sched.chain <= Schedule::LOCAL_CHAIN && self.dataflow_mode.local_for(self.streamed_bytes(n_clusters)))
+        Some(self.len() >= PAR_MIN_ELEMS && self.sched.chain <= Schedule::LOCAL_CHAIN && self.dataflow_mode.local_for(self.streamed_bytes(n_clusters)))
     }
     fn chunk_costs(&self, u: &[[f64; 2]], passes: usize) -> Option<(Schedule, Vec<f64>)> {
         let run = Self::best_chunk_fn::<false>();

@@ -221,7 +221,8 @@ pub struct Schedule {
     /// Where region `r`'s trailing chunks start in `rest` (its interior ones are
     /// `rest[region_start[r]..trail_start[r]]`).
     pub trail_start: Vec<u32>,
-    /// The longest chain of waits, in chunks (`run_dataflow` helps along such a chain).
+    /// The longest chain of waits, in chunks (`run_dataflow_local` helps along such a chain,
+    /// at most [`Schedule::LOCAL_CHAIN`] deep).
     pub chain: u32,
 }
 
@@ -522,17 +523,23 @@ impl Schedule {
     /// that swaps `epoch` into its `taken` flag first, and runs on that thread only; before
     /// it runs, each chunk it waits for is either done, or taken by another thread (then
     /// this one spins until it is done), or not yet taken (then this one takes it and runs
-    /// it first, helping). The same sums as [`Self::run_dataflow`] and as one thread: two
-    /// chunks sharing a cluster run in sequence order (the waits).
+    /// it first: the helping of work-stealing runtimes' joins, as in Java's ForkJoin or TBB). The
+    /// same sums as [`Self::run_dataflow`] and as one thread: two chunks sharing a cluster run
+    /// in sequence order (the waits).
     ///
     /// No deadlock: a thread spins only on a taken chunk that is not done. Of all taken chunks
     /// not done, the one earliest in the sequence waits only for chunks earlier still, so for
     /// done ones or ones nobody has taken, which its thread takes and runs (each earlier
-    /// again): its thread always progresses. The helping recursion is at most `chain` deep
-    /// (at most [`Self::LOCAL_CHAIN`]: the caller runs [`Self::run_dataflow`] otherwise).
+    /// again): its thread always progresses. The helping recursion is at most `chain` deep;
+    /// a schedule whose `chain` exceeds [`Self::LOCAL_CHAIN`] runs [`Self::run_dataflow`]
+    /// instead. A chunk that panics stops every thread at its next wait (`poisoned`): no
+    /// chunk starts after one of its waits gave up.
     pub fn run_dataflow_local(&self, pool: &rayon::ThreadPool, done: &[std::sync::atomic::AtomicU32], taken: &[std::sync::atomic::AtomicU32], epoch: u32, run: impl Fn(usize) + Sync) {
         use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-        debug_assert!(self.chain <= Self::LOCAL_CHAIN);
+        if self.chain > Self::LOCAL_CHAIN {
+            // Helping could recurse as deep as the chain: the phases instead.
+            return self.run_dataflow(pool, done, epoch, run);
+        }
         struct Flow<'a, F> {
             s: &'a Schedule,
             done: &'a [std::sync::atomic::AtomicU32],
@@ -554,8 +561,9 @@ impl Schedule {
             fn take(&self, k: usize) -> bool {
                 self.taken[k].load(Ordering::Relaxed) != self.epoch && self.taken[k].swap(self.epoch, Ordering::Relaxed) != self.epoch
             }
-            /// Runs chunk `k`, taken by this thread, after its waits.
-            fn go(&self, k: usize) {
+            /// Runs chunk `k`, taken by this thread, after its waits; false when it gave up
+            /// (a chunk panicked: nothing more runs on this thread).
+            fn go(&self, k: usize) -> bool {
                 let s = self.s;
                 for &w in &s.wait_on[s.wait_start[k] as usize..s.wait_start[k + 1] as usize] {
                     let w = w as usize;
@@ -563,7 +571,9 @@ impl Schedule {
                         continue;
                     }
                     if self.take(w) {
-                        self.go(w);
+                        if !self.go(w) {
+                            return false;
+                        }
                         continue;
                     }
                     let mut spins = 0u32;
@@ -574,7 +584,7 @@ impl Schedule {
                             std::hint::spin_loop();
                         } else {
                             if self.poisoned.load(Ordering::Relaxed) {
-                                return;
+                                return false;
                             }
                             std::thread::yield_now();
                         }
@@ -585,13 +595,10 @@ impl Schedule {
                 drop(guard);
                 // Release: every write of chunk k happens before a waiting chunk's reads.
                 self.done[k].store(self.epoch, Ordering::Release);
+                true
             }
-            fn offer(&self, ks: &[u32]) {
-                for &k in ks {
-                    if self.take(k as usize) {
-                        self.go(k as usize);
-                    }
-                }
+            fn offer(&self, ks: &[u32]) -> bool {
+                ks.iter().all(|&k| !self.take(k as usize) || self.go(k as usize))
             }
         }
         let flow = Flow { s: self, done, taken, epoch, poisoned: AtomicBool::new(false), run };
@@ -603,12 +610,15 @@ impl Schedule {
             if r >= n_regions {
                 break;
             }
-            flow.offer(lead_of(r));
             // Only this region's own chunks wait for its interior and trailing chunks, and
             // they run on this thread: nobody helps with them, no flag is needed.
-            self.rest[self.region_start[r] as usize..self.trail_start[r] as usize].iter().for_each(|&k| flow.go(k as usize));
-            flow.offer(lead_of(r + 1));
-            self.rest[self.trail_start[r] as usize..self.region_start[r + 1] as usize].iter().for_each(|&k| flow.go(k as usize));
+            let ok = flow.offer(lead_of(r))
+                && self.rest[self.region_start[r] as usize..self.trail_start[r] as usize].iter().all(|&k| flow.go(k as usize))
+                && flow.offer(lead_of(r + 1))
+                && self.rest[self.trail_start[r] as usize..self.region_start[r + 1] as usize].iter().all(|&k| flow.go(k as usize));
+            if !ok {
+                break;
+            }
         };
         fn fan(n: usize, work: &(impl Fn() + Sync)) {
             if n <= 1 {
@@ -625,7 +635,8 @@ impl Schedule {
     /// takes the next region and runs its lead chunks not yet taken, its interior ones, the
     /// next region's lead chunks not yet taken and its trailing ones; a chunk starts when its
     /// thread is free and its waits are done, and a wait not yet taken is run first on the
-    /// same thread (helping).
+    /// same thread (helping). An approximation: a thread settles all the helping a chunk
+    /// needs when it starts that chunk, where the code decides wait by wait.
     pub fn simulate_dataflow_local(&self, cost: &[f64], threads: usize) -> f64 {
         assert_eq!(cost.len(), self.n_chunks(), "one cost per chunk");
         struct Sim<'a> {
@@ -1016,6 +1027,24 @@ mod tests {
     /// grids of `sequence_and_waits_fix_every_shared_cluster` and the 1e6-element bench grid.
     #[test]
     fn dataflow_keeps_the_per_cluster_order_on_every_thread_count() {
+        // On its own thread: a dataflow that hangs fails the test instead of stalling the suite.
+        let (tx, rx) = std::sync::mpsc::channel();
+        let h = std::thread::spawn(move || {
+            dataflow_order_runs();
+            let _ = tx.send(());
+        });
+        if rx.recv_timeout(std::time::Duration::from_secs(300)).is_err() {
+            // The thread panicked (join re-raises it) or hung.
+            if h.is_finished() {
+                if let Err(e) = h.join() {
+                    std::panic::resume_unwind(e);
+                }
+            }
+            panic!("the dataflow hung");
+        }
+    }
+
+    fn dataflow_order_runs() {
         use std::sync::atomic::AtomicU32;
         use std::sync::Mutex;
         // "bench": the 1e6-element grid of `flem bench step`, 122 regions (more than 64, the
@@ -1033,12 +1062,34 @@ mod tests {
                 for epoch in 1..=4 {
                     // Chunks sharing a cluster never overlap, so the start order gives each
                     // cluster's order; the thread of each chunk gives each thread's order.
+                    // Each chunk logs its start and its end: two chunks sharing a cluster must
+                    // not overlap (the earlier one ends before the later one starts).
+                    let events = Mutex::new(Vec::new());
                     let log = Mutex::new(Vec::new());
-                    let run = |k: usize| log.lock().unwrap().push((k as u32, rayon::current_thread_index().unwrap()));
+                    let run = |k: usize| {
+                        events.lock().unwrap().push((k, false));
+                        log.lock().unwrap().push((k as u32, rayon::current_thread_index().unwrap()));
+                        std::hint::black_box((0..50).sum::<u64>());
+                        events.lock().unwrap().push((k, true));
+                    };
                     if epoch <= 2 {
                         s.run_dataflow(&pool, &done, epoch, run);
                     } else {
                         s.run_dataflow_local(&pool, &done, &taken, epoch, run);
+                    }
+                    let events = events.into_inner().unwrap();
+                    let (mut start, mut end) = (vec![usize::MAX; nc], vec![usize::MAX; nc]);
+                    for (i, &(k, e)) in events.iter().enumerate() {
+                        if e {
+                            end[k] = i;
+                        } else {
+                            start[k] = i;
+                        }
+                    }
+                    for order in &want {
+                        for w in order.windows(2) {
+                            assert!(end[w[0] as usize] < start[w[1] as usize], "{name}, {threads} threads, epoch {epoch}: chunks {} and {} share a cluster and overlap", w[0], w[1]);
+                        }
                     }
                     let log = log.into_inner().unwrap();
                     let mut once = log.iter().map(|x| x.0).collect::<Vec<_>>();
