@@ -9,14 +9,14 @@
 //! builds the blocks of a `Model`.
 use std::marker::PhantomData;
 
-/// How far ahead the force pass prefetches, in packs (`ElementBlock::prefetch_ahead`; 4 to 16
-/// measured alike at 1e6 Q4 elements, session 29).
-const PREFETCH_PACKS: usize = 8;
-
 use crate::element::kernel::{Blocked, Dataflow, Schedule, SharedForces, LANES};
 use crate::element::{self, Dmat, Material};
 use crate::ids::ElemId;
 use crate::mesh::CellKind;
+
+/// How far ahead the force pass prefetches, in packs (`ElementBlock::prefetch_ahead`; 4 to 16
+/// measured alike at 1e6 Q4 elements, session 29).
+const PREFETCH_PACKS: usize = 8;
 
 /// A batch of elements of one kind and one material, seen by the solver.
 pub trait Block: Send + Sync {
@@ -479,8 +479,8 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     /// streams of the pack [`PREFETCH_PACKS`] after `p` (its geometry, its corners, its first
     /// writers) and the clusters of the first and last element of the pack half as far ahead
     /// (whose corners were fetched as many packs ago). The hardware's stream prefetchers stop
-    /// at every 4 KiB page; at 1e6 Q4 elements the pass is 1.05-1.2 x faster with it
-    /// (docs/perf/README.md, session 29). Run only by a pass beyond the cache (`beyond_cache`)
+    /// at every 4 KiB page; at 1e6 Q4 elements the pass is 1.1-1.3 x faster with it on one
+    /// thread and 1.2-1.4 x on two (docs/perf/README.md, session 29). Run only by a pass beyond the cache (`beyond_cache`)
     /// or with `Dataflow::Local` set (so that tests on small meshes run it too).
     #[inline(always)]
     fn prefetch_ahead<const ZERO: bool>(&self, p: usize, u: &[[f64; 2]], f: SharedForces) {
