@@ -227,6 +227,20 @@ pub struct Schedule {
     pub chain: u32,
 }
 
+/// Runs `work` once on each thread of `pool` (as far as the pool lends them: a half that no
+/// other thread steals runs after the first), started with `rayon::join` inside `install`
+/// (no allocation per call, unlike `broadcast`).
+fn run_on_every_thread(pool: &rayon::ThreadPool, work: &(impl Fn() + Sync)) {
+    fn fan(n: usize, work: &(impl Fn() + Sync)) {
+        if n <= 1 {
+            work()
+        } else {
+            rayon::join(|| fan(n / 2, work), || fan(n - n / 2, work));
+        }
+    }
+    pool.install(|| fan(pool.current_num_threads(), work));
+}
+
 impl Schedule {
     /// Chunk size from the block size only: about 64 chunks per block, 4 to 64 packs each.
     pub fn chunk_packs_for(n_packs: usize) -> usize {
@@ -502,14 +516,7 @@ impl Schedule {
                 self.rest[self.region_start[r] as usize..self.region_start[r + 1] as usize].iter().for_each(|&k| one(k));
             }
         };
-        fn fan(n: usize, work: &(impl Fn() + Sync)) {
-            if n <= 1 {
-                work()
-            } else {
-                rayon::join(|| fan(n / 2, work), || fan(n - n / 2, work));
-            }
-        }
-        pool.install(|| fan(pool.current_num_threads(), &work));
+        run_on_every_thread(pool, &work);
     }
 
     /// The longest chain of waits along which [`Self::run_dataflow_local`] may help (its
@@ -621,14 +628,7 @@ impl Schedule {
                 break;
             }
         };
-        fn fan(n: usize, work: &(impl Fn() + Sync)) {
-            if n <= 1 {
-                work()
-            } else {
-                rayon::join(|| fan(n / 2, work), || fan(n - n / 2, work));
-            }
-        }
-        pool.install(|| fan(pool.current_num_threads(), &work));
+        run_on_every_thread(pool, &work);
     }
 
     /// The makespan of [`Self::run_dataflow_local`] on `threads` threads when chunk `k` takes
