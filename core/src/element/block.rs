@@ -457,9 +457,10 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
             }
             for (l, c) in conn.iter().enumerate() {
                 for a in 0..N {
-                    // SAFETY: chunks running at the same time write disjoint clusters: under the
-                    // dataflow (Schedule::run_dataflow) a chunk starts only when every earlier
-                    // chunk sharing a cluster with it is done, and the later ones wait for it.
+                    // SAFETY: chunks running at the same time write disjoint clusters: under
+                    // either dataflow (Schedule::run_dataflow, run_dataflow_local) a chunk starts
+                    // only when every earlier chunk sharing a cluster with it is done (its waits
+                    // list every such chunk), and the later ones wait for it.
                     // In bounds: c[a] <= top < f.len() (asserted above).
                     unsafe { f.add_unchecked(c[a] as usize, [fg[a][0][l], fg[a][1][l]]) };
                 }
