@@ -251,7 +251,7 @@ enum BenchWhat {
         /// Dataflows of the kernel runs on several threads, each timed in every round (auto,
         /// phases, local: `flem_core::element::kernel::Dataflow`; the same forces bit for bit).
         #[arg(long, value_delimiter = ',', default_value = "auto")]
-        dataflows: Vec<String>,
+        dataflows: Vec<flem_core::element::kernel::Dataflow>,
     },
     /// Cost of a dynamic (shared-library) criterion in the failure check, against the built-in
     /// one and against the whole step.
@@ -400,9 +400,8 @@ fn bench_step(
     nonlocal_radius_h: f64,
     rounds: usize,
     graph_sizes: Vec<usize>,
-    dataflows: Vec<String>,
+    dataflows: Vec<flem_core::element::kernel::Dataflow>,
 ) -> Result<()> {
-    let dataflows = dataflows.iter().map(|d| d.parse().map_err(|e: String| anyhow::anyhow!("--dataflows: {e}"))).collect::<Result<Vec<flem_core::element::kernel::Dataflow>>>()?;
     anyhow::ensure!(!dataflows.is_empty(), "--dataflows: give at least one (auto, phases, local)");
     anyhow::ensure!(nonlocal_radius_h > 0.0 && nonlocal_radius_h.is_finite(), "--nonlocal-radius-h = {nonlocal_radius_h} is incorrect; it must be > 0");
     let kinds = kinds

@@ -395,19 +395,9 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     /// Forces of the elements of chunk `k`: gather a pack, compute, scatter in element order.
     /// `ZERO`: the zero-free pass (each pack first zeroes the clusters it writes first,
     /// `FirstWriters`).
+    /// `PF`: with [`Self::prefetch_ahead`] (a pass beyond the cache, [`Self::prefetches`]).
     #[inline(always)]
-    fn run_chunk_body<const ZERO: bool, const WIDE: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        // Only a pass that streams more than the cache holds prefetches (in cache they have
-        // nothing to fetch); two loops, so that the one without is the loop as before.
-        if self.beyond_cache(u.len()) || self.dataflow_mode == Dataflow::Local {
-            self.run_packs::<ZERO, WIDE, true>(k, u, f)
-        } else {
-            self.run_packs::<ZERO, WIDE, false>(k, u, f)
-        }
-    }
-    /// The pack loop of [`Self::run_chunk_body`]; `PF`: with [`Self::prefetch_ahead`].
-    #[inline(always)]
-    fn run_packs<const ZERO: bool, const WIDE: bool, const PF: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+    fn run_chunk_body<const ZERO: bool, const WIDE: bool, const PF: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
         let cp = self.sched.chunk_packs;
         let (p0, p1) = (k * cp, ((k + 1) * cp).min(self.packs.len()));
         let mut ug = [[[0.0; LANES]; 2]; N];
@@ -481,8 +471,8 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
     /// writers) and the clusters of the first and last element of the pack half as far ahead
     /// (whose corners were fetched as many packs ago). The hardware's stream prefetchers stop
     /// at every 4 KiB page; at 1e6 Q4 elements the pass is 1.1-1.3 x faster with it on one
-    /// thread and 1.2-1.4 x on two (docs/perf/README.md, session 29). Run only by a pass beyond the cache (`beyond_cache`)
-    /// or with `Dataflow::Local` set (so that tests on small meshes run it too).
+    /// thread and 1.2-1.4 x on two (docs/perf/README.md, session 29). Run only when
+    /// [`Self::prefetches`].
     #[inline(always)]
     fn prefetch_ahead<const ZERO: bool>(&self, p: usize, u: &[[f64; 2]], f: SharedForces) {
         #[cfg(target_arch = "x86_64")]
@@ -518,48 +508,59 @@ impl<S: Blocked<N>, const N: usize> ElementBlock<S, N> {
         let _ = (p, u, f);
     }
     /// [`Self::run_chunk_body`] compiled for the baseline instruction set.
-    fn run_chunk_plain<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<ZERO, false>(k, u, f)
+    fn run_chunk_plain<const ZERO: bool, const PF: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO, false, PF>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX2 (4 lanes per vector instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn run_chunk_avx2<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<ZERO, false>(k, u, f)
+    fn run_chunk_avx2<const ZERO: bool, const PF: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO, false, PF>(k, u, f)
     }
     /// [`Self::run_chunk_body`] compiled for AVX-512 (8 lanes: one pack per instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-    fn run_chunk_avx512<const ZERO: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
-        self.run_chunk_body::<ZERO, true>(k, u, f)
+    fn run_chunk_avx512<const ZERO: bool, const PF: bool>(&self, k: usize, u: &[[f64; 2]], f: SharedForces) {
+        self.run_chunk_body::<ZERO, true, PF>(k, u, f)
     }
     /// The chunk loop for `simd` (`None` when this CPU lacks it). The three are the same
     /// code compiled for wider registers: each lane does the same IEEE operations in the same
     /// order (Rust never contracts a multiply and an add into an FMA), so the forces are the
     /// same bit for bit whichever runs (tested in flem-plugins' element tests).
     pub fn chunk_fn(simd: Simd) -> Option<ChunkFn<Self>> {
-        Self::chunk_fn_of::<false>(simd)
+        Self::chunk_fn_of::<false, false>(simd)
     }
-    /// [`Self::chunk_fn`], the adding (`ZERO = false`) or the zero-free loop.
-    fn chunk_fn_of<const ZERO: bool>(simd: Simd) -> Option<ChunkFn<Self>> {
+    /// [`Self::chunk_fn`], the adding (`ZERO = false`) or the zero-free loop, with or without
+    /// the prefetch (`PF`).
+    fn chunk_fn_of<const ZERO: bool, const PF: bool>(simd: Simd) -> Option<ChunkFn<Self>> {
         match simd {
-            Simd::Plain => Some(Self::run_chunk_plain::<ZERO>),
+            Simd::Plain => Some(Self::run_chunk_plain::<ZERO, PF>),
             #[cfg(target_arch = "x86_64")]
             Simd::Avx2 if simd.detected() => {
                 // SAFETY: the CPU has AVX2 (`detected`, on the line above).
-                Some(|b, k, u, f| unsafe { b.run_chunk_avx2::<ZERO>(k, u, f) })
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx2::<ZERO, PF>(k, u, f) })
             }
             #[cfg(target_arch = "x86_64")]
             Simd::Avx512 if simd.detected() => {
                 // SAFETY: the CPU has AVX-512 F, VL and DQ (`detected`, on the line above).
-                Some(|b, k, u, f| unsafe { b.run_chunk_avx512::<ZERO>(k, u, f) })
+                Some(|b, k, u, f| unsafe { b.run_chunk_avx512::<ZERO, PF>(k, u, f) })
             }
             _ => None,
         }
     }
-    /// The chunk loop of [`Simd::best`].
-    fn best_chunk_fn<const ZERO: bool>() -> ChunkFn<Self> {
-        Self::chunk_fn_of::<ZERO>(Simd::best()).unwrap_or(Self::run_chunk_plain::<ZERO>)
+    /// The chunk loop of [`Simd::best`] for a pass over `n_clusters` clusters (with the
+    /// prefetch when [`Self::prefetches`]; decided once per pass).
+    fn best_chunk_fn<const ZERO: bool>(&self, n_clusters: usize) -> ChunkFn<Self> {
+        if self.prefetches(n_clusters) {
+            Self::chunk_fn_of::<ZERO, true>(Simd::best()).unwrap_or(Self::run_chunk_plain::<ZERO, true>)
+        } else {
+            Self::chunk_fn_of::<ZERO, false>(Simd::best()).unwrap_or(Self::run_chunk_plain::<ZERO, false>)
+        }
+    }
+    /// Whether the force pass prefetches: beyond the cache (in cache there is nothing to
+    /// fetch), or with `Dataflow::Local` set (so that tests on small meshes run it too).
+    fn prefetches(&self, n_clusters: usize) -> bool {
+        self.beyond_cache(n_clusters) || self.dataflow_mode == Dataflow::Local
     }
     /// `f[c] += F_int` of every element, one thread, with the chunk loop of `simd`; false
     /// (nothing added) when this CPU lacks it.
@@ -806,14 +807,14 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         self.add_internal_forces_pool(u, f, None)
     }
     fn add_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) {
-        self.run_chunks(Self::best_chunk_fn::<false>(), u, f, pool)
+        self.run_chunks(self.best_chunk_fn::<false>(u.len()), u, f, pool)
     }
     fn set_internal_forces_pool(&self, u: &[[f64; 2]], f: &mut [[f64; 2]], pool: Option<&rayon::ThreadPool>) -> bool {
         if !self.zero_free_fits(f.len()) {
             return false;
         }
         self.zero_untouched(f);
-        self.run_chunks(Self::best_chunk_fn::<true>(), u, f, pool);
+        self.run_chunks(self.best_chunk_fn::<true>(u.len()), u, f, pool);
         true
     }
     fn enable_zero_free(&mut self, n_clusters: usize) -> bool {
@@ -903,7 +904,7 @@ impl<S: Blocked<N>, const N: usize> Block for ElementBlock<S, N> {
         Some(self.len() >= PAR_MIN_ELEMS && self.sched.chain <= Schedule::LOCAL_CHAIN && self.dataflow_mode.local_for(self.streamed_bytes(n_clusters)))
     }
     fn chunk_costs(&self, u: &[[f64; 2]], passes: usize) -> Option<(Schedule, Vec<f64>)> {
-        let run = Self::best_chunk_fn::<false>();
+        let run = self.best_chunk_fn::<false>(u.len());
         let mut f = vec![[0.0; 2]; u.len()];
         let shared = SharedForces::new(&mut f);
         let mut t = vec![Vec::with_capacity(passes); self.sched.n_chunks()];

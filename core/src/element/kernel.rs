@@ -227,6 +227,17 @@ pub struct Schedule {
     pub chain: u32,
 }
 
+/// Sets the dataflow's poison flag when dropped during a panic (held around each chunk's run):
+/// the threads waiting for that chunk then give up instead of spinning for ever.
+struct OnPanic<'a>(&'a std::sync::atomic::AtomicBool);
+impl Drop for OnPanic<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
 /// Runs `work` once on each thread of `pool` (as far as the pool lends them: a half that no
 /// other thread steals runs after the first), started with `rayon::join` inside `install`
 /// (no allocation per call, unlike `broadcast`).
@@ -473,14 +484,6 @@ impl Schedule {
         // would otherwise spin for ever; they give up instead, and `rayon::join` hands the
         // panic to the caller once every thread has returned.
         let poisoned = AtomicBool::new(false);
-        struct OnPanic<'a>(&'a AtomicBool);
-        impl Drop for OnPanic<'_> {
-            fn drop(&mut self) {
-                if std::thread::panicking() {
-                    self.0.store(true, Ordering::Relaxed);
-                }
-            }
-        }
         let one = |k: u32| {
             let k = k as usize;
             for &w in &self.wait_on[self.wait_start[k] as usize..self.wait_start[k + 1] as usize] {
@@ -519,6 +522,23 @@ impl Schedule {
         run_on_every_thread(pool, &work);
     }
 
+    /// Region `r`'s lead chunks in index order (none past the last region).
+    fn lead_of_region(&self, r: usize) -> &[u32] {
+        if r + 1 < self.lead_local_start.len() {
+            &self.lead_local[self.lead_local_start[r] as usize..self.lead_local_start[r + 1] as usize]
+        } else {
+            &[]
+        }
+    }
+    /// Region `r`'s interior chunks (sharing no cluster with another region).
+    fn interior_of(&self, r: usize) -> &[u32] {
+        &self.rest[self.region_start[r] as usize..self.trail_start[r] as usize]
+    }
+    /// Region `r`'s trailing chunks (sharing a cluster with a later region's lead chunks).
+    fn trailing_of(&self, r: usize) -> &[u32] {
+        &self.rest[self.trail_start[r] as usize..self.region_start[r + 1] as usize]
+    }
+
     /// The longest chain of waits along which [`Self::run_dataflow_local`] may help (its
     /// recursion depth); a schedule with a longer one runs [`Self::run_dataflow`].
     pub const LOCAL_CHAIN: u32 = 256;
@@ -555,14 +575,6 @@ impl Schedule {
             epoch: u32,
             poisoned: AtomicBool,
             run: F,
-        }
-        struct OnPanic<'a>(&'a AtomicBool);
-        impl Drop for OnPanic<'_> {
-            fn drop(&mut self) {
-                if std::thread::panicking() {
-                    self.0.store(true, Ordering::Relaxed);
-                }
-            }
         }
         impl<F: Fn(usize) + Sync> Flow<'_, F> {
             /// Takes chunk `k` if nobody has (the swap orders the takers of one flag).
@@ -612,7 +624,6 @@ impl Schedule {
         let flow = Flow { s: self, done, taken, epoch, poisoned: AtomicBool::new(false), run };
         let next_region = AtomicUsize::new(0);
         let n_regions = self.region_start.len().saturating_sub(1);
-        let lead_of = |r: usize| if r < n_regions { &self.lead_local[self.lead_local_start[r] as usize..self.lead_local_start[r + 1] as usize] } else { &[][..] };
         let work = || loop {
             let r = next_region.fetch_add(1, Ordering::Relaxed);
             if r >= n_regions {
@@ -620,10 +631,10 @@ impl Schedule {
             }
             // Only this region's own chunks wait for its interior and trailing chunks, and
             // they run on this thread: nobody helps with them, no flag is needed.
-            let ok = flow.offer(lead_of(r))
-                && self.rest[self.region_start[r] as usize..self.trail_start[r] as usize].iter().all(|&k| flow.go(k as usize))
-                && flow.offer(lead_of(r + 1))
-                && self.rest[self.trail_start[r] as usize..self.region_start[r + 1] as usize].iter().all(|&k| flow.go(k as usize));
+            let ok = flow.offer(self.lead_of_region(r))
+                && self.interior_of(r).iter().all(|&k| flow.go(k as usize))
+                && flow.offer(self.lead_of_region(r + 1))
+                && self.trailing_of(r).iter().all(|&k| flow.go(k as usize));
             if !ok {
                 break;
             }
@@ -664,7 +675,6 @@ impl Schedule {
             }
         }
         let n_regions = self.region_start.len().saturating_sub(1);
-        let lead_of = |r: usize| if r < n_regions { &self.lead_local[self.lead_local_start[r] as usize..self.lead_local_start[r + 1] as usize] } else { &[][..] };
         let mut sim = Sim { s: self, cost, done: vec![f64::NAN; cost.len()] };
         // Each thread's time and what is left of its region's chunks; the thread whose time
         // comes first decides next (takes its next chunk, or the next region), so that a
@@ -679,8 +689,7 @@ impl Schedule {
                 } else {
                     let r = next_region;
                     next_region += 1;
-                    let rest = |a: u32, b: u32| &self.rest[a as usize..b as usize];
-                    todo[th].extend(lead_of(r).iter().chain(rest(self.region_start[r], self.trail_start[r])).chain(lead_of(r + 1)).chain(rest(self.trail_start[r], self.region_start[r + 1])));
+                    todo[th].extend(self.lead_of_region(r).iter().chain(self.interior_of(r)).chain(self.lead_of_region(r + 1)).chain(self.trailing_of(r)));
                 }
                 continue;
             };
@@ -997,13 +1006,13 @@ mod tests {
             let mut next = 0u32;
             for r in 0..n_regions {
                 // Region r is a range of consecutive chunks: its lead chunks and its others.
-                let mut mine: Vec<u32> = s.lead_local[s.lead_local_start[r] as usize..s.lead_local_start[r + 1] as usize].to_vec();
+                let mut mine: Vec<u32> = s.lead_of_region(r).to_vec();
                 mine.extend_from_slice(&s.rest[s.region_start[r] as usize..s.region_start[r + 1] as usize]);
                 mine.sort_unstable();
                 assert!(mine.iter().copied().eq(next..next + mine.len() as u32), "{name}: region {r} is chunks {next}.. ({mine:?})");
                 next += mine.len() as u32;
-                for &k in &s.rest[s.region_start[r] as usize..s.trail_start[r] as usize] {
-                    let in_r = |o: u32| region_of(o) == Some(r) || s.lead_local[s.lead_local_start[r] as usize..s.lead_local_start[r + 1] as usize].contains(&o);
+                for &k in s.interior_of(r) {
+                    let in_r = |o: u32| region_of(o) == Some(r) || s.lead_of_region(r).contains(&o);
                     assert!((0..nc).all(|o| !share[k as usize][o] || in_r(o as u32)), "{name}: interior chunk {k} shares a cluster outside region {r}");
                 }
             }
@@ -1131,6 +1140,9 @@ mod tests {
         let g = s.task_graph(&unit);
         let cp = g.critical_path();
         assert_eq!(cp.length, 17.0);
+        // With unit costs the critical path is the longest chain of waits (`element::dag`'s
+        // own computation): the local dataflow's recursion bound.
+        assert_eq!(s.chain, 17, "the longest chain of waits");
         assert_eq!(g.parallelism(), 1953.0 / 17.0);
         let lead_on_path: Vec<u32> = cp.tasks.iter().copied().filter(|k| s.lead.contains(k)).collect();
         assert_eq!(lead_on_path.len(), 3, "{cp:?}");
