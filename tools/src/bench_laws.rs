@@ -51,7 +51,7 @@ enum Motion {
     CompressedShear,
 }
 
-pub fn run(n: usize, min_time: f64) -> Result<()> {
+pub fn run(n: usize, min_time: f64, only: &[String]) -> Result<()> {
     let mc_el = "law = { type = \"mohr_coulomb\", cohesion = 1e6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0 }";
     let mc_pl = "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0, tension_cutoff = 0.0 }";
     let mc_face = "law = { type = \"mohr_coulomb\", cohesion = 1e-6, friction_angle_deg = 30.0, dilation_angle_deg = 0.0 }";
@@ -71,7 +71,13 @@ pub fn run(n: usize, min_time: f64) -> Result<()> {
     let mut rows = Vec::new();
     let mut ns_of = std::collections::BTreeMap::new();
     let mut base = 0.0;
+    for o in only {
+        anyhow::ensure!(cases.iter().any(|c| c.0 == o), "--cases: no case `{o}` (cases: {})", cases.map(|c| c.0).join(", "));
+    }
     for (name, law, large, motion) in cases {
+        if name != "elastic" && !only.is_empty() && !only.iter().any(|o| o == name) {
+            continue;
+        }
         let mut m = model(n, law, large)?;
         let x0 = m.cluster_x0();
         let nc = x0.len();
@@ -102,17 +108,23 @@ pub fn run(n: usize, min_time: f64) -> Result<()> {
         rows.push(json!({"law": name, "elements": ne, "ns_per_elem_update": ns, "cpu_ns_per_elem_update": cpu * 1e9 / ne, "over_elastic": ns / base, "plastic_fraction": plastic as f64 / ne}));
         eprintln!("bench laws: {name} {ns:.1} ns per element-update");
     }
-    let r = |a: &str, b: &str| ns_of[a] / ns_of[b];
-    let ratios = json!({
-        "plastic_law_elastic_regime_over_elastic": r("mohr_coulomb_elastic", "elastic"),
-        "plastic_law_elastic_regime_stored_over_elastic": r("mohr_coulomb_elastic_stored", "elastic"),
-        "plastic_regime_over_elastic": r("mohr_coulomb_plastic", "elastic"),
-        "plastic_face_over_elastic": r("mohr_coulomb_plastic_face", "elastic"),
-        "large_over_small_elastic": r("large_strain_elastic", "elastic"),
-        "large_over_small_mohr_coulomb_elastic": r("large_strain_mohr_coulomb_elastic", "mohr_coulomb_elastic"),
-        "large_over_small_mohr_coulomb_plastic": r("large_strain_mohr_coulomb", "mohr_coulomb_plastic"),
-        "corotational_over_elastic": r("corotational", "elastic"),
-    });
+    // A quotient of two cases that ran (`--cases` may leave some out).
+    let mut ratios = serde_json::Map::new();
+    for (key, a, b) in [
+        ("plastic_law_elastic_regime_over_elastic", "mohr_coulomb_elastic", "elastic"),
+        ("plastic_law_elastic_regime_stored_over_elastic", "mohr_coulomb_elastic_stored", "elastic"),
+        ("plastic_regime_over_elastic", "mohr_coulomb_plastic", "elastic"),
+        ("plastic_face_over_elastic", "mohr_coulomb_plastic_face", "elastic"),
+        ("large_over_small_elastic", "large_strain_elastic", "elastic"),
+        ("large_over_small_mohr_coulomb_elastic", "large_strain_mohr_coulomb_elastic", "mohr_coulomb_elastic"),
+        ("large_over_small_mohr_coulomb_plastic", "large_strain_mohr_coulomb", "mohr_coulomb_plastic"),
+        ("corotational_over_elastic", "corotational", "elastic"),
+    ] {
+        if let (Some(x), Some(y)) = (ns_of.get(a), ns_of.get(b)) {
+            ratios.insert(key.into(), json!(x / y));
+        }
+    }
+    let ratios = serde_json::Value::Object(ratios);
     eprintln!("bench laws: ratios {ratios}");
     println!("{}", serde_json::to_string_pretty(&json!({"bench": "laws", "kind": "Q4", "threads": 1, "cases": rows, "ratios": ratios}))?);
     Ok(())

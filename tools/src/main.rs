@@ -272,6 +272,9 @@ enum BenchWhat {
         /// Seconds spent per timing (median of 5 batches).
         #[arg(long, default_value_t = 1.0)]
         min_time: f64,
+        /// Cases to time (names as in the JSON; `elastic`, the reference, always runs). All when empty.
+        #[arg(long, value_delimiter = ',')]
+        cases: Vec<String>,
     },
     /// Contact search cost against the number of surface nodes, with the growth exponent.
     Contact {
@@ -863,7 +866,7 @@ fn bench(what: BenchWhat) -> Result<()> {
         }
         BenchWhat::Dyncall(a) => bench_dyncall::run(&a)?,
         BenchWhat::Step3(a) => bench3::run(&a)?,
-        BenchWhat::Laws { elements, min_time } => bench_laws::run(elements, min_time)?,
+        BenchWhat::Laws { elements, min_time, cases } => bench_laws::run(elements, min_time, &cases)?,
         BenchWhat::Answer(a) => bench_answer::run(&a)?,
         BenchWhat::Contact { sizes, repeats } => bench_contact::run(&sizes, repeats)?,
         BenchWhat::Events { dofs, events, woodbury, refactor_every } => {

@@ -115,6 +115,10 @@ pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
     tx: Vec<[f64; LANES]>,
     tx_at: Vec<u32>,
     kind_total: bool,
+    /// The stored path (small strain, no modes) takes its strain increments and forces in the
+    /// kind's own form too (`tg`/`tx`, ours, session 30): 40 bytes of geometry per element
+    /// read instead of the 352 of the stored gradients. Set by `prepare`.
+    stored_total: bool,
     enh: Vec<Enhanced<N>>,
     _s: std::marker::PhantomData<S>,
 }
@@ -420,6 +424,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             tx: Vec::new(),
             tx_at: Vec::new(),
             kind_total: S::TOTAL_ROWS > 0,
+            stored_total: false,
             _s: std::marker::PhantomData,
         }
     }
@@ -693,11 +698,39 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             }
         }
         *up = ul;
+        let mut fe = [[[0.0; LANES]; 2]; N];
+        let mut w_acc = [0.0; LANES];
+        if S::TOTAL_ROWS > 0 && self.stored_total {
+            // The kind's own form (`Shape::total_strains` of the increments, `total_forces` of
+            // the new stresses; `q4`: the parent coordinates of its elastic kernel): the same
+            // strains and forces as the stored gradients to round-off
+            // (`q4_total_form_matches_the_generic_shortcut`, shortcut off), a ninth of the bytes.
+            let r = S::TOTAL_ROWS;
+            let geo = &self.tg[p * r..(p + 1) * r];
+            let xa = self.tx_at[p];
+            let extra = (xa != u32::MAX).then(|| &self.tx[xa as usize..xa as usize + S::TOTAL_EXTRA_ROWS]);
+            let mut e = [[[0.0; LANES]; 4]; MAXG];
+            S::total_strains::<BBAR>(geo, extra, &du, &mut e);
+            let mut sn = [[[0.0; LANES]; 4]; MAXG];
+            for k in 0..ng {
+                let c = &self.gw[p * ng + k];
+                let mut s = st[k];
+                let old = s;
+                self.law.update_lanes(&mut s, &e[k], &mut hs[k * ns..], ng * ns, n);
+                st[k] = s;
+                sn[k] = s;
+                let de = &e[k];
+                for l in 0..LANES {
+                    w_acc[l] += c[l] * 0.5 * ((old[0][l] + s[0][l]) * de[0][l] + (old[1][l] + s[1][l]) * de[1][l] + (old[2][l] + s[2][l]) * de[2][l]);
+                }
+            }
+            S::total_forces::<BBAR>(geo, extra, &sn, self.mat.thickness, &mut fe);
+            scatter_lanes(conn, &fe, &w_acc, wk, f);
+            return;
+        }
         let gb = &self.gbar[p];
         // B-bar: the element's mean volumetric strain increment (the same at every point).
         let ev = if BBAR { volumetric_lanes(gb, &du) } else { [0.0; LANES] };
-        let mut fe = [[[0.0; LANES]; 2]; N];
-        let mut w_acc = [0.0; LANES];
         for k in 0..ng {
             let g = &self.gp[p * ng + k];
             let c = &self.gw[p * ng + k];
@@ -1220,7 +1253,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         self.sched = Schedule::build(&self.conn, n_clusters);
         self.shortcut = self.law.elastic_start() && self.opts.elastic_shortcut && !self.opts.large_strain && self.enh.is_empty();
         (self.tg, self.tx, self.tx_at) = (Vec::new(), Vec::new(), Vec::new());
-        if self.shortcut && self.kind_total {
+        self.stored_total = self.kind_total && !self.opts.large_strain && self.enh.is_empty() && ng <= MAXG;
+        if (self.shortcut && self.kind_total) || self.stored_total {
             let (r, rx) = (S::TOTAL_ROWS, S::TOTAL_EXTRA_ROWS);
             self.tg = vec![[0.0; LANES]; np * r];
             let mut extra = vec![[0.0; LANES]; rx];

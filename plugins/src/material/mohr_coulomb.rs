@@ -131,6 +131,23 @@ pub struct MohrCoulomb {
     used: u8,
     /// Stress scale for tolerances.
     scale: f64,
+    /// The bounds of `inside_lanes`: `(r / ka, kb / ka, r / kb, ka / kb)` (constants of the law).
+    pre: [f64; 4],
+    /// `1 / a_kk`: a single plane's multiplier is `f_k * inv_diag[k]` (one multiply, not a
+    /// division, in every return; ours, session 30).
+    inv_diag: [f64; 6],
+}
+
+/// `(cos 2 theta, sin 2 theta)` of the in-plane principal direction from the trial's `half`,
+/// `sxy` and Mohr's radius `rad`: one division (`1 / rad`) and two products (ours, session 30;
+/// the two quotients of before differ from these by an ulp at most). Shared by the return in
+/// lanes, the scalar return, the softening law and the consistent tangent, so that they agree
+/// bit for bit.
+#[inline(always)]
+pub(crate) fn rotation(half: f64, sxy: f64, rad: f64) -> (f64, f64) {
+    let pos = rad > 0.0;
+    let ir = 1.0 / if pos { rad } else { 1.0 };
+    (if pos { half * ir } else { 1.0 }, if pos { sxy * ir } else { 0.0 })
 }
 
 impl MohrCoulomb {
@@ -161,7 +178,10 @@ impl MohrCoulomb {
         let a = std::array::from_fn(|k| std::array::from_fn(|j| n[k][0] * dm[j][0] + n[k][1] * dm[j][1] + n[k][2] * dm[j][2]));
         let used = if sigma_t.is_finite() { 0b11_1111 } else { 0b00_0111 };
         let d = Material { plane: Plane::Strain, ..*mat }.dmat();
-        MohrCoulomb { d, lambda, g, n, m, r, a, dm, used, scale: c.max(if sigma_t.is_finite() { sigma_t.abs() } else { 0.0 }) }
+        let (ka, kb) = (n[0][0], -n[0][2]);
+        let pre = [r[0] / ka, kb / ka, r[0] / kb, ka / kb];
+        let inv_diag = std::array::from_fn(|k| if a[k][k] != 0.0 { 1.0 / a[k][k] } else { 0.0 });
+        MohrCoulomb { d, lambda, g, n, m, r, a, dm, used, scale: c.max(if sigma_t.is_finite() { sigma_t.abs() } else { 0.0 }), pre, inv_diag }
     }
 
     /// The elastic trial of an update (3D isotropic law, plane strain): the trial stress, its
@@ -193,7 +213,7 @@ impl MohrCoulomb {
     #[inline(always)]
     fn inside_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [bool; LANES] {
         let (ka, kb, r) = (self.n[0][0], -self.n[0][2], self.r[0]);
-        let (ra, ba, rb, ab) = (r / ka, kb / ka, r / kb, ka / kb);
+        let [ra, ba, rb, ab] = self.pre;
         let (t_on, st) = (self.used & 8 != 0, self.r[3]);
         let mut inside = [false; LANES];
         for l in 0..LANES {
@@ -201,10 +221,13 @@ impl MohrCoulomb {
             let x1 = 0.5 * (r - (ka - kb) * mid[l]);
             let x2 = ra + ba * pz[l] - mid[l];
             let x3 = rb - ab * pz[l] + mid[l];
-            let mut x = x1.min(x2).min(x3);
+            // Selects, not `f64::min` (whose NaN rule keeps the loop scalar): a NaN stress
+            // fails `rr <= x^2` whichever bound is kept, and is routed on.
+            let lo = |a: f64, b: f64| if a < b { a } else { b };
+            let mut x = lo(lo(x1, x2), x3);
             let mut z_ok = true;
             if t_on {
-                x = x.min(st - mid[l]);
+                x = lo(x, st - mid[l]);
                 z_ok = pz[l] <= st;
             }
             inside[l] = (x >= 0.0) & (rr[l] <= x * x) & z_ok;
@@ -264,7 +287,7 @@ impl MohrCoulomb {
             let mut found = face[l] | !vio[l];
             let (mut o, mut dp, mut take) = ([0.0; 3], [0.0; 3], false);
             for k in 1..3 {
-                let dl = self.f(k, &ql) / self.a[k][k];
+                let dl = self.f(k, &ql) * self.inv_diag[k];
                 let mut out = ql;
                 let mut dep = [0.0; 3];
                 for d in 0..3 {
@@ -312,9 +335,7 @@ impl MohrCoulomb {
             } else {
                 o[2]
             };
-            let pos = rad[l] > 0.0;
-            let c2 = if pos { half[l] / rad[l] } else { 1.0 };
-            let s2 = if pos { sxy[l] / rad[l] } else { 0.0 };
+            let (c2, s2) = rotation(half[l], sxy[l], rad[l]);
             let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
             let g = dp[0].max(dp[1]).max(dp[2]) - dp[0].min(dp[1]).min(dp[2]);
             let v = [m + h * c2, m - h * c2, h * s2, nz];
@@ -341,7 +362,7 @@ impl MohrCoulomb {
             }
             Some((r, dep)) => {
                 let (na, nb, nz) = (r[pos[0]], r[pos[1]], r[pos[2]]);
-                let (c2, s2) = if rad > 0.0 { (half / rad, s[2] / rad) } else { (1.0, 0.0) };
+                let (c2, s2) = rotation(half, s[2], rad);
                 let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
                 *st = [m + h * c2, m - h * c2, h * s2, nz];
                 let (mx, mn) = (dep[0].max(dep[1]).max(dep[2]), dep[0].min(dep[1]).min(dep[2]));
@@ -455,7 +476,7 @@ impl MohrCoulomb {
         match k {
             1 => {
                 let d = a(0, 0);
-                (d.abs() > 1e-12 * big).then(|| [b[0] / d, 0.0, 0.0])
+                (d.abs() > 1e-12 * big).then(|| [b[0] * self.inv_diag[act[0]], 0.0, 0.0])
             }
             2 => {
                 let d = a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0);
@@ -528,7 +549,13 @@ impl MaterialLaw for MohrCoulomb {
         }
         let n = n.min(LANES);
         let pre = self.inside_lanes(&mid, &rr, &ts[3]);
-        if pre[..n].iter().all(|&i| i) {
+        // The lanes `..n` that fail the pre-test, as a bit mask (one compare of the pack, not
+        // a branch per lane).
+        let mut out = 0u32;
+        for (l, &i) in pre.iter().enumerate() {
+            out |= u32::from(!i) << l;
+        }
+        if out & ((1u32 << n) - 1) == 0 {
             // Every lane elastic: no branch per lane but the history's.
             *s = ts;
             for l in 0..n {
@@ -582,7 +609,7 @@ impl MaterialLaw for MohrCoulomb {
             // `f4, f5 <= f3`), so the test has the same answer.
             let viol = (self.f(0, &ql) > tol) | (used[3] & (self.f(3, &ql) > tol));
             vio[l] = viol;
-            let dl = self.f(0, &ql) / d0;
+            let dl = self.f(0, &ql) * self.inv_diag[0];
             let ok = dl >= -1e-14 * (1.0 + dl.abs());
             let mut out = ql;
             let mut dep = [0.0; 3];
@@ -611,9 +638,7 @@ impl MaterialLaw for MohrCoulomb {
             } else {
                 out[2]
             };
-            let pos = rad[l] > 0.0;
-            let c2 = if pos { half[l] / rad[l] } else { 1.0 };
-            let s2 = if pos { ts[2][l] / rad[l] } else { 0.0 };
+            let (c2, s2) = rotation(half[l], ts[2][l], rad[l]);
             let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
             fs[0][l] = m + h * c2;
             fs[1][l] = m - h * c2;

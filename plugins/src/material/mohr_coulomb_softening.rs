@@ -288,7 +288,7 @@ impl MaterialLaw for MohrCoulombSoftening {
             }
             Some((r, dep, k)) => {
                 let (na, nb, nz) = (r[pos[0]], r[pos[1]], r[pos[2]]);
-                let (c2, s2) = if rad > 0.0 { (half / rad, s[2] / rad) } else { (1.0, 0.0) };
+                let (c2, s2) = crate::material::mohr_coulomb::rotation(half, s[2], rad);
                 let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
                 *st = [m + h * c2, m - h * c2, h * s2, nz];
                 let (mx, mn) = (dep[0].max(dep[1]).max(dep[2]), dep[0].min(dep[1]).min(dep[2]));

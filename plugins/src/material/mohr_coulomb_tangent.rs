@@ -90,7 +90,7 @@ impl MohrCoulomb {
         }
         // The same in the unsorted order (a, b, z).
         let q: [[f64; 3]; 3] = std::array::from_fn(|u| std::array::from_fn(|v| p[pos[u]][pos[v]]));
-        let (c2, s2) = if rad > 0.0 { (half / rad, s[2] / rad) } else { (1.0, 0.0) };
+        let (c2, s2) = crate::material::mohr_coulomb::rotation(half, s[2], rad);
         // d(pa, pb, pz) / d(sxx, syy, sxy, szz).
         let dp = [[0.5 * (1.0 + c2), 0.5 * (1.0 - c2), s2, 0.0], [0.5 * (1.0 - c2), 0.5 * (1.0 + c2), -s2, 0.0], [0.0, 0.0, 0.0, 1.0]];
         let dn: [[f64; 4]; 3] = std::array::from_fn(|u| std::array::from_fn(|c| (0..3).map(|v| q[u][v] * dp[v][c]).sum()));

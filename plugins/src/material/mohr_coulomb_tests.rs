@@ -447,6 +447,9 @@ fn never_yielded_shortcut_matches_the_stored_path() {
 /// step: the elastic test sees the same strain to round-off; the cohesion is the median need
 /// of the last step, so about half the points cross the surface), the forces within 1e-9
 /// after (both then run the stored path, seeded from strains equal to round-off).
+/// The same with the shortcut off (`elastic_shortcut = false`: every pack on the stored path
+/// from the first step): the stored path's strain increments and forces in `q4`'s own form
+/// (session 30) against the stored gradients (`generic_total`), same tolerances.
 #[test]
 fn q4_total_form_matches_the_generic_shortcut() {
     use crate::elements::Q4;
@@ -480,9 +483,9 @@ fn q4_total_form_matches_the_generic_shortcut() {
         }
         let nn = nodes.len();
         let field = |a: f64| -> Vec<[f64; 2]> { nodes.iter().map(|p| [a * (0.02 * p[1] * p[1] - 0.01 * p[0]), a * (-0.015 * p[1] + 0.004 * p[0] * p[1])]).collect() };
-        let block = |c: f64, bbar: bool, generic: bool| -> Box<dyn Block> {
+        let block = |c: f64, bbar: bool, generic: bool, shortcut: bool| -> Box<dyn Block> {
             let l = MohrCoulombCfg { cohesion: c, friction_angle_deg: 30.0, dilation_angle_deg: 5.0, tension_cutoff: None, softening: None }.law(&mat());
-            let mut b = StatefulBlock::<Q4, MohrCoulomb, 4>::new("r".into(), mat(), l, StatefulOpts { bbar, large_strain: false, elastic_shortcut: true });
+            let mut b = StatefulBlock::<Q4, MohrCoulomb, 4>::new("r".into(), mat(), l, StatefulOpts { bbar, large_strain: false, elastic_shortcut: shortcut });
             if generic {
                 b = b.generic_total();
             }
@@ -492,13 +495,13 @@ fn q4_total_form_matches_the_generic_shortcut() {
             b.prepare(nn);
             Box::new(b)
         };
-        for bbar in [true, false] {
+        for (bbar, shortcut) in [(true, true), (false, true), (true, false), (false, false)] {
             // The median cohesion the points need at the last step (elastic stresses).
-            let mut probe = block(1e9, bbar, true);
+            let mut probe = block(1e9, bbar, true, true);
             let u1 = field(1.0);
             probe.update_internal_forces(&u1, &mut vec![[0.0; 2]; nn], None);
             let c = median_cohesion_needed(&probe.point_stress(&u1).unwrap(), 30.0);
-            let (mut a, mut b) = (block(c, bbar, false), block(c, bbar, true));
+            let (mut a, mut b) = (block(c, bbar, false, shortcut), block(c, bbar, true, shortcut));
             let mut yielded_once = false;
             for step in 1..=30 {
                 let u = field(step as f64 / 30.0);
@@ -507,13 +510,13 @@ fn q4_total_form_matches_the_generic_shortcut() {
                 b.update_internal_forces(&u, &mut fb, None);
                 let plastic = |blk: &Box<dyn Block>| (0..blk.len()).map(|i| blk.plastic(i).unwrap().1).collect::<Vec<_>>();
                 let (pa, pb) = (plastic(&a), plastic(&b));
-                assert_eq!(pa, pb, "{name} bbar {bbar} step {step}: plastic states");
+                assert_eq!(pa, pb, "{name} bbar {bbar} shortcut {shortcut} step {step}: plastic states");
                 yielded_once |= pb.iter().any(|&s| s > 0);
                 let tol = if yielded_once { 1e-9 } else { 1e-12 };
                 let fmax = fb.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
                 assert!(fmax > 0.0);
                 for (x, y) in fa.iter().flatten().zip(fb.iter().flatten()) {
-                    assert!((x - y).abs() <= tol * fmax, "{name} bbar {bbar} step {step}: force {x} against {y}");
+                    assert!((x - y).abs() <= tol * fmax, "{name} bbar {bbar} shortcut {shortcut} step {step}: force {x} against {y}");
                 }
             }
             let last = (0..b.len()).filter(|&i| b.plastic(i).unwrap().1 > 0).count();
