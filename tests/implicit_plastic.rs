@@ -87,6 +87,7 @@ fn footing_newton_beside_flem_and_prandtl() {
             // "At rest": the unbalanced ratio at most 6e-3 (the rows from settlement 0.0076 on,
             // 4.7e-3 and below); the row before (0.0061, ratio 6.7e-3-7.1e-3) still carries the
             // push's inertia, +0.99 % to +1.07 % with three round-offs of the same arithmetic.
+            // (The gate was placed after those figures were measured, session 30.)
             let tol = if ratio <= 6e-3 { 0.01 } else { 0.02 };
             assert!(rel(q_flem, q) < tol, "settlement {d} (unbalanced ratio {ratio:.2e}): FLEM {q_flem} vs Newton {q}");
         }

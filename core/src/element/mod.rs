@@ -97,7 +97,8 @@ pub trait Shape<const N: usize>: Copy + Default + Send + Sync + 'static {
     fn dn(xi: [f64; 2]) -> [[f64; 2]; N];
 
     /// The never-yielded pass of a stateful block in the kind's own form (ours, issue 21,
-    /// session 11; `element::stateful`, docs/materials.md "Storage"). `TOTAL_ROWS` rows of
+    /// session 11; `element::stateful`, docs/materials.md "Storage"), and since session 30 its
+    /// stored path too (strain increments, forces, the seed). `TOTAL_ROWS` rows of
     /// `LANES` f64 per pack of geometry, `TOTAL_EXTRA_ROWS` more for a pack whose `total_geometry`
     /// asks for them (`q4`: a pack holding a non-parallelogram). 0 (the default): the kind has
     /// no such form, and the block computes the generic isoparametric geometry (`t3`, `qm6`,

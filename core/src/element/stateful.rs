@@ -106,18 +106,20 @@ pub struct StatefulBlock<S: Shape<N>, L: MaterialLaw, const N: usize> {
     /// The never-yielded shortcut is on (set by `prepare`: the law's `elastic_start`,
     /// `opts.elastic_shortcut`, small strain, no incompatible modes).
     shortcut: bool,
-    /// The element kind's own form of the never-yielded pass (`Shape::TOTAL_ROWS`, session
-    /// 11): `S::TOTAL_ROWS` rows per pack (`tg`), and for a pack that asks for them
-    /// `S::TOTAL_EXTRA_ROWS` more at `tx[tx_at[p]..]` (`u32::MAX`: none). Built by `prepare`
-    /// when the shortcut is on and the kind has the form (`kind_total`; a test turns it off
-    /// with `generic_total` to compare).
+    /// The element kind's own form (`Shape::TOTAL_ROWS`): of the never-yielded pass (session
+    /// 11) and of the stored path (session 30): `S::TOTAL_ROWS` rows per pack (`tg`), and for
+    /// a pack that asks for them `S::TOTAL_EXTRA_ROWS` more at `tx[tx_at[p]..]` (`u32::MAX`:
+    /// none). Built by `prepare` when the kind has the form (`kind_total`; a test turns it off
+    /// with `generic_total` to compare), small strain, no modes (`stored_total`).
     tg: Vec<[f64; LANES]>,
     tx: Vec<[f64; LANES]>,
     tx_at: Vec<u32>,
     kind_total: bool,
-    /// The stored path (small strain, no modes) takes its strain increments and forces in the
-    /// kind's own form too (`tg`/`tx`, ours, session 30): 40 bytes of geometry per element
-    /// read instead of the 352 of the stored gradients. Set by `prepare`.
+    /// The stored path (small strain, no modes) takes its strain increments, its forces and
+    /// the seed of a pack leaving the shortcut in the kind's own form (`tg`/`tx`, ours,
+    /// session 30): with the work's weights `gw`, 72 bytes per element read (152 in a pack
+    /// of non-parallelograms) instead of the 352 of the stored gradients, weights and B-bar
+    /// means. Set by `prepare`.
     stored_total: bool,
     enh: Vec<Enhanced<N>>,
     _s: std::marker::PhantomData<S>,
@@ -666,11 +668,12 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         f
     }
 
-    /// The step of the `n` elements of pack `p` (small strain, no modes) at once: the same
-    /// arithmetic as `update_elem`, lane by lane (so the same bits), as loops over the lanes
-    /// that the compiler vectorises, with the law called once per Gauss point for the whole
-    /// pack (`MaterialLaw::update_lanes`). `st`, `hs`, `up`, `wk` start at the pack's first
-    /// element.
+    /// The step of the `n` elements of pack `p` (small strain, no modes) at once, as loops
+    /// over the lanes that the compiler vectorises, with the law called once per Gauss point
+    /// for the whole pack (`MaterialLaw::update_lanes`): in the kind's own form when it has
+    /// one (`stored_total`; the same strains and forces as `update_elem` to round-off), else
+    /// on the stored gradients with `update_elem`'s arithmetic lane by lane (the same bits).
+    /// `st`, `hs`, `up`, `wk` start at the pack's first element.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn update_pack<const BBAR: bool>(&self, p: usize, n: usize, u: &[[f64; 2]], st: &mut [[[f64; LANES]; 4]], hs: &mut [f64], up: &mut [[[f64; LANES]; 2]; N], wk: &mut [f64], f: SharedForces) {
@@ -704,7 +707,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             // The kind's own form (`Shape::total_strains` of the increments, `total_forces` of
             // the new stresses; `q4`: the parent coordinates of its elastic kernel): the same
             // strains and forces as the stored gradients to round-off
-            // (`q4_total_form_matches_the_generic_shortcut`, shortcut off), a ninth of the bytes.
+            // (`q4_total_form_matches_the_generic_shortcut`, shortcut off), 72 bytes of
+            // geometry and weights per element read instead of 352.
             let r = S::TOTAL_ROWS;
             let geo = &self.tg[p * r..(p + 1) * r];
             let xa = self.tx_at[p];
@@ -852,22 +856,35 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     }
 
     /// The stored state of pack `p` when it leaves the shortcut: each point's stress of the
-    /// total strain at the last displacements `up` (the law's `initial_lanes`, on the stored
-    /// gradients the stored path uses), and each element's work so far, the elastic energy
-    /// `1/2 sigma : eps` of its points (what the increments' work adds up to). History stays
-    /// initial. `st`, `up`, `wk` start at the pack's first element. Runs once per pack.
+    /// total strain at the last displacements `up` (the law's `initial_lanes`, in the form the
+    /// stored path uses: the kind's own when `stored_total`, the same strains as the shortcut's
+    /// own at that step, else the stored gradients), and each element's work so far, the
+    /// elastic energy `1/2 sigma : eps` of its points (what the increments' work adds up to).
+    /// History stays initial. `st`, `up`, `wk` start at the pack's first element. Runs once
+    /// per pack.
     #[inline(never)]
     fn seed_pack<const BBAR: bool>(&self, p: usize, n: usize, st: &mut [[[f64; LANES]; 4]], up: &[[[f64; LANES]; 2]; N], wk: &mut [f64]) {
         let ng = S::GAUSS.len();
         // The lanes past the block's end hold zero displacements.
         let ul = *up;
-        let ev = if BBAR { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
+        let mut et = [[[0.0; LANES]; 4]; MAXG];
+        if S::TOTAL_ROWS > 0 && self.stored_total {
+            let r = S::TOTAL_ROWS;
+            let xa = self.tx_at[p];
+            let extra = (xa != u32::MAX).then(|| &self.tx[xa as usize..xa as usize + S::TOTAL_EXTRA_ROWS]);
+            S::total_strains::<BBAR>(&self.tg[p * r..(p + 1) * r], extra, &ul, &mut et);
+        }
+        let ev = if BBAR && !(S::TOTAL_ROWS > 0 && self.stored_total) { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
         let mut w_acc = [0.0; LANES];
         for k in 0..ng {
             let (g, c) = (&self.gp[p * ng + k], &self.gw[p * ng + k]);
             let mut e = [[0.0; LANES]; 4];
-            for l in 0..LANES {
-                (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(g, &ul, ev[l], l);
+            if S::TOTAL_ROWS > 0 && self.stored_total {
+                e = et[k];
+            } else {
+                for l in 0..LANES {
+                    (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(g, &ul, ev[l], l);
+                }
             }
             let mut s = [[0.0; LANES]; 4];
             self.law.initial_lanes(&e, &mut s);
@@ -1254,7 +1271,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> Block for StatefulBlock<S, L, 
         self.shortcut = self.law.elastic_start() && self.opts.elastic_shortcut && !self.opts.large_strain && self.enh.is_empty();
         (self.tg, self.tx, self.tx_at) = (Vec::new(), Vec::new(), Vec::new());
         self.stored_total = self.kind_total && !self.opts.large_strain && self.enh.is_empty() && ng <= MAXG;
-        if (self.shortcut && self.kind_total) || self.stored_total {
+        // (The shortcut implies small strain and no modes: `stored_total` covers it.)
+        if self.stored_total {
             let (r, rx) = (S::TOTAL_ROWS, S::TOTAL_EXTRA_ROWS);
             self.tg = vec![[0.0; LANES]; np * r];
             let mut extra = vec![[0.0; LANES]; rx];

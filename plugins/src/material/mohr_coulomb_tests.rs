@@ -449,7 +449,8 @@ fn never_yielded_shortcut_matches_the_stored_path() {
 /// after (both then run the stored path, seeded from strains equal to round-off).
 /// The same with the shortcut off (`elastic_shortcut = false`: every pack on the stored path
 /// from the first step): the stored path's strain increments and forces in `q4`'s own form
-/// (session 30) against the stored gradients (`generic_total`), same tolerances.
+/// (session 30) against the stored gradients (`generic_total`), same tolerances. Every case
+/// at thickness 0.7, and every point's stress and the internal work compared too.
 #[test]
 fn q4_total_form_matches_the_generic_shortcut() {
     use crate::elements::Q4;
@@ -485,7 +486,8 @@ fn q4_total_form_matches_the_generic_shortcut() {
         let field = |a: f64| -> Vec<[f64; 2]> { nodes.iter().map(|p| [a * (0.02 * p[1] * p[1] - 0.01 * p[0]), a * (-0.015 * p[1] + 0.004 * p[0] * p[1])]).collect() };
         let block = |c: f64, bbar: bool, generic: bool, shortcut: bool| -> Box<dyn Block> {
             let l = MohrCoulombCfg { cohesion: c, friction_angle_deg: 30.0, dilation_angle_deg: 5.0, tension_cutoff: None, softening: None }.law(&mat());
-            let mut b = StatefulBlock::<Q4, MohrCoulomb, 4>::new("r".into(), mat(), l, StatefulOpts { bbar, large_strain: false, elastic_shortcut: shortcut });
+            // Thickness 0.7: the kind's form and the generic weights must carry it alike.
+            let mut b = StatefulBlock::<Q4, MohrCoulomb, 4>::new("r".into(), Material { thickness: 0.7, ..mat() }, l, StatefulOpts { bbar, large_strain: false, elastic_shortcut: shortcut });
             if generic {
                 b = b.generic_total();
             }
@@ -518,6 +520,14 @@ fn q4_total_form_matches_the_generic_shortcut() {
                 for (x, y) in fa.iter().flatten().zip(fb.iter().flatten()) {
                     assert!((x - y).abs() <= tol * fmax, "{name} bbar {bbar} shortcut {shortcut} step {step}: force {x} against {y}");
                 }
+                // Every point's stress and the internal work (the energy ledger's term).
+                let (sa, sb) = (a.point_stress(&u).unwrap(), b.point_stress(&u).unwrap());
+                let smax = sb.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (x, y) in sa.iter().flatten().zip(sb.iter().flatten()) {
+                    assert!((x - y).abs() <= tol * smax, "{name} bbar {bbar} shortcut {shortcut} step {step}: stress {x} against {y}");
+                }
+                let (ea, eb) = (a.strain_energy(&u).unwrap(), b.strain_energy(&u).unwrap());
+                assert!(eb > 0.0 && (ea - eb).abs() <= tol * eb, "{name} bbar {bbar} shortcut {shortcut} step {step}: work {ea} against {eb}");
             }
             let last = (0..b.len()).filter(|&i| b.plastic(i).unwrap().1 > 0).count();
             assert!(last > 0 && last < b.len(), "{name} bbar {bbar}: {last} of {} plastic: the test needs both", b.len());
