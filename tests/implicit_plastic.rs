@@ -12,7 +12,8 @@ fn config(name: &str) -> String {
     std::fs::read_to_string(root().join("configs/verification").join(name)).unwrap()
 }
 
-/// FLEM's load-settlement curve: (settlement, |reaction_y| / b) at every history row.
+/// FLEM's load-settlement curve: (settlement, |reaction_y| / b, unbalanced-force ratio) at
+/// every history row.
 struct Curve {
     pts: Vec<PointId>,
     /// Settlement, footing force, unbalanced-force ratio.

@@ -440,8 +440,9 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         self
     }
 
-    /// The never-yielded pass on the generic isoparametric geometry even for a kind that has
-    /// its own form (`Shape::TOTAL_ROWS`): the reference the kind's form is tested against.
+    /// The never-yielded pass and the stored path on the generic isoparametric geometry (the
+    /// stored gradients) even for a kind that has its own form (`Shape::TOTAL_ROWS`): the
+    /// reference the kind's form is tested against.
     #[doc(hidden)]
     pub fn generic_total(mut self) -> Self {
         self.kind_total = false;

@@ -134,7 +134,7 @@ pub struct MohrCoulomb {
     /// The bounds of `inside_lanes`: `(r / ka, kb / ka, r / kb, ka / kb)` (constants of the law).
     pre: [f64; 4],
     /// `1 / a_kk`: a single plane's multiplier is `f_k * inv_diag[k]` (one multiply, not a
-    /// division, in every return; ours, session 30).
+    /// division, in every single-plane return; pairs and triples still divide; ours, session 30).
     inv_diag: [f64; 6],
 }
 
