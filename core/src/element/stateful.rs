@@ -669,6 +669,15 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         f
     }
 
+    /// Pack `p`'s geometry in the kind's own form: its `S::TOTAL_ROWS` rows, and the extra
+    /// rows of a pack that has them (`tg`, `tx`; built by `prepare` when `stored_total`).
+    #[inline(always)]
+    fn kind_geometry(&self, p: usize) -> (&[[f64; LANES]], Option<&[[f64; LANES]]>) {
+        let r = S::TOTAL_ROWS;
+        let xa = self.tx_at[p];
+        (&self.tg[p * r..(p + 1) * r], (xa != u32::MAX).then(|| &self.tx[xa as usize..xa as usize + S::TOTAL_EXTRA_ROWS]))
+    }
+
     /// The step of the `n` elements of pack `p` (small strain, no modes) at once, as loops
     /// over the lanes that the compiler vectorises, with the law called once per Gauss point
     /// for the whole pack (`MaterialLaw::update_lanes`): in the kind's own form when it has
@@ -710,10 +719,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             // strains and forces as the stored gradients to round-off
             // (`q4_total_form_matches_the_generic_shortcut`, shortcut off), 72 bytes of
             // geometry and weights per element read instead of 352.
-            let r = S::TOTAL_ROWS;
-            let geo = &self.tg[p * r..(p + 1) * r];
-            let xa = self.tx_at[p];
-            let extra = (xa != u32::MAX).then(|| &self.tx[xa as usize..xa as usize + S::TOTAL_EXTRA_ROWS]);
+            let (geo, extra) = self.kind_geometry(p);
             let mut e = [[[0.0; LANES]; 4]; MAXG];
             S::total_strains::<BBAR>(geo, extra, &du, &mut e);
             let mut sn = [[[0.0; LANES]; 4]; MAXG];
@@ -785,10 +791,7 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         if S::TOTAL_ROWS > 0 && self.kind_total {
             // The kind's own form (`Shape::total_strains`, `total_forces`; `q4`: the parent
             // coordinates, as its elastic kernel).
-            let r = S::TOTAL_ROWS;
-            let geo = &self.tg[p * r..(p + 1) * r];
-            let xa = self.tx_at[p];
-            let extra = (xa != u32::MAX).then(|| &self.tx[xa as usize..xa as usize + S::TOTAL_EXTRA_ROWS]);
+            let (geo, extra) = self.kind_geometry(p);
             let mut e = [[[0.0; LANES]; 4]; MAXG];
             S::total_strains::<BBAR>(geo, extra, &ul, &mut e);
             let mut s = [[[0.0; LANES]; 4]; MAXG];
@@ -870,10 +873,8 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let ul = *up;
         let mut et = [[[0.0; LANES]; 4]; MAXG];
         if S::TOTAL_ROWS > 0 && self.stored_total {
-            let r = S::TOTAL_ROWS;
-            let xa = self.tx_at[p];
-            let extra = (xa != u32::MAX).then(|| &self.tx[xa as usize..xa as usize + S::TOTAL_EXTRA_ROWS]);
-            S::total_strains::<BBAR>(&self.tg[p * r..(p + 1) * r], extra, &ul, &mut et);
+            let (geo, extra) = self.kind_geometry(p);
+            S::total_strains::<BBAR>(geo, extra, &ul, &mut et);
         }
         let ev = if BBAR && !(S::TOTAL_ROWS > 0 && self.stored_total) { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
         let mut w_acc = [0.0; LANES];
