@@ -52,13 +52,13 @@ fn print_table(table: &[NewtonRow], every: usize) {
 /// constant velocity, local damping) and Newton's on the same mesh and law, the footing's
 /// settlement prescribed at each of FLEM's history rows. References: Prandtl's limit pressure
 /// (2 + pi) c = 5.1416 (Prandtl 1920; e.g. Chen 1975) for both at the plateau and for FLEM's
-/// peak (3 %; measured FLEM 5.2432, +1.98 %, Newton 5.2397), and Newton's static equilibrium
+/// peak (3 %; measured FLEM 5.2430, +1.97 %, Newton 5.2397), and Newton's static equilibrium
 /// for FLEM's curve (1 % on every row above 0.6 of Prandtl's pressure where FLEM is at rest,
 /// its unbalanced ratio at most 6e-3: measured +0.62 % to +0.06 %; the first rows differ by
-/// FLEM's inertia, +7.7 % at the first: the footing accelerates from rest; 2 % on the row above
-/// 0.6 that is not at rest, measured +0.99 % to +1.07 %). Newton converges quadratically (the consistent tangent of the
-/// Tresca return; measured residuals 3.9e-6, 7.0e-9, 1.5e-14 at the end of the plateau's
-/// increment). Replaces the FLEM-only Prandtl test of tests/plasticity.rs (one run of the scene).
+/// FLEM's inertia, +7.7 % at the first: the footing accelerates from rest; 2 % on the row
+/// above 0.6 that is not at rest, measured +0.99 % to +1.07 %). Newton converges
+/// quadratically (the consistent tangent of the Tresca return; measured residuals 3.9e-6,
+/// 7.0e-9, 1.5e-14 at the end of the plateau's increment). Replaces the FLEM-only Prandtl test of tests/plasticity.rs (one run of the scene).
 #[test]
 fn footing_newton_beside_flem_and_prandtl() {
     let mut s = sim(&config("strip_footing.toml"));

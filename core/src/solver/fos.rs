@@ -216,6 +216,9 @@ fn mean_second_half(rows: &[(u64, f64)], ratios: &[f64], start: u64) -> f64 {
     // The last row always lies past `mid` once the stage has taken a step.
     debug_assert!(step > start, "a verdict before the stage's first step");
     let (sum, n) = rows.iter().zip(ratios).filter(|(r, _)| r.0 > mid).fold((0.0, 0usize), |(s, n), (_, &x)| (s + x, n + 1));
+    if n == 0 {
+        return ratios.last().copied().unwrap_or(f64::NAN);
+    }
     sum / n as f64
 }
 
