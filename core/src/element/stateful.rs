@@ -39,7 +39,11 @@
 //! its parent coordinates, session 11), else the generic isoparametric one from the corners
 //! (`total_generic`). When a point first fails,
 //! the pack is seeded from the last step (`seed_pack`: stress of the total strain there, the
-//! elastic energy as work), flagged `yielded` for good, and takes the stored path. A chunk
+//! elastic energy as work), flagged `yielded` for good, and takes the stored path. The stored
+//! path (small strain, no modes) uses the kind's own form too when there is one
+//! (`stored_total`, session 30: 72 bytes of geometry and weights read per element instead of
+//! the 352 of the stored gradients; strains and forces equal to round-off, not bit for bit),
+//! else the stored gradients. A chunk
 //! runs its never-yielded packs first, then the stored ones (one order of the force sums,
 //! whatever the threads or instruction set). Round-off differs from storing every point.
 //! Outputs compute a never-yielded point from the displacements of the last element pass
@@ -871,25 +875,25 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
         let ng = S::GAUSS.len();
         // The lanes past the block's end hold zero displacements.
         let ul = *up;
-        let mut et = [[[0.0; LANES]; 4]; MAXG];
+        // Every point's total strain, in the form the stored path uses.
+        let mut e = [[[0.0; LANES]; 4]; MAXG];
         if S::TOTAL_ROWS > 0 && self.stored_total {
             let (geo, extra) = self.kind_geometry(p);
-            S::total_strains::<BBAR>(geo, extra, &ul, &mut et);
-        }
-        let ev = if BBAR && !(S::TOTAL_ROWS > 0 && self.stored_total) { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
-        let mut w_acc = [0.0; LANES];
-        for k in 0..ng {
-            let (g, c) = (&self.gp[p * ng + k], &self.gw[p * ng + k]);
-            let mut e = [[0.0; LANES]; 4];
-            if S::TOTAL_ROWS > 0 && self.stored_total {
-                e = et[k];
-            } else {
+            S::total_strains::<BBAR>(geo, extra, &ul, &mut e);
+        } else {
+            let ev = if BBAR { volumetric_lanes(&self.gbar[p], &ul) } else { [0.0; LANES] };
+            for (k, ek) in e.iter_mut().enumerate().take(ng) {
+                let g = &self.gp[p * ng + k];
                 for l in 0..LANES {
-                    (e[0][l], e[1][l], e[2][l]) = strain_lane::<N, BBAR>(g, &ul, ev[l], l);
+                    (ek[0][l], ek[1][l], ek[2][l]) = strain_lane::<N, BBAR>(g, &ul, ev[l], l);
                 }
             }
+        }
+        let mut w_acc = [0.0; LANES];
+        for k in 0..ng {
+            let (c, e) = (&self.gw[p * ng + k], &e[k]);
             let mut s = [[0.0; LANES]; 4];
-            self.law.initial_lanes(&e, &mut s);
+            self.law.initial_lanes(e, &mut s);
             st[k] = s;
             for l in 0..LANES {
                 w_acc[l] += c[l] * 0.5 * (s[0][l] * e[0][l] + s[1][l] * e[1][l] + s[2][l] * e[2][l]);
