@@ -2,6 +2,7 @@
 """The tables of docs/dynamic.md (issue 36) from run folders of configs/dynamic/ scenes:
     python3 tools/dynamic_tables.py kalthoff out/kalthoff_h1 ...
     python3 tools/dynamic_tables.py branching out/branching_h0.5 ...
+    python3 tools/dynamic_tables.py front-diff out/base out/other ...   (the front's history against a base run)
 Reads crack_tips.csv, splits.csv and summary.json (standard library only). Definitions: the
 front is the tip (with a branch) farthest from the notch tip at each record; its speed is the
 advance of that distance over a 2 us window; vmean_10_40mm 30 mm over the time the front took
@@ -122,7 +123,31 @@ def branching(d):
                ymin_mm=1e3 * min(p[1] for p in pts), ymax_mm=1e3 * max(p[1] for p in pts))
     return res
 
-kind = sys.argv[1]
-for d in sys.argv[2:]:
-    r = (kalthoff if kind == "kalthoff" else branching)(d)
-    print(d.split("/")[-1], {k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
+def front_diff(base, run, tip0=(0.05, 0.02), t0=10e-6, t1=80e-6, dt=0.5e-6):
+    """The front's distance from the notch tip in `run` against `base` at the same times, every
+    `dt` from `t0` to `t1` (each run's last record at or before the time): the largest
+    difference (m), its median, and the largest relative one where the base's front is past
+    10 mm (session 31, the settings study of docs/dynamic.md)."""
+    import bisect
+    def series(d):
+        fr = front(load(d)[0], tip0)
+        return [t for t, _ in fr], [v[0] for _, v in fr]
+    (bt, bd), (rt, rd) = series(base), series(run)
+    def at(ts, ds, t):
+        return ds[max(bisect.bisect_right(ts, t) - 1, 0)]
+    grid = [t0 + k * dt for k in range(int(round((t1 - t0) / dt)) + 1)]
+    diffs = [abs(at(rt, rd, t) - at(bt, bd, t)) for t in grid]
+    rel = [abs(at(rt, rd, t) - at(bt, bd, t)) / at(bt, bd, t) for t in grid if at(bt, bd, t) > 0.010]
+    return dict(front_diff_max_mm=1e3 * max(diffs), front_diff_median_mm=1e3 * sorted(diffs)[len(diffs) // 2],
+                front_diff_max_rel=max(rel) if rel else float("nan"))
+
+if __name__ == "__main__":
+    kind = sys.argv[1]
+    if kind == "front-diff":
+        # python3 tools/dynamic_tables.py front-diff BASE RUN...
+        for d in sys.argv[3:]:
+            print(d.split("/")[-1], {k: round(v, 4) for k, v in front_diff(sys.argv[2], d).items()})
+        sys.exit(0)
+    for d in sys.argv[2:]:
+        r = (kalthoff if kind == "kalthoff" else branching)(d)
+        print(d.split("/")[-1], {k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
