@@ -235,3 +235,112 @@ fn a_split_moves_the_tip() {
     let l = (xq[0] - xp[0]).hypot(xq[1] - xp[1]);
     assert!((tips[0].dir[0] - (xq[0] - xp[0]) / l).abs() < 1e-12 && (tips[0].dir[1] - (xq[1] - xp[1]) / l).abs() < 1e-12);
 }
+
+/// Reference: a uniform stress (a displacement linear in x and y, which T3 reproduces exactly),
+/// for which `sigma_thetatheta = sxx sin^2(phi) + syy cos^2(phi)` at polar angle `phi` about
+/// the tip. `hoop_profile` (ours, session 31, `tip_mts`'s `fork_ratio`) on the edge crack's
+/// T3 mesh: under equal biaxial strain every non-empty bin's mean is the uniform value (to
+/// 1e-9 relative); under `eps_yy` alone each bin's mean lies between the formula's values at
+/// its two edge angles (the centroids' angles lie in the bin) and the bins are symmetric in
+/// count about the axis within the mesh's irregularity (each side has elements). Elements
+/// behind the tip (`|theta| >= 90 deg`) and outside the ring are left out: the counts sum to
+/// fewer than the elements within the ring's outer radius.
+#[test]
+fn hoop_profile_of_a_uniform_field() {
+    use flem_plugins::check::sif::hoop_profile;
+    let edge = std::fs::read_to_string(root().join("configs/sif/edge_0.3_t3.toml")).unwrap().replace("../meshes/", "meshes/");
+    let s = sim(&edge);
+    let tips = crack_tips(&s.model);
+    let tip = &tips[0];
+    let (r_in, r_out) = (1.0 * tip.h, 4.0 * tip.h);
+    let m = *s.model.material_of(flem_core::ids::ElemId::new(0));
+    let d = m.dmat();
+    let pts: Vec<[f64; 2]> = (0..s.model.topo.n_clusters()).map(|c| s.model.mesh.points[s.model.topo.cluster_point[c].idx()]).collect();
+    // Equal biaxial strain e: sxx = syy = (d11 + d12) e, shear 0.
+    let e = 1e-3;
+    let u: Vec<[f64; 2]> = pts.iter().map(|x| [e * x[0], e * x[1]]).collect();
+    let bins = hoop_profile(&s.model, &u, tip, r_in, r_out).expect("linear T3 model");
+    let want = (d.d11 + d.d12) * e;
+    let mut n = 0;
+    for (k, &(sum, c)) in bins.iter().enumerate() {
+        if c > 0 {
+            assert!(rel(sum / c as f64, want) < 1e-9, "bin {k}: {} against {want}", sum / c as f64);
+            n += c;
+        }
+    }
+    assert!(n >= 20, "{n} elements in the ring");
+    // eps_yy = e alone: sxx = d12 e, syy = d11 e; the bin of [a, b] (relative to the tip's
+    // direction, which is +x here) holds centroids whose hoop stress lies between the formula's
+    // values at a and b.
+    assert!(tip.dir[0] > 1.0 - 1e-12, "the edge crack runs along +x: {:?}", tip.dir);
+    let u: Vec<[f64; 2]> = pts.iter().map(|x| [0.0, e * x[1]]).collect();
+    let bins = hoop_profile(&s.model, &u, tip, r_in, r_out).unwrap();
+    let (sxx, syy) = (d.d12 * e, d.d11 * e);
+    let f = |deg: f64| {
+        let p = deg.to_radians();
+        sxx * p.sin().powi(2) + syy * p.cos().powi(2)
+    };
+    let (mut below, mut above) = (0, 0);
+    for (k, &(sum, c)) in bins.iter().enumerate() {
+        if c == 0 {
+            continue;
+        }
+        let (a, b) = (-90.0 + 10.0 * k as f64, -80.0 + 10.0 * k as f64);
+        let (lo, hi) = (f(a).min(f(b)), f(a).max(f(b)));
+        let v = sum / c as f64;
+        assert!(v >= lo - 1e-12 * syy && v <= hi + 1e-12 * syy, "bin {k} [{a}, {b}] deg: {v} not in [{lo}, {hi}]");
+        if k < 9 {
+            below += c;
+        } else {
+            above += c;
+        }
+    }
+    assert!(below > 5 && above > 5, "both sides of the axis hold elements: {below}, {above}");
+}
+
+/// A fork (ours, session 31: `TipPlan::fork`, what `tip_mts` proposes with `fork_ratio`) cuts
+/// the crack face and two links at the tip in one cut: the tip's point falls in three clusters,
+/// and the crack then has two tips, at the two links' far ends. Reference: the topology's
+/// definition of a tip (the joined end of a separated edge).
+#[test]
+fn a_fork_makes_two_tips() {
+    let edge = std::fs::read_to_string(root().join("configs/sif/edge_0.3_t3.toml")).unwrap().replace("../meshes/", "meshes/");
+    let mut s = sim(&edge);
+    let tips = crack_tips(&s.model);
+    let p = flem_core::ids::PointId::new(tips[0].point);
+    let face = flem_core::ids::EdgeId::new(tips[0].edge);
+    let topo = &s.model.topo;
+    let pts = &s.model.mesh.points;
+    let xp = pts[p.idx()];
+    // The links ahead of the tip nearest +20 deg and -20 deg.
+    let nearest = |deg: f64, not: Option<flem_core::ids::EdgeId>| {
+        let (c, sn) = (deg.to_radians().cos(), deg.to_radians().sin());
+        *topo
+            .point_edges
+            .row(p.idx())
+            .iter()
+            .filter(|&&e| e != face && Some(e) != not)
+            .max_by(|a, b| {
+                let cosang = |e: &flem_core::ids::EdgeId| {
+                    let q = pts[topo.other_end(*e, p).idx()];
+                    let d = [q[0] - xp[0], q[1] - xp[1]];
+                    (d[0] * c + d[1] * sn) / d[0].hypot(d[1])
+                };
+                cosang(a).total_cmp(&cosang(b))
+            })
+            .unwrap()
+    };
+    let a = nearest(20.0, None);
+    let b = nearest(-20.0, Some(a));
+    let (qa, qb) = (topo.other_end(a, p), topo.other_end(b, p));
+    let c = topo.point_clusters[p.idx()][0];
+    let rec = s.model.topo.cut(c, &[a, face, b], true);
+    assert_eq!(rec.new_clusters.len(), 2, "the fork splits the tip's point in three");
+    s.apply_split_record(&rec);
+    assert_eq!(s.model.topo.point_clusters[p.idx()].len(), 3);
+    let mut tips: Vec<usize> = crack_tips(&s.model).iter().map(|t| t.point).collect();
+    tips.sort_unstable();
+    let mut want = vec![qa.idx(), qb.idx()];
+    want.sort_unstable();
+    assert_eq!(tips, want, "two tips, at the links' far ends");
+}

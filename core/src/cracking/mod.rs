@@ -373,8 +373,10 @@ impl Cracking {
                 principal: self.principal[c as usize],
             };
             let chk = self.checks[c as usize];
-            let mut moved: Option<(PointId, [f64; 2], [f64; 2])> = None;
-            let mut line: Option<(PointId, [f64; 2], f64)> = None;
+            // The path method's node moves and tip lines of this cut (two of each when the
+            // tip forks, `TipPlan::fork`; ours, session 31).
+            let mut moved: Vec<(PointId, [f64; 2], [f64; 2])> = Vec::new();
+            let mut lines: Vec<(PointId, [f64; 2], f64)> = Vec::new();
             let prop = match tip {
                 Some(t) => {
                     let planned = self.path.lines.iter().rev().find(|l| l.point == t.point.0).map(|l| (l.origin, l.dir));
@@ -382,9 +384,16 @@ impl Cracking {
                     let Some(plan) = cfg.separation.propose_tip(&ctx) else { continue };
                     let far = plan.edges.iter().find(|&&e| e != t.face).map(|&e| model.topo.other_end(e, t.point));
                     if let Some(q) = far {
-                        line = Some((q, plan.origin, plan.direction));
+                        lines.push((q, plan.origin, plan.direction));
                     }
-                    if let Some((q, to)) = plan.relocate {
+                    let mut edges = plan.edges;
+                    let mut relocs = [plan.relocate, None];
+                    if let Some(fk) = plan.fork {
+                        lines.push((model.topo.other_end(fk.edge, t.point), fk.origin, fk.direction));
+                        edges.push(fk.edge);
+                        relocs[1] = fk.relocate;
+                    }
+                    for (q, to) in relocs.into_iter().flatten() {
                         // The largest of the fractions 1, 7/8, ..., 1/4 of the move (in eighths)
                         // that the element check admits (session 25; before, 1, 1/2 or 1/4: a
                         // coarse quad whose whole move flattened an element moved half-way and its
@@ -400,7 +409,7 @@ impl Cracking {
                         let e0 = model.strain_energy_at(q, ug);
                         match MOVE_FRACTIONS.into_iter().map(at).find(|&x| path::check_move_held(model, &self.path_held, q, x).is_ok()).map(|x| (x, model.move_point(q, x))) {
                             Some((x, Ok(()))) => {
-                                moved = Some((q, from, x));
+                                moved.push((q, from, x));
                                 self.move_strain += model.strain_energy_at(q, ug) - e0;
                             }
                             _ => {
@@ -409,7 +418,7 @@ impl Cracking {
                             }
                         }
                     }
-                    crate::plugin::traits::Proposal { edges: plan.edges }
+                    crate::plugin::traits::Proposal { edges }
                 }
                 None => match cfg.separation.try_propose(&view, &chk).map_err(crate::FlemError::Other)? {
                     Some(p) => p,
@@ -418,7 +427,7 @@ impl Cracking {
             };
             let mut r = model.topo.cut(cid, &prop.edges, true);
             if r.is_empty() {
-                if let Some((q, from, _)) = moved {
+                for &(q, from, _) in moved.iter().rev() {
                     let e1 = model.strain_energy_at(q, ug);
                     model.move_point(q, from).map_err(crate::FlemError::Other)?;
                     self.move_strain += model.strain_energy_at(q, ug) - e1;
@@ -430,17 +439,17 @@ impl Cracking {
                 tips = None;
                 crack_segs = None;
             }
-            if let Some((q, from, to)) = moved {
+            for &(q, from, to) in &moved {
                 self.path.moves.push(path::PathMove { cut: self.cuts.len() as u32, point: q.0, from, to });
                 r.moved.push((q, to));
             }
-            if let Some((q, origin, dir)) = line {
+            for &(q, origin, dir) in &lines {
                 self.path.lines.push(path::TipLine { point: q.0, origin, dir });
             }
             if u_ext.is_empty() {
                 (u_ext, x_ext) = (u.to_vec(), x0.to_vec());
             }
-            if let Some((q, _, to)) = moved {
+            for &(q, _, to) in &moved {
                 for &k in &model.topo.point_clusters[q.idx()] {
                     if k.idx() < x_ext.len() {
                         x_ext[k.idx()] = to;

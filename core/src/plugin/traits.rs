@@ -382,9 +382,22 @@ pub struct TipContext<'a> {
 /// point never split, every element around it keeps its orientation and a minimum angle) and
 /// cuts without it when it is refused. `origin`, `direction`: the line the crack is to follow
 /// (radians from +x), handed back in [`TipContext::planned`] at the new tip.
+/// `fork` (ours, session 31): a second link cut at the same tip in the same cut (the crack
+/// branches: the tip's point falls in three), with its own move and line.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TipPlan {
     pub edges: Vec<EdgeId>,
+    pub relocate: Option<(PointId, [f64; 2])>,
+    pub origin: [f64; 2],
+    pub direction: f64,
+    pub fork: Option<TipFork>,
+}
+
+/// The second branch of a forking tip ([`TipPlan::fork`]): the link it runs along (not in
+/// `TipPlan::edges`), the move of that link's far point, and its line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TipFork {
+    pub edge: EdgeId,
     pub relocate: Option<(PointId, [f64; 2])>,
     pub origin: [f64; 2],
     pub direction: f64,

@@ -82,6 +82,27 @@
 //! a graded one; with both keys the larger radius counts. The shielded point keeps its stress above
 //! the strength (counted in `beyond_criterion`).
 //!
+//! `fork_ratio` (0: off, the default; ours, session 31, experimental: docs/dynamic.md "Session
+//! 31"): a tip forks into two branches when the hoop stress ahead of it peaks off its axis on
+//! both sides, the signal of a running crack about to branch (Yoffe 1951: above about 0.6 c_s the
+//! hoop stress of a running crack peaks off its axis). At each tip evaluation, with the tip's
+//! direction `dir`:
+//!
+//! ```text
+//! S(bin)  = mean over elements with centroid at r in [1, 4] h, theta in the bin, of
+//!           sigma_thetatheta (the linear elastic stress at the centroid; 18 bins of 10 deg
+//!           over the forward half-plane, `check::sif::hoop_profile`)
+//! S_axis  = mean of the two bins within 10 deg of the axis  (> 0)
+//! fork   <=> min( max_{theta <= -30 deg} S, max_{theta >= 30 deg} S ) >= fork_ratio S_axis
+//! ```
+//!
+//! and no other tip lies within `FORK_CLEAR` (8) element sizes. A forking tip cuts its face and
+//! the two links nearest `dir +- fork_angle` (default 15 deg) in one cut: its point falls in three,
+//! each branch's far node moves onto its line as a tip's does, and each branch is a tip with its
+//! own line from there. `fork_angle` is a setting, not a result. Limits: linear elastic `t3` and
+//! `q4` elements near the tip (other kinds: no fork). The paths after a fork are not yet
+//! trustworthy: the branches wander, and one of them often arrests.
+//!
 //! The setting measured for must-shows 2 and 3 (ours, session 25; docs/paths.md "Session 25"):
 //! `every = 1.25`, `piece = 0.05`, `shrink = 1.5` (all 72 kink tips within 5 deg, the shear
 //! series within 1.31 % Hausdorff). It is not the default: the keys' default values are those
@@ -101,13 +122,15 @@
 //! piece = 0.0        # ours (session 19): 0 = off; e.g. 0.05 with shrink = 1.5 (docs/paths.md)
 //! shield = 0.0       # ours (session 27): 0 = off (element sizes)
 //! shield_length = 0.0   # ours (session 27): 0 = off (the mesh's unit; 0.04 m in the L-panel scenes)
+//! fork_ratio = 0.0   # ours (session 31, experimental): 0 = off; e.g. 1.5 (docs/dynamic.md)
+//! fork_angle = 15.0  # ours (session 31): the branches' angle to the tip's direction (deg)
 //! ```
 use serde::{Deserialize, Serialize};
 
-use flem_core::plugin::traits::{FailureCheck, FanView, ParamError, Proposal, SeparationRule, TipContext, TipPlan};
+use flem_core::plugin::traits::{FailureCheck, FanView, ParamError, Proposal, SeparationRule, TipContext, TipFork, TipPlan};
 
 use super::sigma1_nearest::propose_along;
-use crate::check::sif::{domain_sif, domain_sif_tol, mts_angle, CrackTip, SifError};
+use crate::check::sif::{domain_sif, domain_sif_tol, hoop_profile, mts_angle, CrackTip, SifError};
 
 fn four() -> f64 {
     4.0
@@ -187,6 +210,22 @@ pub struct TipMts {
     /// 0: off (the default).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub shield_length: f64,
+    /// Ours (session 31): a tip forks into two when the hoop stress on the ring `FORK_RING`
+    /// peaks off its axis on both sides by this factor over the axis value (`fork_signal`).
+    /// 0: off (the default; no tip forks, as before).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub fork_ratio: f64,
+    /// Ours (session 31): the two branches of a fork leave at `+- fork_angle` degrees from the
+    /// tip's direction (a setting, not a result: docs/dynamic.md).
+    #[serde(default = "fifteen", skip_serializing_if = "is_fifteen")]
+    pub fork_angle: f64,
+}
+
+fn fifteen() -> f64 {
+    15.0
+}
+fn is_fifteen(v: &f64) -> bool {
+    *v == 15.0
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -209,6 +248,8 @@ impl Default for TipMts {
             piece: 0.0,
             shield: 0.0,
             shield_length: 0.0,
+            fork_ratio: 0.0,
+            fork_angle: 15.0,
         }
     }
 }
@@ -422,6 +463,12 @@ impl SeparationRule for TipMts {
         if !(self.shield_length.is_finite() && self.shield_length >= 0.0) {
             return Err(ParamError::new("shield_length", format!("= {} is incorrect; it must be 0 (off) or a positive length (the mesh's unit)", self.shield_length)));
         }
+        if !(self.fork_ratio.is_finite() && (self.fork_ratio == 0.0 || self.fork_ratio >= 1.0)) {
+            return Err(ParamError::new("fork_ratio", format!("= {} is incorrect; it must be 0 (off) or at least 1", self.fork_ratio)));
+        }
+        if !(self.fork_angle.is_finite() && self.fork_angle > 0.0 && self.fork_angle < 90.0) {
+            return Err(ParamError::new("fork_angle", format!("= {} is incorrect; it must be in (0, 90) degrees", self.fork_angle)));
+        }
         if !(self.every.is_finite() && (1.0..=10.0).contains(&self.every)) {
             return Err(ParamError::new("every", format!("= {} is incorrect; it must be in [1, 10] (domain radii)", self.every)));
         }
@@ -451,16 +498,36 @@ impl SeparationRule for TipMts {
         if topo.point_edges.row(ctx.fan.point.idx()).iter().any(|&e| topo.edges[e.idx()].sides[1].is_none()) {
             // The crack has reached the boundary: it runs through, along its face alone (no
             // link back into the body).
-            return Some(TipPlan { edges: vec![ctx.face], relocate: None, origin, direction: dir });
+            return Some(TipPlan { edges: vec![ctx.face], relocate: None, origin, direction: dir, fork: None });
         }
+        if let Some(plan) = self.fork_plan(ctx, dir) {
+            return Some(plan);
+        }
+        let (edge, relocate) = self.link_toward(ctx, origin, dir, aim, None)?;
+        Some(TipPlan { edges: vec![edge, ctx.face], relocate, origin, direction: dir, fork: None })
+    }
+}
+
+impl TipMts {
+    /// The link at the tip nearest the direction `aim`, ahead of the tip (smaller edge id on a
+    /// tie; not `except`), and the move of its far node onto the line (`origin`, direction
+    /// `dir`): the foot of its perpendicular, at most `max_move` of the link's length, or its
+    /// slide along the boundary (`boundary_slide`). `None`: no link.
+    fn link_toward(
+        &self,
+        ctx: &TipContext,
+        origin: [f64; 2],
+        dir: f64,
+        aim: f64,
+        except: Option<flem_core::ids::EdgeId>,
+    ) -> Option<(flem_core::ids::EdgeId, Option<(flem_core::ids::PointId, [f64; 2])>)> {
         let m = ctx.model;
         let q = ctx.fan.point;
         let xq = m.mesh.points[q.idx()];
         let (ah, dh) = ([aim.cos(), aim.sin()], [dir.cos(), dir.sin()]);
-        // The link nearest the aim, ahead of the tip (smaller edge id on a tie).
         let mut best: Option<(f64, usize)> = None;
         for (i, l) in ctx.fan.links.iter().enumerate() {
-            if l.edge == ctx.face {
+            if l.edge == ctx.face || Some(l.edge) == except {
                 continue;
             }
             let r = m.topo.other_end(l.edge, q);
@@ -492,13 +559,101 @@ impl SeparationRule for TipMts {
             None => (to, mv),
         };
         let relocate = (self.relocate && a > 1e-6 && s - sq > 0.25 * len && mv > 1e-9 * len).then_some((r, to));
-        Some(TipPlan { edges: vec![edge, ctx.face], relocate, origin, direction: dir })
+        Some((edge, relocate))
     }
+
+    /// `fork_ratio` (ours, session 31): whether the tip branches, and the plan of its two links
+    /// at `dir +- fork_angle` (module docs). `None`: off, no fork (the hoop stress of
+    /// [`hoop_profile`] on the ring `FORK_RING` peaks on the axis, or a side lacks elements),
+    /// or the two aims take the same link.
+    fn fork_plan(&self, ctx: &TipContext, dir: f64) -> Option<TipPlan> {
+        if self.fork_ratio <= 0.0 {
+            return None;
+        }
+        let m = ctx.model;
+        let q = ctx.fan.point;
+        let xq = m.mesh.points[q.idx()];
+        // No fork while another tip (a sibling of the last fork) lies within `FORK_CLEAR h`.
+        let near = |t: &flem_core::cracking::path::Tip| {
+            t.point != q && {
+                let x = m.mesh.points[t.point.idx()];
+                (x[0] - xq[0]).hypot(x[1] - xq[1]) < FORK_CLEAR * ctx.h
+            }
+        };
+        if flem_core::cracking::path::tips(&m.topo, &m.mesh.points).iter().any(near) {
+            return None;
+        }
+        let tip = CrackTip { point: q.idx(), x: xq, dir: [dir.cos(), dir.sin()], edge: ctx.face.idx(), h: ctx.h, faces: 1 };
+        let bins = hoop_profile(m, ctx.u, &tip, FORK_RING[0] * ctx.h, FORK_RING[1] * ctx.h)?;
+        if !fork_signal(&bins, self.fork_ratio) {
+            return None;
+        }
+        let a = self.fork_angle.to_radians();
+        let (ea, ra) = self.link_toward(ctx, xq, dir + a, dir + a, None)?;
+        let (eb, rb) = self.link_toward(ctx, xq, dir - a, dir - a, Some(ea))?;
+        Some(TipPlan { edges: vec![ea, ctx.face], relocate: ra, origin: xq, direction: dir + a, fork: Some(TipFork { edge: eb, relocate: rb, origin: xq, direction: dir - a }) })
+    }
+}
+
+/// The ring of `fork_ratio`'s hoop profile, in element sizes at the tip (ours, session 31).
+pub const FORK_RING: [f64; 2] = [1.0, 4.0];
+
+/// No tip forks while another tip lies within this many element sizes (ours, session 31).
+pub const FORK_CLEAR: f64 = 8.0;
+
+/// The fork test on a hoop profile ([`hoop_profile`]'s 18 bins of 10 deg from -90 deg): the
+/// mean of the two bins within 10 deg of the axis is positive, and on each side the largest bin
+/// mean at 30 deg or more from the axis is at least `ratio` times it. Empty bins do not count;
+/// an empty axis bin or an empty side gives no fork.
+pub fn fork_signal(bins: &[(f64, u32); 18], ratio: f64) -> bool {
+    let mean = |k: usize| (bins[k].1 > 0).then(|| bins[k].0 / bins[k].1 as f64);
+    let (Some(a), Some(b)) = (mean(8), mean(9)) else { return false };
+    let on = 0.5 * (a + b);
+    if on <= 0.0 {
+        return false;
+    }
+    let side = |ks: std::ops::RangeInclusive<usize>| ks.filter_map(mean).fold(f64::NEG_INFINITY, f64::max);
+    side(0..=5).min(side(12..=17)) >= ratio * on
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `fork_signal` on profiles made by hand (reference: its definition in the docs). A flat
+    /// profile and flanks below the ratio do not fork; flanks at or above it on both sides do;
+    /// one side alone does not; a non-positive or empty axis does not; bins within 30 deg of the
+    /// axis (other than the axis's own two) do not count.
+    #[test]
+    fn fork_signal_reads_the_flanks_against_the_axis() {
+        let flat = [(1.0, 1u32); 18];
+        assert!(!fork_signal(&flat, 1.5));
+        let mut p = flat;
+        p[0] = (1.6, 1);
+        p[17] = (3.0, 2);
+        assert!(fork_signal(&p, 1.5), "1.6 and 1.5 times the axis");
+        p[17] = (2.8, 2);
+        assert!(!fork_signal(&p, 1.5), "one side at 1.4");
+        let mut q = flat;
+        q[6] = (5.0, 1);
+        q[11] = (5.0, 1);
+        assert!(!fork_signal(&q, 1.5), "bins at 20-30 deg do not count");
+        q[5] = (5.0, 1);
+        q[12] = (5.0, 1);
+        assert!(fork_signal(&q, 1.5), "bins at 30-40 deg do");
+        let mut r = q;
+        r[8] = (-1.0, 1);
+        r[9] = (-1.0, 1);
+        assert!(!fork_signal(&r, 1.5), "axis in compression");
+        r[8] = (1.0, 0);
+        r[9] = (1.0, 1);
+        assert!(!fork_signal(&r, 1.5), "an empty axis bin");
+        let mut e = q;
+        for b in e.iter_mut().take(6) {
+            *b = (0.0, 0);
+        }
+        assert!(!fork_signal(&e, 1.5), "an empty side");
+    }
 
     /// Parameters out of range are refused by name; the defaults validate.
     #[test]
@@ -519,5 +674,10 @@ mod tests {
         assert!(TipMts { shield: 4.0, ..TipMts::default() }.validate().is_ok());
         let e = TipMts { shield_length: f64::NAN, ..TipMts::default() }.validate().unwrap_err();
         assert!(format!("{e:?}").contains("shield_length"), "{e:?}");
+        let e = TipMts { fork_ratio: 0.5, ..TipMts::default() }.validate().unwrap_err();
+        assert!(format!("{e:?}").contains("fork_ratio"), "{e:?}");
+        let e = TipMts { fork_ratio: 1.5, fork_angle: 90.0, ..TipMts::default() }.validate().unwrap_err();
+        assert!(format!("{e:?}").contains("fork_angle"), "{e:?}");
+        assert!(TipMts { fork_ratio: 1.5, fork_angle: 20.0, ..TipMts::default() }.validate().is_ok());
     }
 }
