@@ -469,3 +469,61 @@ fn kalthoff_on_the_path_method_kinks_at_the_experiments_angle() {
     assert!(reloc.abs() > 1e-3 * work, "relocation {reloc:e} against the work {work:e}: the moves should be booked");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The fork of the path method through the cracking check (ours, session 31: `tip_mts`
+/// `fork_ratio`, `TipPlan::fork`; experimental). The branching plate (h = 0.5 mm) at sigma_c =
+/// 6 MPa, to 29 us. Reference: the run of docs/dynamic.md "Session 31", whose first fork is at
+/// x = 65.96 mm at 27.9 us, and the definition of a fork. Checked:
+/// - one cut of three edges (the face and two links) at a point 60-70 mm from the left edge,
+///   on the notch's line within 1 mm;
+/// - the check's tip lines hold the two branches' lines from that point, at `+- fork_angle_deg`
+///   from each other's mean;
+/// - both branches were cut through their far points, and at least two tips lie beyond the fork;
+/// - the ledger closes to 1e-4 of the work.
+#[test]
+fn a_fast_tip_forks_in_the_explicit_march() {
+    let text = std::fs::read_to_string(crate::common::root().join("configs/dynamic/branching_h0.5.toml"))
+        .unwrap()
+        .replace("file = \"branching_h0.5.msh\"", "file = \"dynamic/branching_h0.5.msh\"")
+        .replace("tensile_strength = 3e6", "tensile_strength = 6e6")
+        .replace("type = \"sigma1_nearest\"", "type = \"tip_mts\"\nfork_ratio = 1.5")
+        .replace("end_time = 80e-6", "end_time = 29e-6");
+    let mut s = crate::common::sim(&text);
+    let dir = crate::ckpt::tmp("fork");
+    let mut w = flem_core::output::OutputWriter::new(&dir, &s).unwrap();
+    s.run(&mut w).unwrap();
+    w.write_summary(&s, 0.0).unwrap();
+    drop(w);
+    let splits = std::fs::read_to_string(dir.join("splits.csv")).unwrap();
+    let head: Vec<&str> = splits.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let (cx, cy, ce, cp) = (col("x"), col("y"), col("edges"), col("point"));
+    let forks: Vec<(f64, f64, u32)> = splits
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f[ce].split_whitespace().count() == 3)
+        .map(|f| (f[cx].parse().unwrap(), f[cy].parse().unwrap(), f[cp].parse().unwrap()))
+        .collect();
+    assert!(!forks.is_empty(), "no fork by 29 us");
+    let (x, y, p) = forks[0];
+    eprintln!("first fork at ({:.2}, {:.2}) mm, {} fork cuts", 1e3 * x, 1e3 * y, forks.len());
+    assert!((0.060..=0.070).contains(&x) && (y - 0.02).abs() < 1e-3, "first fork at ({x}, {y})");
+    let cr = s.cracking.as_ref().unwrap();
+    let xp = s.model.mesh.points[p as usize];
+    let from: Vec<&flem_core::cracking::path::TipLine> = cr.path.lines.iter().filter(|l| (l.origin[0] - xp[0]).hypot(l.origin[1] - xp[1]) < 1e-12).collect();
+    assert!(from.len() >= 2, "two lines from the fork point: {from:?}");
+    let gap = (from[0].dir - from[1].dir).abs().to_degrees();
+    assert!((gap - 30.0).abs() < 1e-9, "the branches' lines are 2 x 15 deg apart: {gap}");
+    // Both branches were cut through their far points (each has split since), and the crack
+    // has at least two tips beyond the fork.
+    for l in &from[..2] {
+        assert!(s.model.topo.point_clusters[l.point as usize].len() > 1, "branch end {} has split", l.point);
+    }
+    let tips = flem_core::cracking::path::tips(&s.model.topo, &s.model.mesh.points);
+    let beyond = tips.iter().filter(|t| s.model.mesh.points[t.point.idx()][0] > x).count();
+    assert!(beyond >= 2, "{beyond} tips beyond the fork");
+    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let resid = summary["energy"]["relative_residual"].as_f64().unwrap();
+    assert!(resid.abs() < 1e-4, "ledger residual {resid}");
+}

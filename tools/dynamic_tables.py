@@ -125,7 +125,8 @@ def branching(d):
 
 def front_diff(base, run, tip0=(0.05, 0.02), t0=10e-6, t1=80e-6, dt=0.5e-6):
     """The front's distance from the notch tip in `run` against `base` at the same times, every
-    `dt` from `t0` to `t1` (each run's last record at or before the time): the largest
+    `dt` from `t0` to `t1` (each run's last record at or before the time; before a run's first
+    record, that first record): the largest
     difference (m), its median, and the largest relative one where the base's front is past
     10 mm (session 31, the settings study of docs/dynamic.md)."""
     import bisect

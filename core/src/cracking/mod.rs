@@ -380,7 +380,8 @@ impl Cracking {
             let prop = match tip {
                 Some(t) => {
                     let planned = self.path.lines.iter().rev().find(|l| l.point == t.point.0).map(|l| (l.origin, l.dir));
-                    let ctx = crate::plugin::traits::TipContext { model, u: ug, fan: &view, face: t.face, h: t.h, planned };
+                    let all = tips.as_deref().unwrap_or(&[]);
+                    let ctx = crate::plugin::traits::TipContext { model, u: ug, fan: &view, face: t.face, h: t.h, planned, tips: all };
                     let Some(plan) = cfg.separation.propose_tip(&ctx) else { continue };
                     let far = plan.edges.iter().find(|&&e| e != t.face).map(|&e| model.topo.other_end(e, t.point));
                     if let Some(q) = far {
@@ -389,6 +390,7 @@ impl Cracking {
                     let mut edges = plan.edges;
                     let mut relocs = [plan.relocate, None];
                     if let Some(fk) = plan.fork {
+                        debug_assert!(!edges.contains(&fk.edge), "a fork's second link is not among the plan's edges");
                         lines.push((model.topo.other_end(fk.edge, t.point), fk.origin, fk.direction));
                         edges.push(fk.edge);
                         relocs[1] = fk.relocate;

@@ -374,6 +374,8 @@ pub struct TipContext<'a> {
     /// path method grew it: a rule that cannot evaluate a direction at the tip (a crack not yet
     /// straight over its domain) may keep to it.
     pub planned: Option<([f64; 2], f64)>,
+    /// Every crack tip of the topology at this candidate (the check's own list).
+    pub tips: &'a [crate::cracking::path::Tip],
 }
 
 /// What a rule that grows tips proposes: the edges to cut at the tip (the crack face and the
@@ -393,8 +395,8 @@ pub struct TipPlan {
     pub fork: Option<TipFork>,
 }
 
-/// The second branch of a forking tip ([`TipPlan::fork`]): the link it runs along (not in
-/// `TipPlan::edges`), the move of that link's far point, and its line.
+/// The second branch of a forking tip ([`TipPlan::fork`]): the link it runs along (a link of
+/// the tip's fan, not in `TipPlan::edges`), the move of that link's far point, and its line.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TipFork {
     pub edge: EdgeId,

@@ -727,6 +727,53 @@ pub fn stage_sif(sim: &mut flem_core::solver::Simulation, stage: usize, at: Opti
     Ok(StageSif { stage, name: sim.scene.file.stages[stage].name.clone(), tips })
 }
 
+/// Ours (session 31, `tip_mts`'s `fork_ratio`): the hoop stress around a tip, `sigma_thetatheta` of
+/// the linear elastic stress at the centroid of every element whose centroid lies in the ring
+/// `r_in <= r <= r_out` about the tip and ahead of it (`|theta| < 90 deg` from `tip.dir`), averaged in 18 bins
+/// of 10 deg from -90 to 90 deg: `(sum, count)` per bin. The stress of a `t3` is its constant
+/// one, of a `q4` (`q4_closed`) the one at its centre. `None`: an element of another kind or a
+/// block that is not linear elastic within `r_out`.
+pub fn hoop_profile(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r_in: f64, r_out: f64) -> Option<[(f64, u32); 18]> {
+    // (An element whose centroid lies within `r_out` has a side within it: `near_tip` has it.)
+    let (near, _) = near_tip(model, tip, r_out);
+    let mut bins = [(0.0, 0u32); 18];
+    // Each block's linearity is checked once, at its first element in the ring (as `domain_sif`).
+    let mut linear_checked: Option<u32> = None;
+    for &(b, i) in &near {
+        let (blk, i) = (&model.blocks[b as usize], i as usize);
+        let x = blk.coords(i);
+        let n = x.len() as f64;
+        let c = x.iter().fold([0.0; 2], |a, p| [a[0] + p[0] / n, a[1] + p[1] / n]);
+        let l = tip.local(c);
+        let r = l[0].hypot(l[1]);
+        let th = l[1].atan2(l[0]);
+        if r < r_in || r > r_out || th.abs() >= std::f64::consts::FRAC_PI_2 {
+            continue;
+        }
+        if linear_checked != Some(b) {
+            if blk.strain_energy(u).is_some() {
+                return None;
+            }
+            linear_checked = Some(b);
+        }
+        let ue: Vec<[f64; 2]> = blk.conn(i).iter().map(|&k| u[k as usize]).collect();
+        let d = blk.material().dmat();
+        let s = match (blk.element(), x.len()) {
+            ("t3", 3) => element::stress_at::<T3, 3>(&arr(x), &arr(&ue), &d, [1.0 / 3.0, 1.0 / 3.0]),
+            ("q4" | "q4_closed", 4) => element::stress_at::<Q4, 4>(&arr(x), &arr(&ue), &d, [0.0, 0.0]),
+            _ => return None,
+        };
+        // The hoop direction at the centroid, in the global frame.
+        let ph = (c[1] - tip.x[1]).atan2(c[0] - tip.x[0]);
+        let (tx, ty) = (-ph.sin(), ph.cos());
+        let stt = s[0] * tx * tx + 2.0 * s[2] * tx * ty + s[1] * ty * ty;
+        let k = (((th + std::f64::consts::FRAC_PI_2) / std::f64::consts::PI * 18.0) as usize).min(17);
+        bins[k].0 += stt;
+        bins[k].1 += 1;
+    }
+    Some(bins)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -810,62 +857,4 @@ mod tests {
         let t4: f64 = gauss_t3().iter().map(|(x, w)| w * x[0].powi(4)).sum();
         assert!((t4 - 1.0 / 30.0).abs() < 1e-12, "{t4}");
     }
-}
-
-/// Ours (session 31, `tip_mts`'s `fork`): the hoop stress around a tip, `sigma_thetatheta` of the
-/// linear elastic stress at the centroid of every element whose centroid lies `r_in <= r <=
-/// r_out` from the tip and ahead of it (`|theta| < 90 deg` from `tip.dir`), averaged in 18 bins
-/// of 10 deg from -90 to 90 deg: `(sum, count)` per bin. The stress of a `t3` is its constant
-/// one, of a `q4` (`q4_closed`) the one at its centre. `None`: an element of another kind or a
-/// block that is not linear elastic within `r_out`.
-pub fn hoop_profile(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r_in: f64, r_out: f64) -> Option<[(f64, u32); 18]> {
-    // (An element whose centroid lies within `r_out` has a side within it: `near_tip` has it.)
-    let (near, _) = near_tip(model, tip, r_out);
-    let mut bins = [(0.0, 0u32); 18];
-    for &(b, i) in &near {
-        let (blk, i) = (&model.blocks[b as usize], i as usize);
-        let x = blk.coords(i);
-        let n = x.len() as f64;
-        let c = x.iter().fold([0.0; 2], |a, p| [a[0] + p[0] / n, a[1] + p[1] / n]);
-        let l = tip.local(c);
-        let r = l[0].hypot(l[1]);
-        let th = l[1].atan2(l[0]);
-        if r < r_in || r > r_out || th.abs() >= std::f64::consts::FRAC_PI_2 {
-            continue;
-        }
-        if blk.strain_energy(u).is_some() {
-            return None;
-        }
-        let ue: Vec<[f64; 2]> = blk.conn(i).iter().map(|&k| u[k as usize]).collect();
-        // The centroid's shape-function gradients: t3 exactly; q4 at (0, 0) of its parent square.
-        let (dn, e): (Vec<[f64; 2]>, usize) = match (blk.element(), x.len()) {
-            ("t3", 3) => {
-                let a2 = (x[1][0] - x[0][0]) * (x[2][1] - x[0][1]) - (x[2][0] - x[0][0]) * (x[1][1] - x[0][1]);
-                ((0..3).map(|k| [(x[(k + 1) % 3][1] - x[(k + 2) % 3][1]) / a2, (x[(k + 2) % 3][0] - x[(k + 1) % 3][0]) / a2]).collect(), 3)
-            }
-            ("q4" | "q4_closed", 4) => {
-                let (dxi, deta) = ([-0.25, 0.25, 0.25, -0.25], [-0.25, -0.25, 0.25, 0.25]);
-                let j = (0..4).fold([0.0; 4], |j, k| [j[0] + dxi[k] * x[k][0], j[1] + dxi[k] * x[k][1], j[2] + deta[k] * x[k][0], j[3] + deta[k] * x[k][1]]);
-                let det = j[0] * j[3] - j[1] * j[2];
-                ((0..4).map(|k| [(j[3] * dxi[k] - j[1] * deta[k]) / det, (-j[2] * dxi[k] + j[0] * deta[k]) / det]).collect(), 4)
-            }
-            _ => return None,
-        };
-        let mut eps = [0.0; 3];
-        for k in 0..e {
-            eps[0] += dn[k][0] * ue[k][0];
-            eps[1] += dn[k][1] * ue[k][1];
-            eps[2] += dn[k][1] * ue[k][0] + dn[k][0] * ue[k][1];
-        }
-        let d = blk.material().dmat();
-        let s = [d.d11 * eps[0] + d.d12 * eps[1], d.d12 * eps[0] + d.d11 * eps[1], d.d33 * eps[2]];
-        // The hoop direction at the centroid, in the global frame.
-        let ph = (c[1] - tip.x[1]).atan2(c[0] - tip.x[0]);
-        let (tx, ty) = (-ph.sin(), ph.cos());
-        let stt = s[0] * tx * tx + 2.0 * s[2] * tx * ty + s[1] * ty * ty;
-        let k = (((th + std::f64::consts::FRAC_PI_2) / std::f64::consts::PI * 18.0) as usize).min(17);
-        bins[k].0 += stt;
-        bins[k].1 += 1;
-    }
-    Some(bins)
 }

@@ -97,11 +97,12 @@
 //! ```
 //!
 //! and no other tip lies within `FORK_CLEAR` (8) element sizes. A forking tip cuts its face and
-//! the two links nearest `dir +- fork_angle` (default 15 deg) in one cut: its point falls in three,
-//! each branch's far node moves onto its line as a tip's does, and each branch is a tip with its
-//! own line from there. `fork_angle` is a setting, not a result. Limits: linear elastic `t3` and
-//! `q4` elements near the tip (other kinds: no fork). The paths after a fork are not yet
-//! trustworthy: the branches wander, and one of them often arrests.
+//! two links in one cut, one on each side of `dir`: the link nearest `dir +- fork_angle_deg`
+//! (default 15 deg), within `FORK_LINK_TOL` (30 deg) of it, whose far point has not split. Its
+//! point falls in three, each branch's far node moves onto its line as a tip's does, and each
+//! branch is a tip with its own line from there. `fork_angle_deg` is a setting, not a result.
+//! Limits: linear elastic `t3` and `q4` elements near the tip (other kinds: no fork). The paths
+//! after a fork are not yet trustworthy: the branches wander, and one of them often arrests.
 //!
 //! The setting measured for must-shows 2 and 3 (ours, session 25; docs/paths.md "Session 25"):
 //! `every = 1.25`, `piece = 0.05`, `shrink = 1.5` (all 72 kink tips within 5 deg, the shear
@@ -123,7 +124,7 @@
 //! shield = 0.0       # ours (session 27): 0 = off (element sizes)
 //! shield_length = 0.0   # ours (session 27): 0 = off (the mesh's unit; 0.04 m in the L-panel scenes)
 //! fork_ratio = 0.0   # ours (session 31, experimental): 0 = off; e.g. 1.5 (docs/dynamic.md)
-//! fork_angle = 15.0  # ours (session 31): the branches' angle to the tip's direction (deg)
+//! fork_angle_deg = 15.0  # ours (session 31): the branches' angle to the tip's direction (deg)
 //! ```
 use serde::{Deserialize, Serialize};
 
@@ -215,10 +216,10 @@ pub struct TipMts {
     /// 0: off (the default; no tip forks, as before).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub fork_ratio: f64,
-    /// Ours (session 31): the two branches of a fork leave at `+- fork_angle` degrees from the
+    /// Ours (session 31): the two branches of a fork leave at `+- fork_angle_deg` degrees from the
     /// tip's direction (a setting, not a result: docs/dynamic.md).
     #[serde(default = "fifteen", skip_serializing_if = "is_fifteen")]
-    pub fork_angle: f64,
+    pub fork_angle_deg: f64,
 }
 
 fn fifteen() -> f64 {
@@ -249,7 +250,7 @@ impl Default for TipMts {
             shield: 0.0,
             shield_length: 0.0,
             fork_ratio: 0.0,
-            fork_angle: 15.0,
+            fork_angle_deg: 15.0,
         }
     }
 }
@@ -463,11 +464,11 @@ impl SeparationRule for TipMts {
         if !(self.shield_length.is_finite() && self.shield_length >= 0.0) {
             return Err(ParamError::new("shield_length", format!("= {} is incorrect; it must be 0 (off) or a positive length (the mesh's unit)", self.shield_length)));
         }
-        if !(self.fork_ratio.is_finite() && (self.fork_ratio == 0.0 || self.fork_ratio >= 1.0)) {
-            return Err(ParamError::new("fork_ratio", format!("= {} is incorrect; it must be 0 (off) or at least 1", self.fork_ratio)));
+        if !(self.fork_ratio.is_finite() && (self.fork_ratio == 0.0 || self.fork_ratio > 1.0)) {
+            return Err(ParamError::new("fork_ratio", format!("= {} is incorrect; it must be 0 (off) or greater than 1", self.fork_ratio)));
         }
-        if !(self.fork_angle.is_finite() && self.fork_angle > 0.0 && self.fork_angle < 90.0) {
-            return Err(ParamError::new("fork_angle", format!("= {} is incorrect; it must be in (0, 90) degrees", self.fork_angle)));
+        if !(self.fork_angle_deg.is_finite() && self.fork_angle_deg > 0.0 && self.fork_angle_deg < 90.0) {
+            return Err(ParamError::new("fork_angle_deg", format!("= {} is incorrect; it must be in (0, 90) degrees", self.fork_angle_deg)));
         }
         if !(self.every.is_finite() && (1.0..=10.0).contains(&self.every)) {
             return Err(ParamError::new("every", format!("= {} is incorrect; it must be in [1, 10] (domain radii)", self.every)));
@@ -503,36 +504,35 @@ impl SeparationRule for TipMts {
         if let Some(plan) = self.fork_plan(ctx, dir) {
             return Some(plan);
         }
-        let (edge, relocate) = self.link_toward(ctx, origin, dir, aim, None)?;
+        let (edge, relocate, _) = self.link_toward(ctx, origin, dir, aim, 0.0)?;
         Some(TipPlan { edges: vec![edge, ctx.face], relocate, origin, direction: dir, fork: None })
     }
 }
 
 impl TipMts {
-    /// The link at the tip nearest the direction `aim`, ahead of the tip (smaller edge id on a
-    /// tie; not `except`), and the move of its far node onto the line (`origin`, direction
-    /// `dir`): the foot of its perpendicular, at most `max_move` of the link's length, or its
-    /// slide along the boundary (`boundary_slide`). `None`: no link.
-    fn link_toward(
-        &self,
-        ctx: &TipContext,
-        origin: [f64; 2],
-        dir: f64,
-        aim: f64,
-        except: Option<flem_core::ids::EdgeId>,
-    ) -> Option<(flem_core::ids::EdgeId, Option<(flem_core::ids::PointId, [f64; 2])>)> {
+    /// The link at the tip nearest the direction `aim` (smaller edge id on a tie), its angle to
+    /// `aim`, and the move of its far node onto the line (`origin`, direction `dir`): the foot
+    /// of its perpendicular, at most `max_move` of the link's length, or its slide along the
+    /// boundary (`boundary_slide`). `side` (a fork's branches): `+1.0` takes only links to the
+    /// left of `dir` (counter-clockwise), `-1.0` only those to its right, `0.0` any. `None`: no
+    /// link.
+    #[allow(clippy::type_complexity)]
+    fn link_toward(&self, ctx: &TipContext, origin: [f64; 2], dir: f64, aim: f64, side: f64) -> Option<(flem_core::ids::EdgeId, Option<(flem_core::ids::PointId, [f64; 2])>, f64)> {
         let m = ctx.model;
         let q = ctx.fan.point;
         let xq = m.mesh.points[q.idx()];
         let (ah, dh) = ([aim.cos(), aim.sin()], [dir.cos(), dir.sin()]);
         let mut best: Option<(f64, usize)> = None;
         for (i, l) in ctx.fan.links.iter().enumerate() {
-            if l.edge == ctx.face || Some(l.edge) == except {
+            if l.edge == ctx.face {
                 continue;
             }
             let r = m.topo.other_end(l.edge, q);
             let xr = m.mesh.points[r.idx()];
             let v = [xr[0] - xq[0], xr[1] - xq[1]];
+            if side * (dh[0] * v[1] - dh[1] * v[0]) < 0.0 || (side != 0.0 && dh[0] * v[1] - dh[1] * v[0] == 0.0) {
+                continue;
+            }
             let c = (v[0] * ah[0] + v[1] * ah[1]) / v[0].hypot(v[1]);
             let a = c.clamp(-1.0, 1.0).acos();
             if best.is_none_or(|(b, j)| a < b - 1e-12 || (a <= b + 1e-12 && l.edge < ctx.fan.links[j].edge)) {
@@ -559,13 +559,15 @@ impl TipMts {
             None => (to, mv),
         };
         let relocate = (self.relocate && a > 1e-6 && s - sq > 0.25 * len && mv > 1e-9 * len).then_some((r, to));
-        Some((edge, relocate))
+        Some((edge, relocate, a))
     }
 
-    /// `fork_ratio` (ours, session 31): whether the tip branches, and the plan of its two links
-    /// at `dir +- fork_angle` (module docs). `None`: off, no fork (the hoop stress of
-    /// [`hoop_profile`] on the ring `FORK_RING` peaks on the axis, or a side lacks elements),
-    /// or the two aims take the same link.
+    /// `fork_ratio` (ours, session 31): whether the tip branches, and the plan of its two links,
+    /// one on each side of `dir`, nearest `dir +- fork_angle_deg` (module docs). `None`: off;
+    /// another tip within `FORK_CLEAR` element sizes; a non-linear element or another kind
+    /// within the ring; no signal (`fork_signal`); a side without a link within
+    /// `FORK_LINK_TOL` of its aim; or a link whose far point has split already (the branch would
+    /// cut into a crack).
     fn fork_plan(&self, ctx: &TipContext, dir: f64) -> Option<TipPlan> {
         if self.fork_ratio <= 0.0 {
             return None;
@@ -574,13 +576,11 @@ impl TipMts {
         let q = ctx.fan.point;
         let xq = m.mesh.points[q.idx()];
         // No fork while another tip (a sibling of the last fork) lies within `FORK_CLEAR h`.
-        let near = |t: &flem_core::cracking::path::Tip| {
-            t.point != q && {
-                let x = m.mesh.points[t.point.idx()];
-                (x[0] - xq[0]).hypot(x[1] - xq[1]) < FORK_CLEAR * ctx.h
-            }
+        let near = |t: &&flem_core::cracking::path::Tip| {
+            let x = m.mesh.points[t.point.idx()];
+            t.point != q && (x[0] - xq[0]).hypot(x[1] - xq[1]) < FORK_CLEAR * ctx.h
         };
-        if flem_core::cracking::path::tips(&m.topo, &m.mesh.points).iter().any(near) {
+        if ctx.tips.iter().any(|t| near(&t)) {
             return None;
         }
         let tip = CrackTip { point: q.idx(), x: xq, dir: [dir.cos(), dir.sin()], edge: ctx.face.idx(), h: ctx.h, faces: 1 };
@@ -588,9 +588,13 @@ impl TipMts {
         if !fork_signal(&bins, self.fork_ratio) {
             return None;
         }
-        let a = self.fork_angle.to_radians();
-        let (ea, ra) = self.link_toward(ctx, xq, dir + a, dir + a, None)?;
-        let (eb, rb) = self.link_toward(ctx, xq, dir - a, dir - a, Some(ea))?;
+        let a = self.fork_angle_deg.to_radians();
+        let (ea, ra, erra) = self.link_toward(ctx, xq, dir + a, dir + a, 1.0)?;
+        let (eb, rb, errb) = self.link_toward(ctx, xq, dir - a, dir - a, -1.0)?;
+        let split = |e: flem_core::ids::EdgeId| m.topo.point_clusters[m.topo.other_end(e, q).idx()].len() > 1;
+        if erra.max(errb) > FORK_LINK_TOL.to_radians() || split(ea) || split(eb) {
+            return None;
+        }
         Some(TipPlan { edges: vec![ea, ctx.face], relocate: ra, origin: xq, direction: dir + a, fork: Some(TipFork { edge: eb, relocate: rb, origin: xq, direction: dir - a }) })
     }
 }
@@ -600,6 +604,10 @@ pub const FORK_RING: [f64; 2] = [1.0, 4.0];
 
 /// No tip forks while another tip lies within this many element sizes (ours, session 31).
 pub const FORK_CLEAR: f64 = 8.0;
+
+/// A fork needs on each side of the tip's direction a link within this many degrees of its
+/// branch's aim (ours, session 31).
+pub const FORK_LINK_TOL: f64 = 30.0;
 
 /// The fork test on a hoop profile ([`hoop_profile`]'s 18 bins of 10 deg from -90 deg): the
 /// mean of the two bins within 10 deg of the axis is positive, and on each side the largest bin
@@ -628,6 +636,7 @@ mod tests {
     fn fork_signal_reads_the_flanks_against_the_axis() {
         let flat = [(1.0, 1u32); 18];
         assert!(!fork_signal(&flat, 1.5));
+        assert!(fork_signal(&flat, 1.0), "why `validate` asks a ratio above 1");
         let mut p = flat;
         p[0] = (1.6, 1);
         p[17] = (3.0, 2);
@@ -674,10 +683,10 @@ mod tests {
         assert!(TipMts { shield: 4.0, ..TipMts::default() }.validate().is_ok());
         let e = TipMts { shield_length: f64::NAN, ..TipMts::default() }.validate().unwrap_err();
         assert!(format!("{e:?}").contains("shield_length"), "{e:?}");
-        let e = TipMts { fork_ratio: 0.5, ..TipMts::default() }.validate().unwrap_err();
+        let e = TipMts { fork_ratio: 1.0, ..TipMts::default() }.validate().unwrap_err();
         assert!(format!("{e:?}").contains("fork_ratio"), "{e:?}");
-        let e = TipMts { fork_ratio: 1.5, fork_angle: 90.0, ..TipMts::default() }.validate().unwrap_err();
-        assert!(format!("{e:?}").contains("fork_angle"), "{e:?}");
-        assert!(TipMts { fork_ratio: 1.5, fork_angle: 20.0, ..TipMts::default() }.validate().is_ok());
+        let e = TipMts { fork_ratio: 1.5, fork_angle_deg: 90.0, ..TipMts::default() }.validate().unwrap_err();
+        assert!(format!("{e:?}").contains("fork_angle_deg"), "{e:?}");
+        assert!(TipMts { fork_ratio: 1.5, fork_angle_deg: 20.0, ..TipMts::default() }.validate().is_ok());
     }
 }
