@@ -380,8 +380,8 @@ impl Cracking {
             let prop = match tip {
                 Some(t) => {
                     let planned = self.path.lines.iter().rev().find(|l| l.point == t.point.0).map(|l| (l.origin, l.dir));
-                    let all = tips.as_deref().unwrap_or(&[]);
-                    let ctx = crate::plugin::traits::TipContext { model, u: ug, fan: &view, face: t.face, h: t.h, planned, tips: all };
+                    let all: Vec<PointId> = tips.as_deref().unwrap_or(&[]).iter().map(|t| t.point).collect();
+                    let ctx = crate::plugin::traits::TipContext { model, u: ug, fan: &view, face: t.face, h: t.h, planned, tips: &all };
                     let Some(plan) = cfg.separation.propose_tip(&ctx) else { continue };
                     let far = plan.edges.iter().find(|&&e| e != t.face).map(|&e| model.topo.other_end(e, t.point));
                     if let Some(q) = far {

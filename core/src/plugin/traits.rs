@@ -374,8 +374,8 @@ pub struct TipContext<'a> {
     /// path method grew it: a rule that cannot evaluate a direction at the tip (a crack not yet
     /// straight over its domain) may keep to it.
     pub planned: Option<([f64; 2], f64)>,
-    /// Every crack tip of the topology at this candidate (the check's own list).
-    pub tips: &'a [crate::cracking::path::Tip],
+    /// The points of every crack tip of the topology at this candidate (the check's own list).
+    pub tips: &'a [PointId],
 }
 
 /// What a rule that grows tips proposes: the edges to cut at the tip (the crack face and the

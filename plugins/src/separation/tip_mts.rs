@@ -576,11 +576,11 @@ impl TipMts {
         let q = ctx.fan.point;
         let xq = m.mesh.points[q.idx()];
         // No fork while another tip (a sibling of the last fork) lies within `FORK_CLEAR h`.
-        let near = |t: &&flem_core::cracking::path::Tip| {
-            let x = m.mesh.points[t.point.idx()];
-            t.point != q && (x[0] - xq[0]).hypot(x[1] - xq[1]) < FORK_CLEAR * ctx.h
+        let near = |p: &flem_core::ids::PointId| {
+            let x = m.mesh.points[p.idx()];
+            *p != q && (x[0] - xq[0]).hypot(x[1] - xq[1]) < FORK_CLEAR * ctx.h
         };
-        if ctx.tips.iter().any(|t| near(&t)) {
+        if ctx.tips.iter().any(near) {
             return None;
         }
         let tip = CrackTip { point: q.idx(), x: xq, dir: [dir.cos(), dir.sin()], edge: ctx.face.idx(), h: ctx.h, faces: 1 };
