@@ -317,6 +317,9 @@ impl Cracking {
         // The path method (ours, `path.rs`): only when the rule grows tips.
         let grows = cfg.separation.grows_tips();
         let mut tips: Option<Vec<path::Tip>> = None;
+        // The tips' points for `TipContext::tips`, refilled (in the same buffer) only after the
+        // tips themselves are found again.
+        let (mut tip_pts, mut tip_pts_fresh): (Vec<PointId>, bool) = (Vec::new(), false);
         // The shield (ours, session 27; `SeparationRule::shield_distance`): the crack's edges,
         // found when a candidate first asks and again after a cut, as the tips are.
         let mut crack_segs: Option<Vec<[[f64; 2]; 2]>> = None;
@@ -380,8 +383,12 @@ impl Cracking {
             let prop = match tip {
                 Some(t) => {
                     let planned = self.path.lines.iter().rev().find(|l| l.point == t.point.0).map(|l| (l.origin, l.dir));
-                    let all: Vec<PointId> = tips.as_deref().unwrap_or(&[]).iter().map(|t| t.point).collect();
-                    let ctx = crate::plugin::traits::TipContext { model, u: ug, fan: &view, face: t.face, h: t.h, planned, tips: &all };
+                    if !tip_pts_fresh {
+                        tip_pts.clear();
+                        tip_pts.extend(tips.as_deref().unwrap_or(&[]).iter().map(|t| t.point));
+                        tip_pts_fresh = true;
+                    }
+                    let ctx = crate::plugin::traits::TipContext { model, u: ug, fan: &view, face: t.face, h: t.h, planned, tips: &tip_pts };
                     let Some(plan) = cfg.separation.propose_tip(&ctx) else { continue };
                     let far = plan.edges.iter().find(|&&e| e != t.face).map(|&e| model.topo.other_end(e, t.point));
                     if let Some(q) = far {
@@ -439,6 +446,7 @@ impl Cracking {
             model.apply_record(&r);
             if grows {
                 tips = None;
+                tip_pts_fresh = false;
                 crack_segs = None;
             }
             for &(q, from, to) in &moved {

@@ -756,11 +756,13 @@ pub fn hoop_profile(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r_in: f64, r_
             }
             linear_checked = Some(b);
         }
-        let ue: Vec<[f64; 2]> = blk.conn(i).iter().map(|&k| u[k as usize]).collect();
+        // The element's displacements without an allocation (at most 4 corners).
+        let conn = blk.conn(i);
+        let ue: [[f64; 2]; 4] = std::array::from_fn(|a| conn.get(a).map_or([0.0; 2], |&k| u[k as usize]));
         let d = blk.material().dmat();
         let s = match (blk.element(), x.len()) {
-            ("t3", 3) => element::stress_at::<T3, 3>(&arr(x), &arr(&ue), &d, [1.0 / 3.0, 1.0 / 3.0]),
-            ("q4" | "q4_closed", 4) => element::stress_at::<Q4, 4>(&arr(x), &arr(&ue), &d, [0.0, 0.0]),
+            ("t3", 3) => element::stress_at::<T3, 3>(&arr(x), &arr(&ue[..3]), &d, [1.0 / 3.0, 1.0 / 3.0]),
+            ("q4" | "q4_closed", 4) => element::stress_at::<Q4, 4>(&arr(x), &ue, &d, [0.0, 0.0]),
             _ => return None,
         };
         // The hoop direction at the centroid, in the global frame.
