@@ -2,11 +2,12 @@
 """Meshes for the symmetry study of the branching plate (issue 36, docs/dynamic.md "Session 32"):
 
     python3 tools/branching_meshes.py mirror SRC.msh DST.msh 0.04
-        a gmsh 4.1 ASCII mesh mirrored about y = 0.04 / 2 (standard library only): y -> 0.04 - y,
-        each triangle's (quadrangle's) corners after the first reversed (counter-clockwise kept),
-        the physical names "top" and "bottom" swapped so that the scene's loads act on the
-        mirrored edges. tests/dynamic.rs does the same in Rust (`mirrored_msh`).
-    python gmsh-python tools/branching_meshes.py symmetric 0.0005 OUT.msh
+        a gmsh 4.1 ASCII mesh mirrored about y = 0.04 / 2 for FLEM's reader (standard library
+        only): y -> 0.04 - y, each triangle's (quadrangle's) corners after the first reversed
+        (counter-clockwise kept), the physical names "top" and "bottom" swapped so that the scene's
+        loads act on the mirrored edges; $Entities and the other names copied as they are.
+        tests/dynamic.rs does the same in Rust (`mirrored_msh`).
+    PYTHON tools/branching_meshes.py symmetric 0.0005 OUT.msh   (PYTHON: one with gmsh)
         the plate meshed on its lower half and copied onto the upper one by gmsh's periodic
         constraint with the mirror transform (gmsh 4.15.2 Python API, e.g. the peers' venv):
         a mesh symmetric about y = 0.02, with a line of edges along it. Same size field and
@@ -32,6 +33,8 @@ def mirror(src, dst, height):
         for _ in range(blocks):
             head = lines[i].split()
             ty, n = int(head[2]), int(head[3])
+            if l == "$Nodes" and ty != 0:
+                sys.exit(f"{src}: a node block with parametric coordinates: {lines[i]}")
             out.append(lines[i])
             i += 1
             if l == "$Nodes":

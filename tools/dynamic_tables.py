@@ -2,7 +2,8 @@
 """The tables of docs/dynamic.md (issue 36) from run folders of configs/dynamic/ scenes:
     python3 tools/dynamic_tables.py kalthoff out/kalthoff_h1 ...
     python3 tools/dynamic_tables.py branching out/branching_h0.5 ...
-    python3 tools/dynamic_tables.py front-diff out/base out/other ...   (the front's history against a base run)
+    python3 tools/dynamic_tables.py front-diff [--kalthoff] out/base out/other ...   (the front's history against a base run;
+        distances from the branching plate's notch tip (0.05, 0.02), or Kalthoff's (0.05, 0.025) with --kalthoff)
 Reads crack_tips.csv, splits.csv and summary.json (standard library only). Definitions: the
 front is the tip (with a branch) farthest from the notch tip at each record; its speed is the
 advance of that distance over a 2 us window; vmean_10_40mm 30 mm over the time the front took
@@ -145,9 +146,13 @@ def front_diff(base, run, tip0=(0.05, 0.02), t0=10e-6, t1=80e-6, dt=0.5e-6):
 if __name__ == "__main__":
     kind = sys.argv[1]
     if kind == "front-diff":
-        # python3 tools/dynamic_tables.py front-diff BASE RUN...
-        for d in sys.argv[3:]:
-            print(d.split("/")[-1], {k: round(v, 4) for k, v in front_diff(sys.argv[2], d).items()})
+        # python3 tools/dynamic_tables.py front-diff [--kalthoff] BASE RUN...
+        args = sys.argv[2:]
+        tip0 = (0.05, 0.02)
+        if args and args[0] == "--kalthoff":
+            args, tip0 = args[1:], (0.05, 0.025)
+        for d in args[1:]:
+            print(d.split("/")[-1], {k: round(v, 4) for k, v in front_diff(args[0], d, tip0).items()})
         sys.exit(0)
     for d in sys.argv[2:]:
         r = (kalthoff if kind == "kalthoff" else branching)(d)
