@@ -35,8 +35,10 @@
 //!
 //! # Speed (a window of ours)
 //! A branch's speed at a record is the chord speed `|x_k - x_j| / (t_k - t_j)`: `x_k` its tip
-//! now, `x_j` its tip at the latest earlier record at least `window` before (at the branch's
-//! first record if none is that old; no speed at that first record). The chord over a window
+//! now, `x_j` its tip at the latest earlier record at least `window` before; no speed while the
+//! branch has no record that old (session 32: before, the branch's first record stood in, and
+//! the burst of splits where a crack starts, a few elements in consecutive steps, was written as
+//! a speed of 20-90 c_R on Kalthoff-Winkler). The chord over a window
 //! smooths the zig-zag of a crack along element edges and the one-element jumps of a split;
 //! `window` is `[output] tip_window` (time), by default 10 x the mean element edge over the
 //! Rayleigh speed `c_R = c_s (0.862 + 1.14 nu) / (1 + nu)` of the first material: about the time
@@ -448,7 +450,7 @@ impl TipTracker {
 pub fn speed_of(track: &[(f64, f64, f64)], window: f64) -> Option<f64> {
     let &(t, x, y) = track.last()?;
     let earlier = &track[..track.len() - 1];
-    let j = earlier.iter().rev().find(|p| p.0 <= t - window).or(earlier.first())?;
+    let j = earlier.iter().rev().find(|p| p.0 <= t - window)?;
     (t > j.0).then(|| ((x - j.1).powi(2) + (y - j.2).powi(2)).sqrt() / (t - j.0))
 }
 
