@@ -543,6 +543,36 @@ fn contact_and_rectangles_doc_snippets_build_a_scene() {
     assert_eq!(s.contact.as_ref().unwrap().n_surface_nodes(), 17 + 5);
 }
 
+/// The ```toml snippets of the contact laws' docs (plugins/src/contact/*.rs: the `[contact]`
+/// tables of `cohesive` with each softening, `penalty`, `spring_dashpot`) parse, validate and
+/// build a runnable scene with the `rectangles` mesh of the docs, and a law's `softening` key is
+/// the one the snippet names (session 32: the cohesive law's snippets were not parsed by a test
+/// before). Reference: the docs; exact.
+#[test]
+fn contact_law_doc_snippets_build_a_scene() {
+    let mesh = &toml_blocks(include_str!("../core/src/mesh/rects.rs"))[0];
+    let docs = [
+        include_str!("../plugins/src/contact/cohesive.rs"),
+        include_str!("../plugins/src/contact/penalty.rs"),
+        include_str!("../plugins/src/contact/spring_dashpot.rs"),
+        include_str!("../plugins/src/contact/mod.rs"),
+    ];
+    let mut n = 0;
+    for doc in docs {
+        for block in toml_blocks(doc).iter().filter(|b| b.contains("[contact]")) {
+            let text = format!("{mesh}\n{block}\n[[material]]\nyoung_modulus = 1e4\npoisson_ratio = 0.25\ndensity = 1.0\n\n[[stage]]\n");
+            let s = sim(&text);
+            assert!(s.contact.is_some(), "{block}");
+            let resolved = toml::to_string(&s.scene.file).unwrap();
+            for soft in ["petersson", "cornelissen"] {
+                assert_eq!(block.contains(soft), resolved.contains(&format!("softening = \"{soft}\"")), "{soft} in {block}");
+            }
+            n += 1;
+        }
+    }
+    assert!(n >= 5, "{n} snippets");
+}
+
 /// A bar cut across at mid-height during the run (the split is applied through the same path
 /// as a cracking check) with the cohesive law: the fresh faces carry tension. Below the
 /// strength (0.3 sigma_t, so that even the dynamic overshoot of the suddenly applied load stays

@@ -133,7 +133,8 @@ fn fracture_energy_is_gc_times_the_separated_length() {
     // to 0.6 since its delta_f is 1.8 times the linear law's (measured: 2e-16, ledger 2.1e-7).
     // A knee missing from the law's kink work fails the law's unit test instead
     // (`work_of_the_forces_equals_stored_plus_dissipated`, 1e-9).
-    for (end, extra) in [(0.35, ""), (0.6, ", softening = \"petersson\"")] {
+    // Cornelissen's exponential softening (session 32): delta_f = 5.14 g / sigma_t, pulled to 0.95.
+    for (end, extra) in [(0.35, ""), (0.6, ", softening = \"petersson\""), (0.95, ", softening = \"cornelissen\"")] {
         let (gf, b) = (0.01, 1.0);
         let mut s = pulled_strip_law(gf, end, extra);
         let l = &s.ledger;

@@ -29,6 +29,22 @@
 //! load of structures whose fracture zone is long against their size (the L-panel of
 //! docs/paths.md).
 //!
+//! With `softening = "cornelissen"` (session 32) the softening branch is the exponential law of
+//! Cornelissen, Hordijk & Reinhardt (1986, *Heron* 31(2), 45-56; as Hordijk 1991 and the fib
+//! Model Code's background write it; the constants `c_1 = 3`, `c_2 = 6.93` are recalled, not
+//! read in a source here), with `x = (delta - delta_0) / w_c`:
+//!
+//! ```text
+//! T(delta) = sigma_t [ (1 + (c_1 x)^3) exp(-c_2 x) - x (1 + c_1^3) exp(-c_2) ]   0 <= x <= 1
+//! ```
+//!
+//! `delta_f = delta_0 + w_c`. The published `w_c = 5.136 G_f / f_t` makes the area `G_f` to four
+//! digits; here `w_c = g / (sigma_t A_1)` with `A_1 = int_0^1 (...) dx` in closed form
+//! (`1 / A_1` = 5.1358), so the area is `G_f` to round-off (ours, as Petersson's shift by
+//! `delta_0`). Its initial softening slope, `(c_2 + (1 + c_1^3) exp(-c_2)) A_1 sigma_t^2 / g`, is
+//! 2.71 times the linear law's.
+//! The ledger's work over a step on the curved branch is its exact integral (`kink_work`).
+//!
 //! Unloading goes back to the origin along the secant `T(delta_max) / delta_max`; the area
 //! under the envelope up to `delta_f` is `G_f`. The tangential spring
 //! (`e_s += -k_s A dslip`) is capped by `mu N + sigma_t A (1 - delta_max / delta_f)` (with
@@ -92,6 +108,13 @@
 //! [contact]
 //! law = { type = "cohesive", normal_stiffness = 1e6, shear_stiffness = 4e5, tensile_strength = 1.0, fracture_energy = 0.01, softening = "petersson" }
 //! ```
+//!
+//! Cornelissen's exponential softening:
+//!
+//! ```toml
+//! [contact]
+//! law = { type = "cohesive", normal_stiffness = 1e6, shear_stiffness = 4e5, tensile_strength = 1.0, fracture_energy = 0.01, softening = "cornelissen" }
+//! ```
 use flem_core::contact::{ContactLaw, PairForce, PairKinematics, PairState};
 use flem_core::plugin::traits::ParamError;
 use serde::{Deserialize, Serialize};
@@ -107,8 +130,9 @@ pub struct Cohesive {
     pub fracture_energy: f64,
     #[serde(default)]
     pub friction: f64,
-    /// Shape of the softening branch: `"linear"` (the default, as before) or `"petersson"`
-    /// (Petersson 1981's bilinear law for concrete). Not written to resolved scenes when linear.
+    /// Shape of the softening branch: `"linear"` (the default, as before), `"petersson"`
+    /// (Petersson 1981's bilinear law for concrete) or `"cornelissen"` (Cornelissen, Hordijk &
+    /// Reinhardt 1986's exponential law). Not written to resolved scenes when linear.
     #[serde(default, skip_serializing_if = "Softening::is_linear")]
     pub softening: Softening,
 }
@@ -124,6 +148,29 @@ pub enum Softening {
     /// then to `(delta_f, 0)`, with `delta_1 = delta_0 + 0.8 g / sigma_t`,
     /// `delta_f = delta_0 + 3.6 g / sigma_t` and `g = G_f - sigma_t delta_0 / 2`.
     Petersson,
+    /// Cornelissen, Hordijk & Reinhardt (1986), exponential: `sigma_t [(1 + (c_1 x)^3)
+    /// exp(-c_2 x) - x (1 + c_1^3) exp(-c_2)]`, `x = (delta - delta_0) / w_c`,
+    /// `w_c = g / (sigma_t A_1)` (module doc).
+    Cornelissen,
+}
+
+/// Cornelissen's constants `c_1`, `c_2` (Cornelissen, Hordijk & Reinhardt 1986).
+const CORN_C1: f64 = 3.0;
+const CORN_C2: f64 = 6.93;
+
+/// Cornelissen's shape `f(x)` on `0 <= x <= 1` (`f(0) = 1`, `f(1) = 0`).
+fn corn_f(x: f64) -> f64 {
+    let c13 = CORN_C1 * CORN_C1 * CORN_C1;
+    (1.0 + c13 * x * x * x) * (-CORN_C2 * x).exp() - x * (1.0 + c13) * (-CORN_C2).exp()
+}
+
+/// `int_0^x f(t) dt` in closed form (`int t^3 exp(-c t)` by parts), `0 <= x <= 1`.
+fn corn_area(x: f64) -> f64 {
+    let (c, c13) = (CORN_C2, CORN_C1 * CORN_C1 * CORN_C1);
+    let e = (-c * x).exp();
+    let i0 = (1.0 - e) / c;
+    let i3 = 6.0 / c.powi(4) - e * (x.powi(3) / c + 3.0 * x * x / (c * c) + 6.0 * x / c.powi(3) + 6.0 / c.powi(4));
+    i0 + c13 * i3 - 0.5 * (1.0 + c13) * (-c).exp() * x * x
 }
 
 impl Softening {
@@ -144,12 +191,17 @@ impl Cohesive {
         match self.softening {
             Softening::Linear => 2.0 * self.fracture_energy / self.tensile_strength,
             Softening::Petersson => self.d0() + 3.6 * self.g() / self.tensile_strength,
+            Softening::Cornelissen => self.d0() + self.wc(),
         }
     }
-    /// The knee of a bilinear envelope, `(delta_1, T(delta_1))`; `None` when linear.
+    /// Cornelissen's `w_c = g / (sigma_t A_1)`: the softening branch's width, its area `g`.
+    fn wc(&self) -> f64 {
+        self.g() / (self.tensile_strength * corn_area(1.0))
+    }
+    /// The knee of a bilinear envelope, `(delta_1, T(delta_1))`; `None` otherwise.
     fn knee(&self) -> Option<(f64, f64)> {
         match self.softening {
-            Softening::Linear => None,
+            Softening::Linear | Softening::Cornelissen => None,
             Softening::Petersson => Some((self.d0() + 0.8 * self.g() / self.tensile_strength, self.tensile_strength / 3.0)),
         }
     }
@@ -159,6 +211,9 @@ impl Cohesive {
         if d <= d0 {
             self.normal_stiffness * d
         } else if d < df {
+            if self.softening == Softening::Cornelissen {
+                return self.tensile_strength * corn_f((d - d0) / self.wc());
+            }
             match self.knee() {
                 None => self.tensile_strength * (df - d) / (df - d0),
                 Some((d1, t1)) if d < d1 => self.tensile_strength - (self.tensile_strength - t1) * (d - d0) / (d1 - d0),
@@ -175,6 +230,10 @@ impl Cohesive {
             0.5 * self.normal_stiffness * d * d
         } else {
             let e = d.min(df);
+            if self.softening == Softening::Cornelissen {
+                let wc = self.wc();
+                return 0.5 * self.tensile_strength * d0 + self.tensile_strength * wc * corn_area((e - d0) / wc);
+            }
             match self.knee() {
                 Some((d1, t1)) if e > d1 => 0.5 * self.tensile_strength * d0 + 0.5 * (self.tensile_strength + t1) * (d1 - d0) + 0.5 * (t1 + self.envelope(e)) * (e - d1),
                 _ => 0.5 * self.tensile_strength * d0 + 0.5 * (self.tensile_strength + self.envelope(e)) * (e - d0),
@@ -197,10 +256,17 @@ impl Cohesive {
     }
     /// `W_law - W_trap` (per area) over a step from opening `a` to `b`: the exact work of
     /// [`Self::path_traction`] (piecewise linear: the sum of the trapezoids between its kinks
-    /// at 0, `delta_0`, `delta_f` and `mo`, and `delta_1` when bilinear) less the trapezoid `1/2 (F(a) + F(b)) (b - a)` that
-    /// the ledger credits. Zero when no kink lies strictly between `a` and `b`.
+    /// at 0, `delta_0`, `delta_f` and `mo`, and `delta_1` when bilinear; on Cornelissen's curved
+    /// branch, `delta >= max(mo, delta_0)`, the envelope's exact integral) less the trapezoid
+    /// `1/2 (F(a) + F(b)) (b - a)` that the ledger credits. Zero when no kink lies strictly
+    /// between `a` and `b` and the step is off a curved branch.
     fn kink_work(&self, a: f64, b: f64, mo: f64, cohesive: bool) -> f64 {
         let (lo, hi) = (a.min(b), a.max(b));
+        // On Cornelissen's softening branch (beyond `max(mo, delta_0)`, short of `delta_f`) the
+        // path follows a curve: a piece there is integrated exactly.
+        let curve_lo = if self.softening == Softening::Cornelissen && cohesive { mo.max(self.d0()) } else { f64::INFINITY };
+        let df = self.df();
+        let on_curve = |x0: f64, x1: f64| x0.min(x1) >= curve_lo && x0.max(x1) <= df;
         let knee = self.knee().map_or(mo, |(d1, _)| d1);
         let mut kinks = [0.0, self.d0(), self.df(), mo, knee];
         let mut n = 0;
@@ -211,7 +277,7 @@ impl Cohesive {
                 n += 1;
             }
         }
-        if n == 0 {
+        if n == 0 && !(hi > curve_lo && lo < df) {
             return 0.0;
         }
         let kinks = &mut kinks[..n];
@@ -220,7 +286,7 @@ impl Cohesive {
         let (mut w, mut x0, mut f0) = (0.0, a, f(a));
         for &x in kinks.iter().chain(std::iter::once(&b)) {
             let f1 = f(x);
-            w += 0.5 * (f0 + f1) * (x - x0);
+            w += if on_curve(x0, x) { -(self.work(x) - self.work(x0)) } else { 0.5 * (f0 + f1) * (x - x0) };
             (x0, f0) = (x, f1);
         }
         w - 0.5 * (f(a) + f(b)) * (b - a)
@@ -233,7 +299,7 @@ impl Cohesive {
     fn cohesion_left(&self, area: f64, mo: f64, df: f64) -> f64 {
         match self.softening {
             Softening::Linear => self.tensile_strength * area * (1.0 - mo / df).max(0.0),
-            Softening::Petersson => area * self.envelope(mo.max(self.d0())),
+            Softening::Petersson | Softening::Cornelissen => area * self.envelope(mo.max(self.d0())),
         }
     }
     /// Energy released (per area) once the opening has reached `d`.
@@ -355,6 +421,46 @@ mod tests {
         Cohesive { softening: Softening::Petersson, ..law() }
     }
 
+    fn cornelissen() -> Cohesive {
+        Cohesive { softening: Softening::Cornelissen, ..law() }
+    }
+
+    /// Cornelissen's envelope against its definition (Cornelissen, Hordijk & Reinhardt 1986):
+    /// `T(delta_0) = sigma_t`, `T(delta_f) = 0`, the published `w_c = 5.136 G_f / f_t` to four
+    /// digits (`1 / A_1`), the area `G_f` to 1e-12 by an independent quadrature (composite
+    /// Simpson, 20 000 intervals, of the envelope itself, not of the closed form), the closed
+    /// form of the partial area against the same quadrature at x = 0.3, and the initial
+    /// softening slope 2.71 times the linear law's (1e-3). Fails with `c_2 = 6.39` or an area
+    /// term missing.
+    #[test]
+    fn cornelissen_envelope_is_the_exponential_law() {
+        let l = cornelissen();
+        let (d0, g) = (1e-3, 0.01 - 0.5 * 1e-3);
+        assert!((1.0 / corn_area(1.0) - 5.136).abs() < 5e-4, "1 / A_1 = {}", 1.0 / corn_area(1.0));
+        let wc = l.wc();
+        assert!((l.df() - (d0 + wc)).abs() < 1e-15 && (wc - g / corn_area(1.0)).abs() < 1e-15);
+        assert!((l.envelope(d0 + 1e-12) - 1.0).abs() < 1e-9 && l.envelope(l.df()) == 0.0 && l.envelope(l.df() - 1e-12 * wc).abs() < 1e-9);
+        let simpson = |a: f64, b: f64| {
+            let n = 20000;
+            let h = (b - a) / n as f64;
+            let mut s = l.envelope(a) + l.envelope(b);
+            for i in 1..n {
+                s += l.envelope(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+            }
+            s * h / 3.0
+        };
+        let area = 0.5 * d0 + simpson(d0, l.df());
+        assert!((area - 0.01).abs() < 1e-12 * 0.01 / 1e-2, "area {area} against G_f = 0.01");
+        assert!((l.work(l.df()) - 0.01).abs() < 1e-15 && (l.work(2.0 * l.df()) - 0.01).abs() < 1e-15);
+        let x = d0 + 0.3 * wc;
+        assert!((l.work(x) - 0.5 * d0 - simpson(d0, x)).abs() < 1e-13, "partial area");
+        let slope = |c: &Cohesive| (c.envelope(c.d0() + 1e-7) - c.envelope(c.d0() + 2e-7)) / 1e-7;
+        assert!((slope(&l) / slope(&law()) - 2.709).abs() < 1e-3, "slope ratio {}", slope(&l) / slope(&law()));
+        let c: Cohesive = toml::from_str("normal_stiffness = 1e3\nshear_stiffness = 1e3\ntensile_strength = 1.0\nfracture_energy = 0.01\nsoftening = \"cornelissen\"").unwrap();
+        assert_eq!(c.softening, Softening::Cornelissen);
+        assert!(toml::to_string(&c).unwrap().contains("softening = \"cornelissen\""));
+    }
+
     /// Petersson's envelope against its closed form: the knee at `(delta_0 + 0.8 g / sigma_t,
     /// sigma_t / 3)`, zero at `delta_0 + 3.6 g / sigma_t`, the area `G_f` (Petersson 1981, for
     /// `delta_0 -> 0`: knee at `0.8 G_f / f_t`, end at `3.6 G_f / f_t`). Exact to round-off.
@@ -383,7 +489,7 @@ mod tests {
     /// it then no longer carries tension. Reference: the closed-form envelope; 1e-9 and 1 %.
     #[test]
     fn monotonic_opening_releases_the_fracture_energy() {
-        for l in [law(), petersson()] {
+        for l in [law(), petersson(), cornelissen()] {
             monotonic_opening(&l);
         }
     }
@@ -417,12 +523,13 @@ mod tests {
     /// the knee), and `A sigma_t (1 - delta_max / delta_f)` with the linear law. Exact to 1e-12.
     #[test]
     fn the_shear_cap_follows_the_cohesion_left() {
-        for l in [law(), petersson()] {
+        for l in [law(), petersson(), cornelissen()] {
             let l = Cohesive { friction: 0.0, ..l };
             let d1 = l.knee().map_or(0.5 * l.df(), |(d1, _)| d1);
             let want = match l.softening {
                 Softening::Linear => 1.0 - d1 / l.df(),
                 Softening::Petersson => 1.0 / 3.0,
+                Softening::Cornelissen => corn_f((d1 - l.d0()) / l.wc()),
             };
             let mut h = [PairState { fresh: true, ..Default::default() }];
             let mut o = [PairForce::default()];
@@ -468,6 +575,9 @@ mod tests {
         energy_path(&law(), &[(-4e-4, 37), (3e-3, 53), (-2e-4, 41), (8e-3, 67), (2.5e-2, 71), (1e-3, 29), (-3e-4, 31), (2e-3, 23)]);
         // Petersson: delta_1 = 8.6e-3 (crossed while reloading past delta_max), delta_f = 3.52e-2.
         energy_path(&petersson(), &[(-4e-4, 37), (3e-3, 53), (-2e-4, 41), (1.2e-2, 67), (4e-2, 71), (1e-3, 29), (-3e-4, 31), (2e-3, 23)]);
+        // Cornelissen: delta_f = 4.98e-2; most steps in tension lie on the curved branch, whose
+        // work the trapezoid misses (the test fails with the curve's exact integral left out).
+        energy_path(&cornelissen(), &[(-4e-4, 37), (3e-3, 53), (-2e-4, 41), (1.2e-2, 67), (5.5e-2, 71), (1e-3, 29), (-3e-4, 31), (2e-3, 23)]);
     }
 
     fn energy_path(l: &Cohesive, legs: &[(f64, usize)]) {
