@@ -38,7 +38,6 @@ def front(tips, tip0):
 def common(d, tip0, gc, cr):
     tips, splits, s = load(d)
     fr = front(tips, tip0)
-    vmax = max((f(r["speed"]) for r in tips if r["speed"] != ""), default=float("nan"))
     # Front speed: the advance of the front's distance from the notch tip over a window W = 2 us.
     W = 2e-6
     vfront = float("nan")

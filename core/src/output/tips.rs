@@ -38,7 +38,8 @@
 //! now, `x_j` its tip at the latest earlier record at least `window` before; no speed while the
 //! branch has no record that old (session 32: before, the branch's first record stood in, and
 //! the burst of splits where a crack starts, a few elements in consecutive steps, was written as
-//! a speed of 20-90 c_R on Kalthoff-Winkler). The chord over a window
+//! a speed of 20-90 c_R on Kalthoff-Winkler; a checkpoint written before the change resumes with
+//! the new rule, so its crack_tips.csv holds both). The chord over a window
 //! smooths the zig-zag of a crack along element edges and the one-element jumps of a split;
 //! `window` is `[output] tip_window` (time), by default 10 x the mean element edge over the
 //! Rayleigh speed `c_R = c_s (0.862 + 1.14 nu) / (1 + nu)` of the first material: about the time
