@@ -277,7 +277,7 @@ impl Cohesive {
         let df = self.df();
         let on_curve = |x0: f64, x1: f64| x0.min(x1) >= curve_lo && x0.max(x1) <= df;
         let knee = self.knee().map_or(mo, |(d1, _)| d1);
-        let mut kinks = [0.0, self.d0(), self.df(), mo, knee];
+        let mut kinks = [0.0, self.d0(), df, mo, knee];
         let mut n = 0;
         for i in 0..kinks.len() {
             let x = kinks[i];
