@@ -731,7 +731,7 @@ pub fn stage_sif(sim: &mut flem_core::solver::Simulation, stage: usize, at: Opti
 /// the linear elastic stress at the centroid of every element whose centroid lies in the ring
 /// `r_in <= r <= r_out` about the tip and ahead of it (`|theta| < 90 deg` from `tip.dir`), averaged in 18 bins
 /// of 10 deg from -90 to 90 deg: `(sum, count)` per bin. The stress of a `t3` is its constant
-/// one, of a `q4` (`q4_closed`) the one at its centre. `None`: an element of another kind or a
+/// one, of a `q4` (`q4_closed`) the one at its centre, both by the block's own `Block::stress_at`. `None`: an element of another kind or a
 /// block that is not linear elastic within `r_out`.
 pub fn hoop_profile(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r_in: f64, r_out: f64) -> Option<[(f64, u32); 18]> {
     // (An element whose centroid lies within `r_out` has a side within it: `near_tip` has it.)
@@ -756,13 +756,10 @@ pub fn hoop_profile(model: &Model, u: &[[f64; 2]], tip: &CrackTip, r_in: f64, r_
             }
             linear_checked = Some(b);
         }
-        // The element's displacements without an allocation (at most 4 corners).
-        let conn = blk.conn(i);
-        let ue: [[f64; 2]; 4] = std::array::from_fn(|a| conn.get(a).map_or([0.0; 2], |&k| u[k as usize]));
-        let d = blk.material().dmat();
+        // The block's own stress at the element's centre (`Block::stress_at`, parent coordinates).
         let s = match (blk.element(), x.len()) {
-            ("t3", 3) => element::stress_at::<T3, 3>(&arr(x), &arr(&ue[..3]), &d, [1.0 / 3.0, 1.0 / 3.0]),
-            ("q4" | "q4_closed", 4) => element::stress_at::<Q4, 4>(&arr(x), &ue, &d, [0.0, 0.0]),
+            ("t3", 3) => blk.stress_at(i, u, [1.0 / 3.0, 1.0 / 3.0]),
+            ("q4" | "q4_closed", 4) => blk.stress_at(i, u, [0.0, 0.0]),
             _ => return None,
         };
         // The hoop direction at the centroid, in the global frame.
