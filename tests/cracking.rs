@@ -218,6 +218,40 @@ fn notched_plate_cracks_from_the_tip_at_p_crit() {
     assert!(sim.dt <= sim.stable.dt_crit);
 }
 
+/// `[cracking] intact` (ours, session 33): the points of the named node sets never split. The
+/// notched plate of the test above at 1.03 p_crit, where the notch tip fails first and the
+/// crack runs through (reference: the elastic p_crit of that test, the same scene). With the
+/// tip's own node set intact, nothing splits at the tip: the tip is left beyond the criterion
+/// (its failure index >= 1, counted in `beyond_criterion`), and no other point of the plate
+/// reaches sigma_t at this load (the tip concentrates the stress), so the run has no split at
+/// all. A set name that the mesh lacks is refused, naming the key and the sets that exist.
+#[test]
+fn intact_points_never_split() {
+    let stages = "[[stage]]\nlevels = { pull = 1.0 }\n";
+    let mut el = Simulation::new(scene(&notched_plate(stages, false))).unwrap();
+    el.run(&mut NoOutput).unwrap();
+    let tip = el.model.mesh.node_sets["notch_tip"][0] as usize;
+    let (mut corner, mut nodal) = (Vec::new(), Vec::new());
+    el.model.nodal_stress(&el.state.u, &mut corner, &mut nodal);
+    let ct = el.model.topo.point_clusters[tip][0].idx();
+    let p_crit = 1.0 / -flem_core::plugin::traits::principal(nodal[ct], el.model.material_of(flem_core::ids::ElemId::new(0)).szz(nodal[ct])).s3;
+    let stages = format!("[[stage]]\nlevels = {{ pull = {} }}\nmax_steps = 80000\n", 1.03 * p_crit);
+    let with = |intact: &str| notched_plate(&stages, true).replace("[cracking]\n", &format!("[cracking]\nintact = [{intact}]\n"));
+    // Without the key the crack starts at the tip (the test above).
+    let mut free = Simulation::new(scene(&notched_plate(&stages, true))).unwrap();
+    let mut log = Log::default();
+    free.run(&mut log).unwrap();
+    assert_eq!(log.0.first().expect("no split at 1.03 p_crit").1.point.idx(), tip);
+    let mut held = Simulation::new(scene(&with("\"notch_tip\""))).unwrap();
+    let mut log = Log::default();
+    held.run(&mut log).unwrap();
+    assert!(log.0.is_empty(), "splits with the tip intact: {:?}", log.0.iter().map(|(_, e)| held.model.mesh.points[e.point.idx()]).collect::<Vec<_>>());
+    let cr = held.cracking.as_ref().unwrap();
+    assert!(cr.index[held.model.topo.point_clusters[tip][0].idx()] >= 1.0 && cr.beyond_criterion() >= 1, "the tip is not left beyond the criterion");
+    let err = Simulation::new(scene(&with("\"notch_tp\""))).err().expect("an unknown set is refused").to_string();
+    assert!(err.contains("cracking.intact[0]") && err.contains("notch_tip"), "{err}");
+}
+
 /// Records, after every split, whether the stable-step estimate was deferred and the bound.
 struct StableWatch(Vec<(usize, f64, f64)>);
 impl Observer for StableWatch {

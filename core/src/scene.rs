@@ -461,6 +461,13 @@ pub struct CrackingCfg {
     /// open crack (`cracking::nonlocal`, docs/nonlocal.md). Absent: the paper's corner mean.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nonlocal: Option<NonlocalCfg>,
+    /// Ours (session 33): node sets (`[[set]]` names or the mesh's groups) whose points never
+    /// split. For the ends of an idealised boundary condition (the edge of a displaced strip, the
+    /// end of a clamped edge), where the elastic stress is singular and the experiment's plates
+    /// and bolts spread the load. Their points are still evaluated (failure index, VTU) and a
+    /// point beyond the criterion counts in `beyond_criterion`. Empty (default): every point may split.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub intact: Vec<String>,
 }
 
 /// `[cracking] nonlocal = { radius = R }` (ours; docs/nonlocal.md).

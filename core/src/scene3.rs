@@ -343,8 +343,15 @@ impl Scene3 {
             validate_contact3(c, &n)?;
         }
         if let Some(c) = &f.cracking {
-            if c.nonlocal.is_some() || c.weibull.is_some() {
-                return Err(FlemError::config(&n, if c.nonlocal.is_some() { "cracking.nonlocal" } else { "cracking.weibull" }, "is not available in 3D yet"));
+            if c.nonlocal.is_some() || c.weibull.is_some() || !c.intact.is_empty() {
+                let key = if c.nonlocal.is_some() {
+                    "cracking.nonlocal"
+                } else if c.weibull.is_some() {
+                    "cracking.weibull"
+                } else {
+                    "cracking.intact"
+                };
+                return Err(FlemError::config(&n, key, "is not available in 3D yet"));
             }
             c.criterion.validate().map_err(|e| FlemError::config(&n, format!("cracking.criterion.{}", e.key), e.msg))?;
             c.separation.validate().map_err(|e| FlemError::config(&n, format!("cracking.separation.{}", e.key), e.msg))?;

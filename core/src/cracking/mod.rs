@@ -100,6 +100,9 @@ pub struct Cracking {
     u_skipped: Vec<[f64; 2]>,
     index_stale: bool,
     u_saved: bool,
+    /// Ours (session 33, `[cracking] intact`): per point, whether it may never split (empty:
+    /// every point may).
+    pub intact: Vec<bool>,
 }
 
 impl Cracking {
@@ -147,6 +150,7 @@ impl Cracking {
             u_skipped: Vec::new(),
             index_stale: false,
             u_saved: false,
+            intact: Vec::new(),
         })
     }
 
@@ -359,6 +363,9 @@ impl Cracking {
                     Some(t) => cid = t,
                     None => continue,
                 }
+            }
+            if !self.intact.is_empty() && self.intact[model.topo.cluster_point[cid.idx()].idx()] {
+                continue;
             }
             let fan = model.topo.fan(cid);
             if fan.copies.len() < 2 || fan.links.is_empty() {

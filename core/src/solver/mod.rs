@@ -633,6 +633,14 @@ impl Simulation {
         let cracking = match &scene.file.cracking {
             Some(c) => {
                 let mut cr = Cracking::new(c, &model, &file, &mut warnings)?;
+                if !c.intact.is_empty() {
+                    cr.intact = vec![false; model.topo.n_points];
+                    for (i, name) in c.intact.iter().enumerate() {
+                        for p in model.node_set(name, &format!("cracking.intact[{i}]"), &file)? {
+                            cr.intact[p.idx()] = true;
+                        }
+                    }
+                }
                 // The path method (ours) never moves a point that carries a boundary condition.
                 if c.separation.grows_tips() {
                     cr.path_held = loads.held_points(&model);
