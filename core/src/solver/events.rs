@@ -608,8 +608,15 @@ impl Simulation {
                 continue;
             }
             let cr = self.cracking.as_ref().expect("events scenes have [cracking]");
-            stuck = cr.index.iter().map(|&x| x >= 1.0).collect();
-            if advanced {
+            let now: Vec<bool> = cr.index.iter().map(|&x| x >= 1.0).collect();
+            // A point the check found failed and did not cut (no edge to cut, shielded, or
+            // `[cracking] intact`): the failure is confirmed, so it is not a miss; that point
+            // leaves the search below.
+            let refused = now.iter().enumerate().any(|(c, &f)| f && !stuck.get(c).copied().unwrap_or(false));
+            stuck = now;
+            if advanced && refused {
+                misses = 0;
+            } else if advanced {
                 // The factor was found on the paths; the check's own stress of u(t) held by
                 // round-off: nudge up.
                 misses += 1;
