@@ -250,6 +250,21 @@ fn intact_points_never_split() {
     assert!(cr.index[held.model.topo.point_clusters[tip][0].idx()] >= 1.0 && cr.beyond_criterion() >= 1, "the tip is not left beyond the criterion");
     let err = Simulation::new(scene(&with("\"notch_tp\""))).err().expect("an unknown set is refused").to_string();
     assert!(err.contains("cracking.intact[0]") && err.contains("notch_tip"), "{err}");
+    // The path method routes a failed point near a tip to that tip: at 1.5 p_crit points beside
+    // the notch's tip fail too, and `tip_mts` hands them to the tip. With the tip intact none of
+    // them may split it (the key filters the point actually cut, not the failed candidate).
+    let stages = format!("[[stage]]\nlevels = {{ pull = {} }}\nmax_steps = 80000\n", 1.5 * p_crit);
+    let text = notched_plate(&stages, true).replace("type = \"sigma1_nearest\"", "type = \"tip_mts\"").replace("[cracking]\n", "[cracking]\nintact = [\"notch_tip\"]\n");
+    let mut routed = Simulation::new(scene(&text)).unwrap();
+    let mut log = Log::default();
+    routed.run(&mut log).unwrap();
+    assert!(log.0.is_empty(), "tip_mts split with the tip intact: {:?}", log.0.iter().map(|(_, e)| routed.model.mesh.points[e.point.idx()]).collect::<Vec<_>>());
+    let cr = routed.cracking.as_ref().unwrap();
+    let failed_near: Vec<[f64; 2]> = (0..routed.model.mesh.points.len())
+        .filter(|&p| p != tip && cr.index[routed.model.topo.point_clusters[p][0].idx()] >= 1.0)
+        .map(|p| routed.model.mesh.points[p])
+        .collect();
+    assert!(!failed_near.is_empty(), "no point beside the tip failed at 1.5 p_crit: the routing is not exercised");
 }
 
 /// Records, after every split, whether the stable-step estimate was deferred and the bound.
