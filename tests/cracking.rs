@@ -260,10 +260,8 @@ fn intact_points_never_split() {
     routed.run(&mut log).unwrap();
     assert!(log.0.is_empty(), "tip_mts split with the tip intact: {:?}", log.0.iter().map(|(_, e)| routed.model.mesh.points[e.point.idx()]).collect::<Vec<_>>());
     let cr = routed.cracking.as_ref().unwrap();
-    let failed_near: Vec<[f64; 2]> = (0..routed.model.mesh.points.len())
-        .filter(|&p| p != tip && cr.index[routed.model.topo.point_clusters[p][0].idx()] >= 1.0)
-        .map(|p| routed.model.mesh.points[p])
-        .collect();
+    let failed_near: Vec<[f64; 2]> =
+        (0..routed.model.mesh.points.len()).filter(|&p| p != tip && cr.index[routed.model.topo.point_clusters[p][0].idx()] >= 1.0).map(|p| routed.model.mesh.points[p]).collect();
     assert!(!failed_near.is_empty(), "no point beside the tip failed at 1.5 p_crit: the routing is not exercised");
 }
 

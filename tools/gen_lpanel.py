@@ -144,8 +144,10 @@ HEADER = """# Winkler's L-shaped panel (issue 34 must-show 3, second half; docs/
 # checked at rest (at_equilibrium, FLEM's default, ours) and when the relaxation stalls
 # (stall_steps, below).
 # Separation rule: `tip_mts` (ours, issue 34) with `shield_length` (ours, session 27: no new
-# crack within 40 mm of a crack); the same scene with
-# type = "sigma1_nearest" and without the shield_length line is the paper's edge rule (the `lpe_` runs
+# crack within 40 mm of a crack) and `every = 2` (ours, session 33: the crack's direction is
+# evaluated again once it is straight over two domain radii, not one; the interaction integral
+# does not see the cohesive faces' tractions); the same scene with
+# type = "sigma1_nearest" and without the shield_length and every lines is the paper's edge rule (the `lpe_` runs
 # of docs/paths.md). Density
 # 2400 kg/m^3 (only the explicit march's time scale; quasi-static).
 # Mesh: {mesh_doc}. Written by tools/gen_lpanel.py.
@@ -175,7 +177,8 @@ def scene(kind, i, ne, h):
     t += f'[contact]\nlaw = {{ type = "cohesive", normal_stiffness = {kn:.4e}, shear_stiffness = {kn:.4e}, tensile_strength = 2.7e6, fracture_energy = 90.0, friction = 0.0, softening = "cornelissen" }}\n\n'
     t += "[cracking]\n# Checks at rest (at_equilibrium, the default), and also when the relaxation stalls (its best\n# unbalanced ratio not halved in 30 000 steps): with cohesive faces softening, a stage often never\n# comes to rest to 1e-4, and without stall_steps its checks would never run (docs/paths.md).\nstall_steps = 30000\nmax_splits_per_check = 1\n# Ours (session 33): no split at the ends of the idealised load strip and clamp (header).\nintact = [\"lift_zone\", \"base_end\"]\n\n"
     t += '[cracking.criterion]\ntype = "rankine"\ntensile_strength = 2.7e6\n\n'
-    t += f'[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\nshield_length = {SHIELD}   # ours (session 27): no new crack within 40 mm of a crack\n\n'
+    t += f'[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\nshield_length = {SHIELD}   # ours (session 27): no new crack within 40 mm of a crack\n'
+    t += "every = 2.0   # ours (session 33): the direction evaluated again after two domain radii of straight crack (docs/paths.md)\n\n"
     t += '[output]\nhistory_every = 5000\nreactions = ["lift"]\n\n'
     levels = [round(0.025 * k, 3) for k in range(1, 5)] + [round(0.1 + 0.02 * k, 3) for k in range(1, 11)] + [0.35, 0.4]
     for k, v in enumerate(levels):

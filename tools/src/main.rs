@@ -799,7 +799,8 @@ fn run(scene: Scene, out: Option<PathBuf>, quiet: bool, resume: Option<PathBuf>,
         // With a plastic law (issue 21) the stress is capped by the law's yield surface, not by
         // the failure criterion; without one the method has no plasticity.
         let why = if sim.model.stateful { "the material law, not the criterion, bounds their stress" } else { "they carry stress above their strength (no plasticity in the method)" };
-        eprintln!("{n} points beyond the failure criterion at the last check that the separation rule did not cut: {why}");
+        let intact = if sim.cracking.as_ref().is_some_and(|c| !c.intact.is_empty()) { " (or that [cracking] intact keeps whole)" } else { "" };
+        eprintln!("{n} points beyond the failure criterion at the last check that the separation rule did not cut{intact}: {why}");
     }
     eprintln!("energy residual {:.2e} of the work done; wall time {:.2} s; results in {}", sim.ledger.relative_residual(), t0.elapsed().as_secs_f64(), out.display());
     if plots {
