@@ -88,17 +88,21 @@ fn beam_scenes_are_bittencourts_specimen() {
     }
 }
 
-/// Runs the coarsest T3 scene with `tip_mts` for at most `events` events and returns the path
-/// from the notch tip to where it first meets a boundary.
+/// Runs the scene `name` with `tip_mts` for at most `events` events and returns the path from
+/// the notch tip to where it first meets a boundary.
 fn run(name: &str, events: u32) -> (Vec<[f64; 2]>, Simulation) {
-    let t = text(name).replace("max_events = 400", &format!("max_events = {events}"));
-    let mut s = sim(&t);
+    run_text(name, &text(name).replace("max_events = 400", &format!("max_events = {events}")))
+}
+
+/// [`run`] on the scene text `t` (named `name` in messages).
+fn run_text(name: &str, t: &str) -> (Vec<[f64; 2]>, Simulation) {
+    let mut s = sim(t);
     let tips = crack_tips(&s.model);
     let initial = crack_faces(&s.model);
     s.run(&mut NoOutput).unwrap_or_else(|e| panic!("{name}: {e}"));
     let cuts = s.cracking.as_ref().unwrap().cuts.clone();
     let k = kinks_in_order(&s.model, &tips, &initial, 5.0, &cuts).remove(0);
-    assert!(k.boundary_at.is_some(), "{name}: the crack did not reach a boundary in {events} events: {:?}", k.path);
+    assert!(k.boundary_at.is_some(), "{name}: the crack did not reach a boundary: {:?}", k.path);
     (k.through().to_vec(), s)
 }
 
@@ -134,15 +138,8 @@ fn beam_crack_runs_from_the_notch_into_the_middle_hole() {
 fn beam_q4_1_with_session_25_setting_runs_into_the_middle_hole() {
     let t = text("beam_q4_1");
     let rule = t.lines().find(|l| l.starts_with("type = \"tip_mts\"")).expect("the scene's rule line").to_string();
-    let t = t.replace(&format!("{rule}\n"), &format!("{rule}\nevery = 1.25\npiece = 0.05\nshrink = 1.5\n"));
-    let mut s = sim(&t);
-    let tips = crack_tips(&s.model);
-    let initial = crack_faces(&s.model);
-    s.run(&mut NoOutput).unwrap();
-    let cuts = s.cracking.as_ref().unwrap().cuts.clone();
-    let k = kinks_in_order(&s.model, &tips, &initial, 5.0, &cuts).remove(0);
-    let path = k.through();
+    let (path, s) = run_text("beam_q4_1", &t.replace(&format!("{rule}\n"), &format!("{rule}\nevery = 1.25\npiece = 0.05\nshrink = 1.5\n")));
     let end = *path.last().expect("a path");
-    assert!(k.boundary_at.is_some() && (dist(end, HOLES[1]) - R).abs() < 1e-9, "the path ends at {end:?}, not on the middle hole");
+    assert!((dist(end, HOLES[1]) - R).abs() < 1e-9, "the path ends at {end:?}, not on the middle hole");
     assert!(fragment_sizes(&s.model).iter().all(|&n| n >= 3));
 }

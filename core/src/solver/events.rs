@@ -309,6 +309,13 @@ impl Simulation {
     }
 
     /// The stress paths of every cluster between `u0` (t = 0) and `u1` (t = 1).
+    /// Whether cluster `c`'s point may never split (`[cracking] intact`, ours): the events search
+    /// leaves it out from the start, so the solver does not stop at each of its failures to
+    /// check a state that cannot split (its failure index is still computed at every check).
+    fn intact_cluster(&self, c: usize) -> bool {
+        self.cracking.as_ref().is_some_and(|cr| !cr.intact.is_empty() && cr.intact[self.model.topo.cluster_point[c].idx()])
+    }
+
     fn events_paths(&mut self, u0: &[[f64; 2]], u1: &[[f64; 2]]) -> Vec<Path> {
         let cr = self.cracking.as_mut().expect("events scenes have [cracking]");
         let (mut s0, mut s1) = (Vec::new(), Vec::new());
@@ -535,7 +542,7 @@ impl Simulation {
             let paths = self.events_paths(&u0, &u1);
             let criterion = || self.scene.file.cracking.as_ref().expect("events scenes have [cracking]").criterion.as_ref();
             let mut fs = FactorStats::default();
-            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck.get(*c).copied().unwrap_or(false)).map(|(_, p)| *p).collect();
+            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck.get(*c).copied().unwrap_or(false) && !self.intact_cluster(*c)).map(|(_, p)| *p).collect();
             let (crit, _) = smallest_failure(criterion(), &live, 0.0, CRIT_MAX, &mut fs)?;
             let n = self.check_failure_with(obs, false)?;
             checks += 1;
@@ -609,9 +616,9 @@ impl Simulation {
             }
             let cr = self.cracking.as_ref().expect("events scenes have [cracking]");
             let now: Vec<bool> = cr.index.iter().map(|&x| x >= 1.0).collect();
-            // A point the check found failed and did not cut (no edge to cut, shielded, or
-            // `[cracking] intact`): the failure is confirmed, so it is not a miss; that point
-            // leaves the search below.
+            // A point the check found failed and did not cut (no edge to cut, or shielded: intact
+            // points are out of the search already): the failure is confirmed, so it is not a
+            // miss; that point leaves the search below.
             let refused = now.iter().enumerate().any(|(c, &f)| f && !stuck.get(c).copied().unwrap_or(false));
             stuck = now;
             if advanced && refused {
@@ -626,7 +633,7 @@ impl Simulation {
                     )));
                 }
             }
-            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck[*c]).map(|(_, p)| *p).collect();
+            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck[*c] && !self.intact_cluster(*c)).map(|(_, p)| *p).collect();
             let mut fs2 = FactorStats::default();
             let criterion = self.scene.file.cracking.as_ref().expect("events scenes have [cracking]").criterion.as_ref();
             let (next, _) = smallest_failure(criterion, &live, t, 1.0, &mut fs2)?;
