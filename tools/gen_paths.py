@@ -134,7 +134,7 @@ value = [%.15g, %.15g]
 name = "tension"
 levels = { top = 10.0, bottom = 10.0, right = 10.0, left = 10.0 }
 """ % (sxy, syy, -sxy, -syy, sxx, sxy, -sxx, -sxy)
-    return head + mesh + "\n" + MATERIAL % 80 + loads
+    return head + mesh + "\n" + MATERIAL % 500 + loads
 
 
 def sen(kind, k, fam="sen"):

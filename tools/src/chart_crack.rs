@@ -20,7 +20,8 @@
 //!
 //! `--paths` (issue 34, must-show 5): over one benchmark's scenes on several meshes (e.g.
 //! configs/paths/sen_*.toml), each scene run with the paper's edge rule (`sigma1_nearest`) and
-//! with `tip_mts` (ours) as `flem paths` runs it. Error: the Hausdorff distance of the path
+//! with `tip_mts` (ours) as `flem paths` runs it (`--separation TOML`: with the keys given, e.g.
+//! session 25's setting, instead of the defaults). Error: the Hausdorff distance of the path
 //! from the first initial tip up to the outer boundary (`Kink::through`) to the same rule's path
 //! on the finest mesh given (smallest element size at the tip), as a percentage of the
 //! specimen's size; against the run's wall time. The finest run (error 0) is the reference and
@@ -178,19 +179,34 @@ pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize, quick: bool)
     Ok(())
 }
 
+/// The path method's name on the chart (`NAME (ours)`) and its keys (`every = 1.25; piece =
+/// 0.05`, empty for a bare name; no comma: they go into a CSV field and the chart's title).
+fn method_label(method: &str) -> (String, String) {
+    let Ok(t) = method.parse::<toml::Table>() else { return (format!("{} (ours)", method.trim()), String::new()) };
+    let name = t.get("type").and_then(|v| v.as_str()).unwrap_or("?");
+    let keys: Vec<String> = t.iter().filter(|(k, _)| *k != "type").map(|(k, v)| format!("{k} = {v}")).collect();
+    (format!("{name} (ours)"), keys.join("; ").replace(',', ";"))
+}
+
 /// `flem chart-crack --paths` (see the module doc).
-pub fn run_paths(scenes: &[PathBuf], out: Option<PathBuf>) -> Result<()> {
+/// `method`: the path method's `[cracking.separation]` as a bare name or TOML (default `tip_mts`
+/// with its defaults); its label on the chart names the keys given.
+pub fn run_paths(scenes: &[PathBuf], out: Option<PathBuf>, method: Option<&str>) -> Result<()> {
     let out = out.unwrap_or_else(|| PathBuf::from("out/chart_crack"));
     let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let mut csv = String::from("scene,rule,h,wall_seconds,events,reference,hausdorff,percent_of_size\n");
     let mut pts: Vec<flem_plot::charts::ChartPoint> = Vec::new();
-    for (rule, label) in [("sigma1_nearest", "edge rule (paper)"), ("tip_mts", "tip_mts (ours)")] {
+    let method = method.unwrap_or("tip_mts");
+    crate::paths::parse_rule(method)?; // a wrong key is refused before any run
+    let (method_name, keys) = method_label(method);
+    let method_csv = if keys.is_empty() { method_name.clone() } else { format!("{method_name}: {keys}") };
+    for (rule, label, csv_label) in [("sigma1_nearest", "edge rule (paper)", "edge rule (paper)"), (method, method_name.as_str(), method_csv.as_str())] {
         let mut rows = Vec::new();
         for s in scenes {
             let mut r = crate::paths::measure(s, Some(rule), 5.0)?;
             anyhow::ensure!(!r.is_empty(), "{}: no crack tip to follow", s.display());
-            eprintln!("{}: {rule}: {:.2} s", s.display(), r[0].wall_s);
+            eprintln!("{}: {csv_label}: {:.2} s", s.display(), r[0].wall_s);
             rows.push(r.swap_remove(0));
         }
         let fine = rows.iter().enumerate().min_by(|a, b| a.1.kink.h.total_cmp(&b.1.kink.h)).map(|(i, _)| i).context("no scene")?;
@@ -198,7 +214,7 @@ pub fn run_paths(scenes: &[PathBuf], out: Option<PathBuf>) -> Result<()> {
         for (i, r) in rows.iter().enumerate() {
             let d = flem_plugins::check::paths::hausdorff(r.kink.through(), rows[fine].kink.through(), 1e-4 * size);
             let pct = 100.0 * d / size;
-            let _ = writeln!(csv, "{},{rule},{},{},{},{},{d},{pct}", r.scene, r.kink.h, r.wall_s, r.events, rows[fine].scene);
+            let _ = writeln!(csv, "{},{},{},{},{},{},{d},{pct}", r.scene, csv_label, r.kink.h, r.wall_s, r.events, rows[fine].scene);
             if i != fine {
                 let stem = Path::new(&r.scene).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
                 // A `FAMILY_KIND_N` scene (configs/paths/): the mesh kind as the marker shape, the
@@ -219,7 +235,11 @@ pub fn run_paths(scenes: &[PathBuf], out: Option<PathBuf>) -> Result<()> {
     flem_core::output::atomic_write(&out.join("path_error.csv"), csv.as_bytes())?;
     flem_plot::charts::speed_accuracy(
         &out.join("path_error"),
-        "crack path: Hausdorff distance to the finest mesh's path",
+        &if keys.is_empty() {
+            "crack path: Hausdorff distance to the finest mesh's path".to_string()
+        } else {
+            format!("crack path: Hausdorff distance to the finest mesh's path ({method_name}: {keys})")
+        },
         "Hausdorff distance to the finest mesh's path (% of the specimen; 1e-3: equal)",
         &pts,
     )?;

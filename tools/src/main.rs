@@ -149,6 +149,11 @@ enum Cmd {
         /// scenes given (one benchmark on several meshes, e.g. configs/paths/sen_*.toml).
         #[arg(long)]
         paths: bool,
+        /// With --paths: the path method's rule and keys instead of `tip_mts` with its
+        /// defaults, as TOML of `[cracking.separation]` (as `flem paths --separation`), e.g.
+        /// $'type = "tip_mts"\nevery = 1.25\npiece = 0.05\nshrink = 1.5'.
+        #[arg(long, requires = "paths")]
+        separation: Option<String>,
     },
     /// The stability map: measured blow-up step against the prediction per mesh and damping,
     /// steps to rest against the damping parameter, the implicit solver after separation.
@@ -359,9 +364,9 @@ fn main() -> ExitCode {
         Some(Cmd::Check { scenes }) => check(&scenes),
         Some(Cmd::Chart { scene, out, quick, analytic, stages, no_cracking, elements, max_steps }) => chart::chart(&scene, out, quick, analytic, stages, no_cracking, &elements, max_steps),
         Some(Cmd::Stability { out, quick }) => stability::run(out, quick),
-        Some(Cmd::ChartCrack { scenes, out, splits, quick, paths }) => {
+        Some(Cmd::ChartCrack { scenes, out, splits, quick, paths, separation }) => {
             if paths {
-                chart_crack::run_paths(&scenes, out)
+                chart_crack::run_paths(&scenes, out, separation.as_deref())
             } else {
                 chart_crack::run(&scenes, out, splits, quick)
             }
