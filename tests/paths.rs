@@ -615,30 +615,41 @@ fn tip_mts_shield_keeps_new_cracks_off_a_crack() {
 /// `flem chart-crack --paths --separation TOML` (issue 34 must-show 5's chart with session 25's
 /// setting): the shear test on the coarse Q4 grid and the coarse T3 mesh (the finer of the two,
 /// h = 0.0321, is the reference). Reference: must-show 3's bound, the Hausdorff distance between
-/// the two meshes' paths at most 2 % of the specimen with the path method (1.2 % measured,
-/// docs/paths.md), while the paper's edge rule's paths differ by more than 5 % (11 % measured: a
-/// chart that ran the edge rule twice, or the defaults instead of the keys, fails here). The keys
-/// are named in the CSV; a misspelt key is refused before any run, naming it.
+/// the two meshes' paths at most 2 % of the specimen with the path method (1.09 % measured with
+/// the setting), while the paper's edge rule's paths differ by more than 5 % (12.2 % measured: a
+/// chart that ran the edge rule twice fails here). The same chart without `--separation` runs
+/// `tip_mts`'s defaults (1.68 % here): the two must differ, so a chart that dropped the keys
+/// fails. The keys are named in the CSV; a misspelt key is refused before any run, naming it.
 #[test]
 fn chart_crack_paths_runs_the_setting_given() {
     let out = std::env::temp_dir().join(format!("flem_chart_paths_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
     let scenes: Vec<String> = ["shear_q4_1", "shear_t3_1"].iter().map(|n| root().join(format!("configs/paths/{n}.toml")).to_string_lossy().into_owned()).collect();
-    let run = |sep: &str| {
-        std::process::Command::new(crate::common::flem_exe()).args(["chart-crack", "--paths", &scenes[0], &scenes[1], "--separation", sep, "--out", out.to_str().unwrap()]).output().unwrap()
+    let run = |sep: Option<&str>| {
+        let _ = std::fs::remove_dir_all(&out);
+        let mut args = vec!["chart-crack", "--paths", &scenes[0], &scenes[1], "--out", out.to_str().unwrap()];
+        if let Some(s) = sep {
+            args.extend(["--separation", s]);
+        }
+        let o = std::process::Command::new(crate::common::flem_exe()).args(&args).output().unwrap();
+        let csv = std::fs::read_to_string(out.join("path_error.csv")).unwrap_or_default();
+        (o, csv)
     };
-    let o = run("type = \"tip_mts\"\nevery = 1.25\npiece = 0.05\nshrink = 1.5");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let csv = std::fs::read_to_string(out.join("path_error.csv")).unwrap();
-    let pct = |rule: &str| -> f64 {
+    // The q4_1 row's distance (% of the specimen) of one rule's label.
+    let pct = |csv: &str, rule: &str| -> f64 {
         let row = csv.lines().find(|l| l.contains("shear_q4_1") && l.split(',').nth(1) == Some(rule)).unwrap_or_else(|| panic!("no q4_1 row of {rule} in\n{csv}"));
         row.rsplit(',').next().unwrap().parse().unwrap()
     };
-    let (edge, tip) = (pct("edge rule (paper)"), pct("tip_mts (ours): every = 1.25; piece = 0.05; shrink = 1.5"));
-    assert!(tip <= 2.0 && edge > 5.0, "Hausdorff q4_1 to t3_1: tip_mts {tip:.2} %, edge rule {edge:.2} %");
+    let (o, csv) = run(Some("type = \"tip_mts\"\nevery = 1.25\npiece = 0.05\nshrink = 1.5"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.join("path_error.svg").exists());
-    let bad = run("type = \"tip_mts\"\nevry = 1.25");
+    let (edge, tip) = (pct(&csv, "edge rule (paper)"), pct(&csv, "tip_mts (ours): every = 1.25; piece = 0.05; shrink = 1.5"));
+    assert!(tip <= 2.0 && edge > 5.0, "Hausdorff q4_1 to t3_1: tip_mts {tip:.2} %, edge rule {edge:.2} %");
+    let (o, csv) = run(None);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let defaults = pct(&csv, "tip_mts (ours)");
+    assert!((defaults - tip).abs() > 0.1, "the setting's path is the defaults' ({tip:.3} % against {defaults:.3} %): the keys were not used");
+    let (bad, _) = run(Some("type = \"tip_mts\"\nevry = 1.25"));
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(!bad.status.success() && err.contains("evry") && !err.contains("edge rule (paper):"), "{err}");
+    assert!(!bad.status.success() && err.contains("unknown field `evry`") && !err.contains("edge rule (paper):"), "{err}");
     let _ = std::fs::remove_dir_all(&out);
 }
