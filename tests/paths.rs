@@ -651,5 +651,6 @@ fn chart_crack_paths_runs_the_setting_given() {
     let (bad, _) = run(Some("type = \"tip_mts\"\nevry = 1.25"));
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && err.contains("unknown field `evry`") && !err.contains("edge rule (paper):"), "{err}");
+    assert!(!out.exists(), "a refused chart wrote {}", out.display());
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -192,13 +192,13 @@ fn method_label(method: &str) -> (String, String) {
 /// `method`: the path method's `[cracking.separation]` as a bare name or TOML (default `tip_mts`
 /// with its defaults); its label on the chart names the keys given.
 pub fn run_paths(scenes: &[PathBuf], out: Option<PathBuf>, method: Option<&str>) -> Result<()> {
+    let method = method.unwrap_or("tip_mts");
+    crate::paths::parse_rule(method)?; // a wrong key is refused before any run or output
     let out = out.unwrap_or_else(|| PathBuf::from("out/chart_crack"));
     let _lock = crate::lock_out(&out)?;
     flem_core::output::prepare_dir(&out)?;
     let mut csv = String::from("scene,rule,h,wall_seconds,events,reference,hausdorff,percent_of_size\n");
     let mut pts: Vec<flem_plot::charts::ChartPoint> = Vec::new();
-    let method = method.unwrap_or("tip_mts");
-    crate::paths::parse_rule(method)?; // a wrong key is refused before any run
     let (method_name, keys) = method_label(method);
     let method_csv = if keys.is_empty() { method_name.clone() } else { format!("{method_name}: {keys}") };
     for (rule, label, csv_label) in [("sigma1_nearest", "edge rule (paper)", "edge rule (paper)"), (method, method_name.as_str(), method_csv.as_str())] {
