@@ -90,7 +90,9 @@ def paths():
     for fam in ("centre", "sen", "shear"):
         geo = "sen" if fam == "shear" else fam
         for k, h in enumerate(PATHS_H[fam], start=1):
-            for kind, quads in (("t3", 0), ("quad", 1)):
+            # `uquad` (session 34): unstructured quads, for the shear test only ("quad" is a regular
+            # grid on its square at h = 1/40 and 1/60: docs/paths.md, "Cost", session 34).
+            for kind, quads in (("t3", 0), ("quad", 1)) + ((("uquad", 2),) if fam == "shear" else ()):
                 src = open(os.path.join(HERE, "paths_%s.geo" % geo)).read()
                 for key, v in (("h", h), ("quads", quads)):
                     src, n = re.subn(r"^%s = [^;]*;" % key, "%s = %s;" % (key, v), src, flags=re.M)

@@ -146,7 +146,7 @@ def sen(kind, k, fam="sen"):
 # sigma_t = 1, events solver; %s, element size %g. `flem paths` measures the kink
 # (issue 34 must-show 2; docs/paths.md). Written by tools/gen_paths.py.
 title = "kink: shear test, %s %d"
-""" % ({"t3": "unstructured triangles", "quad": "unstructured quads (gmsh recombined)", "q4": "structured Q4 grid"}[kind], h, kind, k)
+""" % ({"t3": "unstructured triangles", "quad": "gmsh-recombined quads (Frontal-Delaunay for quads: on this square a regular grid but at h = 1/30 of the shear test; docs/paths.md)", "uquad": "unstructured quads (Frontal-Delaunay triangles recombined by Blossom; session 34)", "q4": "structured Q4 grid"}[kind], h, kind, k)
     if kind == "q4":
         n = round(1.0 / h)
         mesh = """
@@ -196,6 +196,8 @@ def main():
                 open(os.path.join(HERE, "centre_%d_%s_%d.toml" % (beta, kind, k)), "w").write(centre(beta, kind, k))
             open(os.path.join(HERE, "sen_%s_%d.toml" % (kind, k)), "w").write(sen(kind, k))
             open(os.path.join(HERE, "shear_%s_%d.toml" % (kind, k)), "w").write(sen(kind, k, "shear"))
+        # The shear test on unstructured quads (session 34; its "quad" meshes are grids at 1/40, 1/60).
+        open(os.path.join(HERE, "shear_uquad_%d.toml" % k), "w").write(sen("uquad", k, "shear"))
 
 
 if __name__ == "__main__":
