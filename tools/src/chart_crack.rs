@@ -182,10 +182,16 @@ pub fn run(scenes: &[PathBuf], out: Option<PathBuf>, splits: usize, quick: bool)
 /// The path method's name on the chart (`NAME (ours)`) and its keys (`every = 1.25; piece =
 /// 0.05`, empty for a bare name; no comma: they go into a CSV field and the chart's title).
 fn method_label(method: &str) -> (String, String) {
-    let Ok(t) = method.parse::<toml::Table>() else { return (format!("{} (ours)", method.trim()), String::new()) };
-    let name = t.get("type").and_then(|v| v.as_str()).unwrap_or("?");
-    let keys: Vec<String> = t.iter().filter(|(k, _)| *k != "type").map(|(k, v)| format!("{k} = {v}")).collect();
-    (format!("{name} (ours)"), keys.join("; ").replace(',', ";"))
+    let (name, keys) = match method.parse::<toml::Table>() {
+        Ok(t) => (
+            t.get("type").and_then(|v| v.as_str()).unwrap_or("?").to_string(),
+            t.iter().filter(|(k, _)| *k != "type").map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join("; ").replace(',', ";"),
+        ),
+        Err(_) => (method.trim().to_string(), String::new()),
+    };
+    // Every rule but the paper's edge rule (`sigma1_nearest`) is ours.
+    let whose = if name == "sigma1_nearest" { "paper" } else { "ours" };
+    (format!("{name} ({whose})"), keys)
 }
 
 /// `flem chart-crack --paths` (see the module doc).

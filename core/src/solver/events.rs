@@ -308,14 +308,17 @@ impl Simulation {
         }
     }
 
-    /// The stress paths of every cluster between `u0` (t = 0) and `u1` (t = 1).
-    /// Whether cluster `c`'s point may never split (`[cracking] intact`, ours): the events search
-    /// leaves it out from the start, so the solver does not stop at each of its failures to
-    /// check a state that cannot split (its failure index is still computed at every check).
-    fn intact_cluster(&self, c: usize) -> bool {
-        self.cracking.as_ref().is_some_and(|cr| !cr.intact.is_empty() && cr.intact[self.model.topo.cluster_point[c].idx()])
+    /// The paths the events search follows: those of clusters not `stuck` (failed at the last
+    /// check and not cut) and whose point may split. Points of `[cracking] intact` (ours) are left
+    /// out from the start, so the solver does not stop at each of their failures to check a state
+    /// that cannot split (their failure index is still computed at every check).
+    fn live_paths(&self, paths: &[Path], stuck: &[bool]) -> Vec<Path> {
+        let intact = self.cracking.as_ref().map(|cr| cr.intact.as_slice()).filter(|i| !i.is_empty());
+        let topo = &self.model.topo;
+        paths.iter().enumerate().filter(|(c, _)| !stuck.get(*c).copied().unwrap_or(false) && !intact.is_some_and(|i| i[topo.cluster_point[*c].idx()])).map(|(_, p)| *p).collect()
     }
 
+    /// The stress paths of every cluster between `u0` (t = 0) and `u1` (t = 1).
     fn events_paths(&mut self, u0: &[[f64; 2]], u1: &[[f64; 2]]) -> Vec<Path> {
         let cr = self.cracking.as_mut().expect("events scenes have [cracking]");
         let (mut s0, mut s1) = (Vec::new(), Vec::new());
@@ -542,7 +545,7 @@ impl Simulation {
             let paths = self.events_paths(&u0, &u1);
             let criterion = || self.scene.file.cracking.as_ref().expect("events scenes have [cracking]").criterion.as_ref();
             let mut fs = FactorStats::default();
-            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck.get(*c).copied().unwrap_or(false) && !self.intact_cluster(*c)).map(|(_, p)| *p).collect();
+            let live = self.live_paths(&paths, &stuck);
             let (crit, _) = smallest_failure(criterion(), &live, 0.0, CRIT_MAX, &mut fs)?;
             let n = self.check_failure_with(obs, false)?;
             checks += 1;
@@ -633,7 +636,7 @@ impl Simulation {
                     )));
                 }
             }
-            let live: Vec<Path> = paths.iter().enumerate().filter(|(c, _)| !stuck[*c] && !self.intact_cluster(*c)).map(|(_, p)| *p).collect();
+            let live = self.live_paths(&paths, &stuck);
             let mut fs2 = FactorStats::default();
             let criterion = self.scene.file.cracking.as_ref().expect("events scenes have [cracking]").criterion.as_ref();
             let (next, _) = smallest_failure(criterion, &live, t, 1.0, &mut fs2)?;
