@@ -654,3 +654,78 @@ fn chart_crack_paths_runs_the_setting_given() {
     assert!(!out.exists(), "a refused chart wrote {}", out.display());
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// Ours (session 35): `anchor = true` starts a re-evaluated tip's new line at the tip's foot on
+/// its previous line (a staircase tip lies up to `staircase h` off it), so the lines form one
+/// continuous polyline. The shear test on the three unstructured quad meshes (`shear_uquad_*`,
+/// gmsh Frontal-Delaunay + Blossom), the q4 grids and the T3 meshes, h = 1/30 to 1/65.
+/// 1. Bookkeeping: with `anchor`, every re-evaluated line of the first crack starts on the line
+///    before it (tolerance 1e-6 h: a tip on its line to 1e-6 h starts the new line where it is,
+///    as without the key); without it, a staircase tip starts its line off the previous one
+///    (more than 0.05 h on `shear_uquad_2`: what the key changes).
+/// 2. Reference: each other (must-show 3 of issue 34: the same path on every mesh; no closed
+///    form). Tolerance: the issue's 2 % of the specimen's size (Hausdorff, up to where each path
+///    first meets the clamped edge) over all nine meshes with session 35's setting (S35: S25 with
+///    `anchor = true`, `shrink = 1.0`; measured 1.41 %). Session 25's setting gives 2.72 % on these
+///    meshes (uquad_2 against uquad_3, the staircase offsets added up from piece to piece), so a
+///    key that did nothing fails here; the pair's distance with S25 is asserted above 2 %.
+#[test]
+fn tip_mts_anchor_keeps_the_lines_continuous() {
+    let s25 = "type = \"tip_mts\"\nevery = 1.25\npiece = 0.05\nshrink = 1.5";
+    let s35 = "type = \"tip_mts\"\nevery = 1.25\npiece = 0.05\nshrink = 1.0\nanchor = true";
+    let run = |name: &str, opts: &str| {
+        let (s, k) = whole_path_to_clamped_edge(name, &text(name, "tip_mts").replace("type = \"tip_mts\"", opts));
+        // The largest distance of a re-evaluated line's origin on the first crack's path (within
+        // h of it; later cracks, which start after it reached the edge, are left out) from the
+        // line before it: the earlier line whose origin is nearest (a piece, 0.05, behind). A
+        // line that turns by 45 deg or more from it is a later crack's first line (a crack that
+        // starts beside the first one's end; the re-evaluations here turn by less than 12 deg).
+        let path = k.through().to_vec();
+        let near_path = |x: [f64; 2]| {
+            path.windows(2).any(|w| {
+                let (a, b) = (w[0], w[1]);
+                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                let t = (((x[0] - a[0]) * dx + (x[1] - a[1]) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+                (x[0] - a[0] - t * dx).hypot(x[1] - a[1] - t * dy) <= k.h
+            })
+        };
+        let lines = &s.cracking.as_ref().unwrap().path.lines;
+        let mut off: f64 = 0.0;
+        for (i, l) in lines.iter().enumerate() {
+            let dist = |m: &flem_core::cracking::path::TipLine| (l.origin[0] - m.origin[0]).hypot(l.origin[1] - m.origin[1]);
+            if lines[..i].iter().any(|m| m.origin == l.origin && m.dir == l.dir) {
+                continue;
+            }
+            let Some(m) = lines[..i].iter().min_by(|a, b| dist(a).total_cmp(&dist(b))) else { continue };
+            let turn = (l.dir - m.dir).sin().atan2((l.dir - m.dir).cos()).abs();
+            if near_path(l.origin) && near_path(m.origin) && turn < std::f64::consts::FRAC_PI_4 {
+                off = off.max(((l.origin[0] - m.origin[0]) * m.dir.sin() - (l.origin[1] - m.origin[1]) * m.dir.cos()).abs());
+            }
+        }
+        (path, off, k.h)
+    };
+    let (_, off25, h) = run("shear_uquad_2", s25);
+    assert!(off25 > 0.05 * h, "without anchor the largest offset is {off25:.2e} (h = {h:.4})");
+    let mut paths = Vec::new();
+    for kind in ["q4", "t3", "uquad"] {
+        for n in 1..=3 {
+            let name = format!("shear_{kind}_{n}");
+            let (p, off, h) = run(&name, s35);
+            assert!(off <= 1e-6 * h, "{name}: a new line starts {off:.2e} off the line before it");
+            paths.push((name, p));
+        }
+    }
+    let mut worst = (0.0, String::new());
+    for (i, (a, pa)) in paths.iter().enumerate() {
+        for (b, pb) in &paths[i + 1..] {
+            let d = flem_plugins::check::paths::hausdorff(pa, pb, 1e-4);
+            if d > worst.0 {
+                worst = (d, format!("{a} / {b}"));
+            }
+        }
+    }
+    assert!(worst.0 <= 0.02, "S35: Hausdorff distance {:.2} % of the size ({})", 100.0 * worst.0, worst.1);
+    let (a, b) = (run("shear_uquad_2", s25).0, run("shear_uquad_3", s25).0);
+    let d = flem_plugins::check::paths::hausdorff(&a, &b, 1e-4);
+    assert!(d > 0.02, "S25 on uquad_2 / uquad_3: {:.2} % (the case the key is for)", 100.0 * d);
+}

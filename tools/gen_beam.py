@@ -176,9 +176,10 @@ HEADER = """# Bittencourt's asymmetrically notched beam with three holes (issue 
 # notch is a slit (ours; the experiment's is 0.1 wide) pre-cut along x = 4, 0 <= y <= 1.
 # Material: homogeneous linear elastic, E = 1000, nu = 0.3, Rankine sigma_t = 1 (LEFM: the path
 # depends on geometry, supports and nu only; E and the strength only scale the load).
-# Events solver; separation rule `tip_mts` (ours, issue 34) with session 25's setting (every,
-# piece, shrink; since session 34: with the defaults beam_q4_1's crack misses the middle hole);
-# the same scene with type = "sigma1_nearest" and without those three lines is the paper's edge rule. `flem paths` measures the path from the
+# Events solver; separation rule `tip_mts` (ours, issue 34) with session 35's setting (every,
+# piece, shrink, anchor; session 25's with shrink 1.0 and anchor; since session 34: with the
+# defaults beam_q4_1's crack misses the middle hole); the same scene with
+# type = "sigma1_nearest" and without those four lines is the paper's edge rule. `flem paths` measures the path from the
 # notch tip to where it first meets a boundary (a hole or the outside).
 # Mesh: {mesh_doc}. Written by tools/gen_beam.py.
 """
@@ -203,9 +204,10 @@ def scene(kind, i, ne, h):
     t += "[cracking]\nmax_splits_per_check = 1\n\n"
     t += '[cracking.criterion]\ntype = "rankine"\ntensile_strength = 1.0\n\n'
     t += '[cracking.separation]\ntype = "tip_mts"   # ours (issue 34)\n'
-    t += "every = 1.25   # ours (session 25's setting, docs/paths.md): evaluated again after 1.25 domain radii\n"
+    t += "every = 1.25   # ours (session 35's setting, docs/paths.md): evaluated again after 1.25 domain radii\n"
     t += "piece = 0.05   # ours (session 19): or after 5 % of the specimen's size of straight crack\n"
-    t += "shrink = 1.5   # ours: a smaller domain near the boundary, down to 1.5 h\n\n"
+    t += "shrink = 1.0   # ours: a smaller domain near the boundary, down to 1 h\n"
+    t += "anchor = true  # ours (session 35): a new line starts on the previous line, at the tip's foot\n\n"
     t += '[[support]]\nnodes = "pin"\nfix = "xy"\n\n'
     t += '[[support]]\nnodes = "roller"\nfix = "y"\n\n'
     t += '[[load]]\nname = "punch"\ntype = "displacement"\nnodes = "punch"\ny = -1.0\n\n'

@@ -32,7 +32,7 @@ def main(argv):
         title = argv[i + 1]
         argv = argv[:i] + argv[i + 2:]
     out, files = argv[0], argv[1:]
-    colours = {"t3": "tab:blue", "quad": "tab:orange", "q4": "tab:green"}
+    colours = {"t3": "tab:blue", "quad": "tab:orange", "q4": "tab:green", "uquad": "tab:red"}
     styles = {"1": ":", "2": "--", "3": "-"}
     fig, ax = plt.subplots(figsize=(6, 6))
     seen = set()
