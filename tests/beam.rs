@@ -108,8 +108,7 @@ fn run_text(name: &str, t: &str) -> (Vec<[f64; 2]>, Simulation) {
 
 /// Reference: the experiment (module doc): the crack from the notch curves towards the holes and
 /// ends in the middle one. On the coarsest T3 mesh (h = 0.1 in) with `tip_mts` as the scene
-/// carries it (session 35's setting since session 35, session 25's since session 34; with the
-/// defaults before):
+/// carries it (S35 since session 35, S25 in session 34; with the defaults before):
 /// the path starts at the notch tip (4, 1), first meets a boundary on the middle hole's circle
 /// (within 1e-9 of radius 0.25 from (6, 4.75)), turns right of the notch's line (its end at
 /// x > 5.5) and stays below the middle hole's centre line plus a radius; no fragment below

@@ -110,7 +110,7 @@
 //! where the moves are partial (quads). The lines then form one continuous polyline, and the
 //! staircase's offsets do not add up from one piece to the next; the tip aims one element size
 //! ahead of its foot on the new line. A tip on its line to 1e-6 h starts the new line where it
-//! is, as without the key.
+//! is, as without the key, and so do a fork's two branches (`fork_ratio`).
 //!
 //! The setting measured for must-shows 2 and 3 (ours, session 25; docs/paths.md "Session 25"):
 //! `every = 1.25`, `piece = 0.05`, `shrink = 1.5` (all 72 kink tips within 5 deg, the shear
@@ -316,6 +316,9 @@ impl TipMts {
         // its line to 1e-6 h is evaluated as before (its own face's direction, faces straight
         // to 1e-6 r_out).
         let mut frame: Option<[f64; 2]> = None;
+        // Whether the tip lies off its line by more than 1e-6 h (a staircase tip): `anchor`
+        // acts on it only.
+        let mut off_line = false;
         let straight = match ctx.planned {
             None => f64::INFINITY,
             Some((o, dir)) => {
@@ -325,6 +328,7 @@ impl TipMts {
                     ox.hypot(oy)
                 } else if off <= self.staircase * ctx.h {
                     frame = Some([dir.cos(), dir.sin()]);
+                    off_line = true;
                     ox * dir.cos() + oy * dir.sin()
                 } else {
                     0.0
@@ -347,14 +351,15 @@ impl TipMts {
         // The last refused domain (its radius, and whether it left the body): `shrink` would
         // evaluate the same domain again first (the same function of the same arguments).
         let mut refused: Option<(f64, bool)> = None;
-        // `anchor` (ours): the new line's origin is the tip's foot on its previous line.
+        // `anchor` (ours): the new line of a staircase tip starts at the tip's foot on its
+        // previous line; a tip on its line to 1e-6 h starts it where it is, as without the key.
         let start = match ctx.planned {
-            Some((o, dir)) if self.anchor && frame.is_some() => {
+            Some((o, dir)) if self.anchor && off_line => {
                 let dh = [dir.cos(), dir.sin()];
                 let s = (xq[0] - o[0]) * dh[0] + (xq[1] - o[1]) * dh[1];
-                [o[0] + s * dh[0], o[1] + s * dh[1]]
+                Some([o[0] + s * dh[0], o[1] + s * dh[1]])
             }
-            _ => xq,
+            _ => None,
         };
         for f in radii.iter().map(|f| f * self.radius).filter(|f| (self.every * f * ctx.h).min(piece) <= straight) {
             let r_out = f * ctx.h;
@@ -366,14 +371,14 @@ impl TipMts {
                 Ok(d) => {
                     let th = kink_angle(d.k1, d.k2)?;
                     let dir = angle_of(e1) + th;
-                    return Some((start, dir, self.aim_from(ctx, xq, start, dir)));
+                    return Some(self.new_line(ctx, xq, start, dir));
                 }
                 Err(e) => refused = Some((r_out, matches!(e, SifError::DomainLeavesBody { .. }))),
             }
         }
         if let Some(th) = self.near_boundary_kink(ctx, &tip, frame.is_some(), straight, piece, refused) {
             let dir = angle_of(e1) + th?;
-            return Some((start, dir, self.aim_from(ctx, xq, start, dir)));
+            return Some(self.new_line(ctx, xq, start, dir));
         }
         if let Some((o, dir)) = ctx.planned {
             let dh = [dir.cos(), dir.sin()];
@@ -387,15 +392,15 @@ impl TipMts {
 }
 
 impl TipMts {
-    /// The direction to aim at from the tip `xq` on the line (`start`, `dir`): the line's own
-    /// direction when the tip is on it, else one element size ahead of the tip's foot on it.
-    fn aim_from(&self, ctx: &TipContext, xq: [f64; 2], start: [f64; 2], dir: f64) -> f64 {
-        if start == xq {
-            return dir;
-        }
+    /// A new line along `dir` evaluated at the tip `xq`: (origin, direction, aim). Without an
+    /// anchored `start` the line starts at the tip and the tip aims along it (as before
+    /// `anchor`); with one (`anchor`, a staircase tip) it starts at `start`, the tip's foot on
+    /// its previous line, and the tip aims one element size ahead of its foot on the new line.
+    fn new_line(&self, ctx: &TipContext, xq: [f64; 2], start: Option<[f64; 2]>, dir: f64) -> ([f64; 2], f64, f64) {
+        let Some(start) = start else { return (xq, dir, dir) };
         let dh = [dir.cos(), dir.sin()];
         let s = (xq[0] - start[0]) * dh[0] + (xq[1] - start[1]) * dh[1];
-        angle_of([start[0] + (s + ctx.h) * dh[0] - xq[0], start[1] + (s + ctx.h) * dh[1] - xq[1]])
+        (start, dir, angle_of([start[0] + (s + ctx.h) * dh[0] - xq[0], start[1] + (s + ctx.h) * dh[1] - xq[1]]))
     }
 }
 
