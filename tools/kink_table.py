@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
 """The kink table of docs/paths.md (issue 34, must-show 2) from two `flem paths --out` files.
 
-    python3 tools/kink_table.py SETTING.json [DEFAULTS.json] > table.md
+    python3 tools/kink_table.py SETTING.json [DEFAULTS.json] [--label TEXT] > table.md
 
 One row per initial tip of SETTING.json: scene, tip, element size, the MTS angle of the
 implicit solution's factors, the chord over five element sizes and its error (deg; the same run
 in DEFAULTS.json beside it when given, matched by scene and tip), the least-squares angle, node
 moves (refused) and fragments below 3 elements; a tip not measured over five element sizes is
 printed `short` and counted as a miss. A summary (tips within 5 deg, largest and median error)
-goes to stderr. Standard library only.
+goes to stderr. `--label TEXT` names the second file's column and summary (default
+"defaults"). Standard library only.
 """
 import json
 import statistics
@@ -16,6 +17,14 @@ import sys
 
 
 def main(argv):
+    label = "defaults"
+    if "--label" in argv:
+        i = argv.index("--label")
+        if i + 1 >= len(argv):
+            print(__doc__, file=sys.stderr)
+            return 2
+        label = argv[i + 1]
+        argv = argv[:i] + argv[i + 2:]
     if len(argv) not in (2, 3):
         print(__doc__, file=sys.stderr)
         return 2
@@ -25,7 +34,7 @@ def main(argv):
         base = {(r["scene"], r["kink"]["tip_point"]): r for r in json.load(open(argv[2]))}
     head = ["scene", "tip", "h", "MTS (implicit)"]
     if base:
-        head.append("defaults: chord (error)")
+        head.append("%s: chord (error)" % label)
     head += ["chord (error)", "lsq", "moves (refused)", "frag < 3"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
@@ -65,7 +74,7 @@ def main(argv):
         sum(x <= 5.0 for x in e), len(e), sum(x == float("inf") for x in e), max([x for x in e if x != float("inf")] or [float("nan")]), statistics.median(e))
     print("%d tips in %d runs: %s" % (len(errs), runs, summary(errs)), file=sys.stderr)
     if berrs:
-        print("defaults: %s" % summary(berrs), file=sys.stderr)
+        print("%s: %s" % (label, summary(berrs)), file=sys.stderr)
     return 0
 
 
