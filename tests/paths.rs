@@ -766,7 +766,8 @@ fn tip_mts_anchor_keeps_the_lines_continuous() {
 /// (kinetic energy beyond 1e12 of the work; the same with S25 since session 33 at least).
 /// Reference: the stability limit of the central difference march (dt <= 2 / omega_max) and the
 /// energy balance. Tolerance: the run ends without error after its 80000 steps, dt was lowered
-/// after a split (the warning), and the ledger closes to 1e-5 of the work. Fails without the
+/// after a split (the warning), the ledger closes to 1e-5 of the work, and the final dt is at
+/// most the critical step of a cold estimate of the final mesh. Fails without the
 /// warm start's spike (checked in session 35: the divergence at step 4543).
 #[test]
 fn tip_mts_explicit_step_follows_a_move() {
@@ -777,4 +778,8 @@ fn tip_mts_explicit_step_follows_a_move() {
     assert!(s.state.step >= 80000, "{} steps", s.state.step);
     assert!(s.dt < dt0 && s.warnings.iter().any(|w| w.contains("critical step fell")), "dt {:e} (at the start {dt0:e}); warnings {:?}", s.dt, s.warnings);
     assert!(s.ledger.relative_residual() < 1e-5, "residual {:e}", s.ledger.relative_residual());
+    // Direct: the step in use at the end is within the critical step of a cold estimate (a
+    // power iteration from a pseudo-random start, not the warm-started one) of the final mesh.
+    let cold = s.estimate_stable_step();
+    assert!(s.dt <= cold.dt_crit, "dt {:e} against the cold estimate's critical step {:e}", s.dt, cold.dt_crit);
 }
