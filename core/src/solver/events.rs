@@ -417,8 +417,9 @@ impl Simulation {
             let n = if check_every > 0 && k % check_every == 0 { self.check_failure(obs)? } else { 0 };
             if n > 0 {
                 // The explicit loop's rule after splits (`update_stable_step`, whose estimate the
-                // events solver skips; it keeps its warm start's update): a new estimate when dt is not provably stable for any
-                // splitting, or when the damping reads omega_max; dt follows it down.
+                // events solver skips; it keeps its warm start's update): a new estimate when dt
+                // is not provably stable for any splitting, or when the damping reads omega_max;
+                // dt follows it down.
                 if uses_omega || self.dt > self.safe_step_bound() {
                     self.estimate_again();
                 }

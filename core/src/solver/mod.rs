@@ -928,19 +928,19 @@ impl Simulation {
             // a move keeps the old start.) A vector grown by many spikes without an estimate
             // between them is rescaled first, and a non-finite one dropped (a cold start).
             if !rec.moved.is_empty() {
-                let norm = self.stable_vec.iter().map(|v| v[0] * v[0] + v[1] * v[1]).sum::<f64>().sqrt();
-                if !norm.is_finite() {
-                    self.stable_vec.clear();
-                } else if norm > 1e150 {
+                let mut norm = self.stable_vec.iter().map(|v| v[0] * v[0] + v[1] * v[1]).sum::<f64>().sqrt();
+                if norm > 1e150 && norm.is_finite() {
                     self.stable_vec.iter_mut().for_each(|v| *v = [v[0] / norm, v[1] / norm]);
+                    norm = 1.0;
                 }
-            }
-            if !rec.moved.is_empty() && !self.stable_vec.is_empty() {
-                let norm = self.stable_vec.iter().map(|v| v[0] * v[0] + v[1] * v[1]).sum::<f64>().sqrt();
-                for (p, _) in &rec.moved {
-                    for &c in &self.model.topo.point_clusters[p.idx()] {
-                        self.stable_vec[c.idx()] = [norm, norm];
+                if norm.is_finite() {
+                    for (p, _) in &rec.moved {
+                        for &c in &self.model.topo.point_clusters[p.idx()] {
+                            self.stable_vec[c.idx()] = [norm, norm];
+                        }
                     }
+                } else {
+                    self.stable_vec.clear();
                 }
             }
         }

@@ -381,10 +381,8 @@ impl TipMts {
             return Some(self.new_line(ctx, xq, start, dir));
         }
         if let Some((o, dir)) = ctx.planned {
-            let dh = [dir.cos(), dir.sin()];
-            let s = (xq[0] - o[0]) * dh[0] + (xq[1] - o[1]) * dh[1];
-            let aim = [o[0] + (s + ctx.h) * dh[0] - xq[0], o[1] + (s + ctx.h) * dh[1] - xq[1]];
-            return Some((o, dir, angle_of(aim)));
+            // Not evaluated again: the tip keeps to its line.
+            return Some(self.new_line(ctx, xq, Some(o), dir));
         }
         let dir = angle_of(e1);
         Some((xq, dir, dir))
@@ -392,10 +390,11 @@ impl TipMts {
 }
 
 impl TipMts {
-    /// A new line along `dir` evaluated at the tip `xq`: (origin, direction, aim). Without an
-    /// anchored `start` the line starts at the tip and the tip aims along it (as before
-    /// `anchor`); with one (`anchor`, a staircase tip) it starts at `start`, the tip's foot on
-    /// its previous line, and the tip aims one element size ahead of its foot on the new line.
+    /// The line along `dir` that the tip `xq` is to follow: (origin, direction, aim). Without
+    /// `start` the line starts at the tip and the tip aims along it (a new line, as before
+    /// `anchor`). With one it starts at `start` (the line kept, or with `anchor` a staircase
+    /// tip's foot on its previous line), and the tip aims one element size ahead of its foot on
+    /// the line.
     fn new_line(&self, ctx: &TipContext, xq: [f64; 2], start: Option<[f64; 2]>, dir: f64) -> ([f64; 2], f64, f64) {
         let Some(start) = start else { return (xq, dir, dir) };
         let dh = [dir.cos(), dir.sin()];
