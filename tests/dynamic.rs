@@ -383,6 +383,11 @@ impl VerletWatch {
         if let Some(m) = c.verlet_list_mismatch(&sim.x0) {
             panic!("step {} ({at}): the Verlet list is not a full build's: {m}", sim.state.step);
         }
+        // Session 36: the held faces and the bonds' slaves, kept between splits, against a
+        // recomputation.
+        if let Some(m) = c.cache_mismatch(&sim.model) {
+            panic!("step {} ({at}): {m}", sim.state.step);
+        }
         self.checked += 1;
         if c.patches > 0 {
             self.patched_checks += 1;
@@ -390,14 +395,52 @@ impl VerletWatch {
     }
 }
 
+/// Checks the contact search's caches at every split (`Contact::cache_mismatch`).
+struct CacheWatch {
+    checked: usize,
+    most_bonds: usize,
+}
+
+impl flem_core::solver::Observer for CacheWatch {
+    fn splits(&mut self, sim: &Simulation, _rec: &flem_core::mesh::topology::SplitRecord, _ev: &[flem_core::cracking::SplitEvent]) -> flem_core::Result<()> {
+        let c = sim.contact.as_ref().unwrap();
+        if let Some(m) = c.cache_mismatch(&sim.model) {
+            panic!("step {}: {m}", sim.state.step);
+        }
+        self.checked += 1;
+        self.most_bonds = self.most_bonds.max(c.bonds.len());
+        Ok(())
+    }
+}
+
+/// The contact search keeps, between splits, which faces a bond holds at each end and each
+/// bond's slave node (session 36: asked of the topology only at the points a split touched).
+/// On the branching plate (configs/dynamic/branching_h0.5.toml to 12 us: the crack's first
+/// hundred splits, in a band where points split again after their bonds were made) both must be
+/// what a recomputation gives after every split (`Contact::cache_mismatch`). Reference: the
+/// definitions (`bonded`, the topology's clusters); tolerance: none.
+#[test]
+fn contact_caches_follow_the_splits_of_a_running_crack() {
+    let dir = crate::common::root().join("configs/dynamic");
+    let text = std::fs::read_to_string(dir.join("branching_h0.5.toml")).unwrap().replace("end_time = 80e-6", "end_time = 12e-6");
+    let scene = flem_core::scene::Scene::from_str(&text, &dir.join("branching_h0.5.toml"), &dir).unwrap_or_else(|e| panic!("{e}"));
+    let mut s = Simulation::new(scene).unwrap();
+    let mut w = CacheWatch { checked: 0, most_bonds: 0 };
+    s.run(&mut w).unwrap();
+    eprintln!("{} splitting checks, up to {} bonds", w.checked, w.most_bonds);
+    assert!(w.checked >= 50 && w.most_bonds >= 100, "the run must split and bond: {} checks, {} bonds", w.checked, w.most_bonds);
+}
+
 /// The local update of the Verlet list at splits (cohesive laws, session 18,
 /// `Contact::patch_verlet`) against a full build (review r18: there was no such check). The
 /// notched plate of configs/verification/notched_crack.toml with cohesive contact on the crack
 /// faces grows its crack under a rising load; after every split and at every history row the
 /// list must be exactly what a full build gives at the same build configuration and margin
-/// (`Contact::verlet_list_mismatch`: brute force over every slave and face, no grid).
+/// (`Contact::verlet_list_mismatch`: brute force over every slave and face, no grid); and the
+/// faces held by bonds and the bonds' slaves, kept between splits since session 36, must be
+/// what a recomputation gives (`Contact::cache_mismatch`).
 /// Reference: the definition of the list (every face within the margin of each slave, face
-/// order); tolerance: none (the same face set).
+/// order), of `held` (`bonded`) and of a bond's slave (the topology); tolerance: none.
 #[test]
 fn verlet_list_patched_at_splits_is_a_full_build() {
     let path = crate::common::root().join("configs/verification/notched_crack.toml");

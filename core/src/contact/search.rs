@@ -149,6 +149,10 @@ pub struct Contact {
     pub history: ContactHistory,
     next: Vec<Pair>,
     geo: Vec<Geo>,
+    /// The faces' current end positions `[x_a, y_a, x_b, y_b]` (parallel to `faces`), filled
+    /// once per step by the narrow phase: a face is met by several slaves' candidate lists, and
+    /// its ends' gathers from `x0` and `u` were the search's cost (session 36).
+    fpos: Vec<[f64; 4]>,
     kin: Vec<PairKinematics>,
     st: Vec<PairState>,
     out: Vec<PairForce>,
@@ -175,6 +179,10 @@ pub struct Contact {
     /// contact search leaves a face to the bonds at that point (review r17: a node's search
     /// met the face its neighbour's bond holds, and a node pair carried 3 k A in compression).
     bonded: Vec<(u32, u32)>,
+    /// `bonded` by face index (parallel to `faces`): bit `k` set when the face's end `k`
+    /// (`pts[k]`) is in `bonded`, so that the narrow phase asks it in O(1) instead of a binary
+    /// search per candidate (session 36). Refreshed with `bonded` and with the faces.
+    held: Vec<u8>,
     /// (slave face, mesh point) of each bond (parallel to `bonds`).
     bond_meta: Vec<(u32, u32)>,
     /// The bond of each batch entry from `n_pairs` on.
@@ -250,6 +258,7 @@ impl Contact {
             history: ContactHistory::default(),
             next: Vec::new(),
             geo: Vec::new(),
+            fpos: Vec::new(),
             kin: Vec::new(),
             st: Vec::new(),
             out: Vec::new(),
@@ -265,6 +274,7 @@ impl Contact {
             per_face: cfg.law.unreleased(&PairState { fresh: true, ..Default::default() }) > 0.0,
             bonds: Vec::new(),
             bonded: Vec::new(),
+            held: Vec::new(),
             bond_meta: Vec::new(),
             bond_at: Vec::new(),
             n_pairs: 0,
@@ -319,6 +329,7 @@ impl Contact {
         for (i, f) in self.faces.iter().enumerate() {
             self.face_of_id[f.id as usize] = i as u32;
         }
+        self.refresh_held();
         let x0 = |c: u32| model.mesh.points[topo.cluster_point[c as usize].idx()];
         let mut per: Vec<(u32, f64, [f64; 2])> = Vec::with_capacity(2 * self.faces.len());
         let mut total_len = 0.0;
@@ -424,7 +435,18 @@ impl Contact {
         if self.per_face {
             // Cohesion per face end (module doc): bonds follow their node's splits; every end
             // cut now gets its own. The pairs are contact only.
+            // Only a point that split (or had an edge end cut) has new clusters: the bonds
+            // elsewhere keep their slaves, and asking the topology for them was the cost of a
+            // split on a crack with many bonds (session 36).
+            let mut at: Vec<u32> = rec.new_clusters.iter().map(|nc| nc.point.0).collect();
+            at.extend(rec.cut_edges.iter().map(|&(e, end)| topo.edges[e.idx()].points[end as usize].0));
+            at.sort_unstable();
+            at.dedup();
             for b in self.bonds.iter_mut() {
+                let Some(pt) = topo.edges.get(b.edge as usize).and_then(|ed| ed.points.get(b.end as usize)) else { continue };
+                if at.binary_search(&pt.0).is_err() {
+                    continue;
+                }
                 if let Some((s, _, _, _)) = bond_ends(topo, b.edge, b.end) {
                     b.slave = s;
                 }
@@ -521,6 +543,20 @@ impl Contact {
         }
         self.bonded.sort_unstable();
         self.bonded.dedup();
+        self.refresh_held();
+    }
+
+    /// `held` from `bonded` and the faces (after either changed). An entry whose face is gone
+    /// is left out: the narrow phase meets only the faces there are.
+    fn refresh_held(&mut self) {
+        self.held.clear();
+        self.held.resize(self.faces.len(), 0);
+        for &(f, pt) in &self.bonded {
+            if let Some(&i) = self.face_of_id.get(f as usize).filter(|&&i| i != NONE) {
+                let fc = &self.faces[i as usize];
+                self.held[i as usize] |= (fc.pts[0] == pt) as u8 | (((fc.pts[1] == pt) as u8) << 1);
+            }
+        }
     }
 
     /// The master face of bond `b` when its end is separated (the slave is not the face's own
@@ -625,6 +661,37 @@ impl Contact {
                     self.patches,
                     self.rebuilds
                 ));
+            }
+        }
+        None
+    }
+
+    /// For tests (session 36): the search's caches against what they are made from. `held`
+    /// against a binary search of `bonded` for both ends of every face, and every bond's slave
+    /// against the topology (`on_split` asks the topology only for the bonds at the points a
+    /// split touched). `None` when they agree, else the first difference.
+    #[doc(hidden)]
+    pub fn cache_mismatch(&self, model: &Model) -> Option<String> {
+        if self.held.len() != self.faces.len() {
+            return Some(format!("held has {} entries for {} faces", self.held.len(), self.faces.len()));
+        }
+        for (fi, fc) in self.faces.iter().enumerate() {
+            for k in 0..2 {
+                let want = self.bonded.binary_search(&(fc.id, fc.pts[k])).is_ok();
+                if (self.held[fi] >> k) & 1 == 1 {
+                    if !want {
+                        return Some(format!("face {} end {k} (point {}) marked held, not in bonded", fc.id, fc.pts[k]));
+                    }
+                } else if want {
+                    return Some(format!("face {} end {k} (point {}) in bonded, not marked held", fc.id, fc.pts[k]));
+                }
+            }
+        }
+        for b in &self.bonds {
+            if let Some((s, _, _, _)) = bond_ends(&model.topo, b.edge, b.end) {
+                if s != b.slave {
+                    return Some(format!("bond at edge {} end {}: slave {} kept, the topology says {s}", b.edge, b.end, b.slave));
+                }
             }
         }
         None
@@ -1048,6 +1115,11 @@ impl Contact {
         self.st.clear();
         self.released = 0.0;
         let x = |c: u32| [x0[c as usize][0] + u[c as usize][0], x0[c as usize][1] + u[c as usize][1]];
+        self.fpos.clear();
+        self.fpos.extend(self.faces.iter().map(|g| {
+            let (a, b) = (x(g.a), x(g.b));
+            [a[0], a[1], b[0], b[1]]
+        }));
         let mut h = 0usize;
         let pairs = &self.history.pairs;
         for (si, &s) in self.slaves.iter().enumerate() {
@@ -1061,10 +1133,17 @@ impl Contact {
             // slave's own bonds' masters were left out: on a crack whose bonds alternate sides,
             // a node pair carried the bonds and both nodes' contact pairs, 3 k A against the
             // 2 k A of `omega2`.)
-            let bonded = &self.bonded;
             let sp = self.slave_pt[si];
-            let held = |f: u32| !bonded.is_empty() && bonded.binary_search(&(f, sp)).is_ok();
-            if let Some(o) = old.filter(|o| matches!(o.master, Master::Face(f) if held(f))) {
+            // By face index for the candidates (`held`), by id for the pair's master (which
+            // may name a face that is gone).
+            let (held_f, faces) = (&self.held, &self.faces);
+            let held = |fi: u32| {
+                let (h, fc) = (held_f[fi as usize], &faces[fi as usize]);
+                (h & 1 != 0 && fc.pts[0] == sp) || (h & 2 != 0 && fc.pts[1] == sp)
+            };
+            let bonded = &self.bonded;
+            let held_id = |f: u32| !bonded.is_empty() && bonded.binary_search(&(f, sp)).is_ok();
+            if let Some(o) = old.filter(|o| matches!(o.master, Master::Face(f) if held_id(f))) {
                 self.released += o.state.stored;
                 old = None;
             }
@@ -1084,7 +1163,7 @@ impl Contact {
                         }
                         for &fi in cands {
                             let g = self.faces[fi as usize];
-                            if g.id == id || (g.a != end && g.b != end) || held(g.id) {
+                            if g.id == id || (g.a != end && g.b != end) || held(fi) {
                                 continue;
                             }
                             let (gap, xi, len, n, t) = Self::face_geo(p, x(g.a), x(g.b));
@@ -1101,9 +1180,12 @@ impl Contact {
                 let mut best: Option<(f64, Geo)> = None;
                 let mut corners: [(u32, u8); 4] = [(NONE, 0); 4];
                 for &fi in cands {
-                    let g = self.faces[fi as usize];
-                    let (xa, xb) = (x(g.a), x(g.b));
-                    if surely_apart(p, xa, xb, self.max_depth) || held(g.id) {
+                    if held(fi) {
+                        continue;
+                    }
+                    let (g, q) = (self.faces[fi as usize], self.fpos[fi as usize]);
+                    let (xa, xb) = ([q[0], q[1]], [q[2], q[3]]);
+                    if surely_apart(p, xa, xb, self.max_depth) {
                         continue;
                     }
                     let (gap, xi, len, n, t) = Self::face_geo(p, xa, xb);
@@ -1206,8 +1288,13 @@ impl Contact {
         self.n_pairs = self.geo.len();
         self.bond_at.clear();
         for (bi, b) in self.bonds.iter().enumerate() {
-            let Some(fc) = self.bond_face(b) else { continue };
-            let (gap, xi, _, n, t) = Self::face_geo(x(b.slave), x(fc.a), x(fc.b));
+            // `bond_face`, with the master's ends from `fpos`.
+            let Some(&fi) = self.face_of_id.get(b.master as usize).filter(|&&i| i != NONE) else { continue };
+            let (fc, q) = (self.faces[fi as usize], self.fpos[fi as usize]);
+            if b.slave == fc.a || b.slave == fc.b {
+                continue;
+            }
+            let (gap, xi, _, n, t) = Self::face_geo(x(b.slave), [q[0], q[1]], [q[2], q[3]]);
             let g = Geo { slave: b.slave, master: Master::Face(b.master), i: fc.a, j: fc.b, xi: xi.clamp(0.0, 1.0), n, t };
             let (vp, vi, vj) = (v[g.slave as usize], v[g.i as usize], v[g.j as usize]);
             let vr = [vp[0] - (1.0 - g.xi) * vi[0] - g.xi * vj[0], vp[1] - (1.0 - g.xi) * vi[1] - g.xi * vj[1]];

@@ -212,6 +212,10 @@ impl Topology {
     /// Whether the two sides of an interior edge are in different clusters at point `p`
     /// (a crack face at that end).
     pub fn is_separated_at(&self, e: EdgeId, p: PointId) -> bool {
+        // A point of one cluster has all its copies in it (the common case, and the cheap one).
+        if self.point_clusters[p.idx()].len() < 2 {
+            return false;
+        }
         let ed = &self.edges[e.idx()];
         match ed.sides {
             [Some((a, _)), Some((b, _))] => {
