@@ -9,7 +9,8 @@ front is the tip (with a branch) farthest from the notch tip at each record; its
 advance of that distance over a 2 us window; vmean_10_40mm 30 mm over the time the front took
 from 10 to 40 mm, vfit_10_40mm the least-squares slope of the distance against time over that
 window's records (vfit_bands_10mm the same over 10 mm bands from 10 to 60 mm: the speed
-history); the Kalthoff angle is the mean angle (from the notch line) of the front while it is 10-20 mm from the notch tip; frac_gc_* is the ledger's
+history); vfit_free_10_40mm the same slope for the free crack, fracture_energy / G_c of each
+record while 10-40 mm long (session 36); the Kalthoff angle is the mean angle (from the notch line) of the front while it is 10-20 mm from the notch tip; frac_gc_* is the ledger's
 fracture energy over G_c x the front's chord, its arc along the crack, or the crack-face length;
 symmetry: each split point's distance to the nearest split point mirrored about y = 0.02."""
 import csv, json, math, sys
@@ -66,6 +67,17 @@ def common(d, tip0, gc, cr):
         stt = sum((t - mt) ** 2 for t, _ in pts)
         return sum((t - mt) * (x - mx) for t, x in pts) / stt if stt > 0 else float("nan")
     vfit = fit(0.010, 0.040)
+    # The free crack (session 36): fracture_energy / G_c, the length of fully opened face that
+    # the dissipated energy stands for, one value per record; its fitted speed while it is 10-40
+    # mm long (smoother than the split front, which jumps ahead of the open crack).
+    free = sorted({f(r["time"]): f(r["fracture_energy"]) / gc for r in tips}.items())
+    fpts = [(t, x) for t, x in free if 0.010 <= x <= 0.040]
+    if len(fpts) >= 3:
+        mt = sum(t for t, _ in fpts) / len(fpts); mx = sum(x for _, x in fpts) / len(fpts)
+        stt = sum((t - mt) ** 2 for t, _ in fpts)
+        vfree = sum((t - mt) * (x - mx) for t, x in fpts) / stt if stt > 0 else float("nan")
+    else:
+        vfree = float("nan")
     # The speed history as the fitted speed in 10 mm bands of the front's distance.
     vbands = [round(fit(lo / 1e3, (lo + 10) / 1e3), 1) for lo in (10, 20, 30, 40, 50)]
     en = s["energy"]
@@ -75,7 +87,7 @@ def common(d, tip0, gc, cr):
                frac=en["fracture"], frac_gc_chord=en["fracture"] / (gc * last[0]) if last[0] else float("nan"),
                frac_gc_arc=en["fracture"] / (gc * last[3]) if last[3] else float("nan"),
                frac_gc_face=en["fracture"] / (gc * face) if face else float("nan"),
-               vmean_10_40mm=vmean, vfit_10_40mm=vfit, vfit_bands_10mm=vbands, resid=en["relative_residual"], isolated=len({r["time"] for r in tips if r["branch"] == ""}) and sum(1 for r in tips if r["branch"] == "" and r["time"] == tips[-1]["time"]))
+               vmean_10_40mm=vmean, vfit_10_40mm=vfit, vfit_free_10_40mm=vfree, vfit_bands_10mm=vbands, resid=en["relative_residual"], isolated=len({r["time"] for r in tips if r["branch"] == ""}) and sum(1 for r in tips if r["branch"] == "" and r["time"] == tips[-1]["time"]))
     # The fracture account of summary.json (docs/dynamic.md "Energy"; absent in older runs).
     acc = s.get("fracture_account") or {}
     if acc:
