@@ -1116,7 +1116,10 @@ impl Contact {
         self.released = 0.0;
         let x = |c: u32| [x0[c as usize][0] + u[c as usize][0], x0[c as usize][1] + u[c as usize][1]];
         self.fpos.clear();
-        self.fpos.extend(self.faces.iter().map(|g| {
+        // Only when some slave has a candidate or a bond holds (a scene whose bodies are apart
+        // has neither, and pays nothing per face).
+        let used = !self.cand.is_empty() || !self.bonds.is_empty();
+        self.fpos.extend(self.faces.iter().filter(|_| used).map(|g| {
             let (a, b) = (x(g.a), x(g.b));
             [a[0], a[1], b[0], b[1]]
         }));
