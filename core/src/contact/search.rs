@@ -175,13 +175,13 @@ pub struct Contact {
     per_face: bool,
     /// The cohesive faces still holding (checkpoint section `contact_bonds`).
     pub bonds: Vec<Bond>,
-    /// (face, mesh point) of both faces of every bond's edge at the bond's end, sorted: the
-    /// contact search leaves a face to the bonds at that point (review r17: a node's search
-    /// met the face its neighbour's bond holds, and a node pair carried 3 k A in compression).
-    bonded: Vec<(u32, u32)>,
-    /// `bonded` by face index (parallel to `faces`): bit `k` set when the face's end `k`
-    /// (`pts[k]`) is in `bonded`, so that the narrow phase asks it in O(1) instead of a binary
-    /// search per candidate (session 36). Refreshed with `bonded` and with the faces.
+    /// The faces held by bonds, by face index (parallel to `faces`): bit `k` set when a live
+    /// bond's edge has this face on one of its sides and the bond's end is the face's end `k`
+    /// (`pts[k]`). The contact search leaves such a face to the bonds at that point (review
+    /// r17: a node's search met the face its neighbour's bond holds, and a node pair carried
+    /// 3 k A in compression). Per face, so that the narrow phase asks it in O(1) (session 36:
+    /// before, a binary search of a sorted (face, point) list per candidate). Refreshed when
+    /// the bonds or the faces change.
     held: Vec<u8>,
     /// (slave face, mesh point) of each bond (parallel to `bonds`).
     bond_meta: Vec<(u32, u32)>,
@@ -273,7 +273,6 @@ impl Contact {
             cohesion: CohesionAccount::default(),
             per_face: cfg.law.unreleased(&PairState { fresh: true, ..Default::default() }) > 0.0,
             bonds: Vec::new(),
-            bonded: Vec::new(),
             held: Vec::new(),
             bond_meta: Vec::new(),
             bond_at: Vec::new(),
@@ -401,11 +400,12 @@ impl Contact {
         let can_patch = self.per_face && !self.dirty && self.rebuilds > 0 && rec.moved.is_empty() && x0.len() == model.topo.n_clusters() && u.len() == x0.len();
         let before = can_patch.then(|| (self.slaves.clone(), self.faces.iter().map(|f| f.id).collect::<Vec<u32>>(), std::mem::take(&mut self.cand_off), std::mem::take(&mut self.cand)));
         self.rebuild_surfaces(model);
+        // The points the split touched: those with new clusters and the cut edges' ends.
+        let mut points: Vec<u32> = rec.new_clusters.iter().map(|nc| nc.point.0).collect();
+        points.extend(rec.cut_edges.iter().map(|&(e, end)| model.topo.edges[e.idx()].points[end as usize].0));
+        points.sort_unstable();
+        points.dedup();
         if let Some((slaves, ids, off, cand)) = before {
-            let mut points: Vec<u32> = rec.new_clusters.iter().map(|nc| nc.point.0).collect();
-            points.extend(rec.cut_edges.iter().map(|&(e, end)| model.topo.edges[e.idx()].points[end as usize].0));
-            points.sort_unstable();
-            points.dedup();
             if self.patch_verlet(rec, &points, x0, u, &slaves, &ids, &off, &cand) {
                 self.patches += 1;
                 self.dirty = false;
@@ -435,16 +435,12 @@ impl Contact {
         if self.per_face {
             // Cohesion per face end (module doc): bonds follow their node's splits; every end
             // cut now gets its own. The pairs are contact only.
-            // Only a point that split (or had an edge end cut) has new clusters: the bonds
-            // elsewhere keep their slaves, and asking the topology for them was the cost of a
-            // split on a crack with many bonds (session 36).
-            let mut at: Vec<u32> = rec.new_clusters.iter().map(|nc| nc.point.0).collect();
-            at.extend(rec.cut_edges.iter().map(|&(e, end)| topo.edges[e.idx()].points[end as usize].0));
-            at.sort_unstable();
-            at.dedup();
+            // Only the points the split touched have new clusters: the bonds elsewhere keep
+            // their slaves, and asking the topology for them was the cost of a split on a crack
+            // with many bonds (session 36).
             for b in self.bonds.iter_mut() {
                 let Some(pt) = topo.edges.get(b.edge as usize).and_then(|ed| ed.points.get(b.end as usize)) else { continue };
-                if at.binary_search(&pt.0).is_err() {
+                if points.binary_search(&pt.0).is_err() {
                     continue;
                 }
                 if let Some((s, _, _, _)) = bond_ends(topo, b.edge, b.end) {
@@ -461,7 +457,7 @@ impl Contact {
                 self.bond_meta.push((sf, topo.edges[e.idx()].points[end as usize].0));
             }
             self.history.pairs = old;
-            self.refresh_bonded();
+            self.refresh_held();
             return;
         }
         let mut added: Vec<Pair> = Vec::new();
@@ -533,28 +529,17 @@ impl Contact {
         self.history = history;
     }
 
-    /// The (face, point) of both faces of every bond's end, sorted (after the bonds changed).
-    fn refresh_bonded(&mut self) {
-        self.bonded.clear();
-
-        for (b, &(sf, pt)) in self.bonds.iter().zip(&self.bond_meta) {
-            self.bonded.push((b.master, pt));
-            self.bonded.push((sf, pt));
-        }
-        self.bonded.sort_unstable();
-        self.bonded.dedup();
-        self.refresh_held();
-    }
-
-    /// `held` from `bonded` and the faces (after either changed). An entry whose face is gone
-    /// is left out: the narrow phase meets only the faces there are.
+    /// `held` from the bonds and the faces (after either changed). A bond's faces exist while
+    /// it lives (a bond is made only between existing faces, and a cut edge keeps its faces).
     fn refresh_held(&mut self) {
         self.held.clear();
         self.held.resize(self.faces.len(), 0);
-        for &(f, pt) in &self.bonded {
-            if let Some(&i) = self.face_of_id.get(f as usize).filter(|&&i| i != NONE) {
-                let fc = &self.faces[i as usize];
-                self.held[i as usize] |= (fc.pts[0] == pt) as u8 | (((fc.pts[1] == pt) as u8) << 1);
+        for (b, &(sf, pt)) in self.bonds.iter().zip(&self.bond_meta) {
+            for f in [b.master, sf] {
+                if let Some(&i) = self.face_of_id.get(f as usize).filter(|&&i| i != NONE) {
+                    let fc = &self.faces[i as usize];
+                    self.held[i as usize] |= (fc.pts[0] == pt) as u8 | (((fc.pts[1] == pt) as u8) << 1);
+                }
             }
         }
     }
@@ -564,7 +549,15 @@ impl Contact {
     /// the bond waits, unevaluated and not counted as a face).
     #[inline]
     fn bond_face(&self, b: &Bond) -> Option<Face> {
-        self.face(b.master).filter(|fc| b.slave != fc.a && b.slave != fc.b)
+        self.bond_face_at(b).map(|i| self.faces[i])
+    }
+
+    /// [`Contact::bond_face`]'s index into `faces`.
+    #[inline]
+    fn bond_face_at(&self, b: &Bond) -> Option<usize> {
+        let i = *self.face_of_id.get(b.master as usize).filter(|&&i| i != NONE)? as usize;
+        let fc = &self.faces[i];
+        (b.slave != fc.a && b.slave != fc.b).then_some(i)
     }
 
     /// Restores the checkpointed bonds (after [`Contact::restore`]); their slaves are re-read
@@ -585,7 +578,7 @@ impl Contact {
         }
         self.bonds = bonds;
         self.bond_meta = meta;
-        self.refresh_bonded();
+        self.refresh_held();
         Ok(())
     }
 
@@ -667,7 +660,7 @@ impl Contact {
     }
 
     /// For tests (session 36): the search's caches against what they are made from. `held`
-    /// against a binary search of `bonded` for both ends of every face, and every bond's slave
+    /// against a search of the bonds for both ends of every face, and every bond's slave
     /// against the topology (`on_split` asks the topology only for the bonds at the points a
     /// split touched). `None` when they agree, else the first difference.
     #[doc(hidden)]
@@ -677,13 +670,13 @@ impl Contact {
         }
         for (fi, fc) in self.faces.iter().enumerate() {
             for k in 0..2 {
-                let want = self.bonded.binary_search(&(fc.id, fc.pts[k])).is_ok();
+                let want = self.bonds.iter().zip(&self.bond_meta).any(|(b, &(sf, pt))| pt == fc.pts[k] && (b.master == fc.id || sf == fc.id));
                 if (self.held[fi] >> k) & 1 == 1 {
                     if !want {
-                        return Some(format!("face {} end {k} (point {}) marked held, not in bonded", fc.id, fc.pts[k]));
+                        return Some(format!("face {} end {k} (point {}) marked held, no bond there", fc.id, fc.pts[k]));
                     }
                 } else if want {
-                    return Some(format!("face {} end {k} (point {}) in bonded, not marked held", fc.id, fc.pts[k]));
+                    return Some(format!("face {} end {k} (point {}) held by a bond, not marked", fc.id, fc.pts[k]));
                 }
             }
         }
@@ -1101,7 +1094,7 @@ impl Contact {
                 self.bonds[k - 1].area > 0.0
             });
             self.bonds.retain(|b| b.area > 0.0);
-            self.refresh_bonded();
+            self.refresh_held();
         }
         self.n_active = self.reports.len();
         std::mem::swap(&mut self.next, &mut self.history.pairs);
@@ -1118,11 +1111,12 @@ impl Contact {
         self.fpos.clear();
         // Only when some slave has a candidate or a bond holds (a scene whose bodies are apart
         // has neither, and pays nothing per face).
-        let used = !self.cand.is_empty() || !self.bonds.is_empty();
-        self.fpos.extend(self.faces.iter().filter(|_| used).map(|g| {
-            let (a, b) = (x(g.a), x(g.b));
-            [a[0], a[1], b[0], b[1]]
-        }));
+        if !self.cand.is_empty() || !self.bonds.is_empty() {
+            self.fpos.extend(self.faces.iter().map(|g| {
+                let (a, b) = (x(g.a), x(g.b));
+                [a[0], a[1], b[0], b[1]]
+            }));
+        }
         let mut h = 0usize;
         let pairs = &self.history.pairs;
         for (si, &s) in self.slaves.iter().enumerate() {
@@ -1137,15 +1131,9 @@ impl Contact {
             // a node pair carried the bonds and both nodes' contact pairs, 3 k A against the
             // 2 k A of `omega2`.)
             let sp = self.slave_pt[si];
-            // By face index for the candidates (`held`), by id for the pair's master (which
-            // may name a face that is gone).
-            let (held_f, faces) = (&self.held, &self.faces);
-            let held = |fi: u32| {
-                let (h, fc) = (held_f[fi as usize], &faces[fi as usize]);
-                (h & 1 != 0 && fc.pts[0] == sp) || (h & 2 != 0 && fc.pts[1] == sp)
-            };
-            let bonded = &self.bonded;
-            let held_id = |f: u32| !bonded.is_empty() && bonded.binary_search(&(f, sp)).is_ok();
+            let (held_f, faces, face_of_id) = (&self.held, &self.faces, &self.face_of_id);
+            let held = |fi: u32| held_at(held_f, faces, fi as usize, sp);
+            let held_id = |f: u32| face_of_id.get(f as usize).is_some_and(|&i| i != NONE && held(i));
             if let Some(o) = old.filter(|o| matches!(o.master, Master::Face(f) if held_id(f))) {
                 self.released += o.state.stored;
                 old = None;
@@ -1291,12 +1279,8 @@ impl Contact {
         self.n_pairs = self.geo.len();
         self.bond_at.clear();
         for (bi, b) in self.bonds.iter().enumerate() {
-            // `bond_face`, with the master's ends from `fpos`.
-            let Some(&fi) = self.face_of_id.get(b.master as usize).filter(|&&i| i != NONE) else { continue };
-            let (fc, q) = (self.faces[fi as usize], self.fpos[fi as usize]);
-            if b.slave == fc.a || b.slave == fc.b {
-                continue;
-            }
+            let Some(fi) = self.bond_face_at(b) else { continue };
+            let (fc, q) = (self.faces[fi], self.fpos[fi]);
             let (gap, xi, _, n, t) = Self::face_geo(x(b.slave), [q[0], q[1]], [q[2], q[3]]);
             let g = Geo { slave: b.slave, master: Master::Face(b.master), i: fc.a, j: fc.b, xi: xi.clamp(0.0, 1.0), n, t };
             let (vp, vi, vj) = (v[g.slave as usize], v[g.i as usize], v[g.j as usize]);
@@ -1451,6 +1435,14 @@ fn cluster_across(topo: &Topology, e: ElemId, pa: PointId, pb: PointId, p: Point
     let (other, _) = ed.sides.iter().flatten().find(|(x, _)| *x != e).copied()?;
     let c = topo.copy_cluster[topo.copy_at(other, p)?.idx()].0;
     (c != own).then_some(c)
+}
+
+/// Whether face `fi` (an index into `faces`) is held by a bond at mesh point `sp` (`held`'s
+/// bits against the face's ends).
+#[inline]
+fn held_at(held: &[u8], faces: &[Face], fi: usize, sp: u32) -> bool {
+    let (h, fc) = (held[fi], &faces[fi]);
+    (h & 1 != 0 && fc.pts[0] == sp) || (h & 2 != 0 && fc.pts[1] == sp)
 }
 
 /// The slave at `p` is surely in front of the face `a`-`b` (gap > 0) or behind it by more than
