@@ -726,20 +726,19 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             let (geo, extra) = self.kind_geometry(p);
             let mut e = [[[0.0; LANES]; 4]; MAXG];
             S::total_strains::<BBAR>(geo, extra, &du, &mut e);
-            let mut sn = [[[0.0; LANES]; 4]; MAXG];
             for k in 0..ng {
                 let c = &self.gw[p * ng + k];
-                let mut s = st[k];
-                let old = s;
-                self.law.update_lanes(&mut s, &e[k], &mut hs[k * ns..], ng * ns, n);
-                st[k] = s;
-                sn[k] = s;
-                let de = &e[k];
+                let old = st[k];
+                // The law updates the stored stress in place (no copy of the pack's point).
+                self.law.update_lanes(&mut st[k], &e[k], &mut hs[k * ns..], ng * ns, n);
+                let (s, de) = (&st[k], &e[k]);
                 for l in 0..LANES {
                     w_acc[l] += c[l] * 0.5 * ((old[0][l] + s[0][l]) * de[0][l] + (old[1][l] + s[1][l]) * de[1][l] + (old[2][l] + s[2][l]) * de[2][l]);
                 }
             }
-            S::total_forces::<BBAR>(geo, extra, &sn, self.mat.thickness, &mut fe);
+            // The kind's form has `MAXG` points (`Shape::total_forces`), as many as `st` holds.
+            let sn: &[[[f64; LANES]; 4]; MAXG] = st[..MAXG].try_into().expect("a kind with its own form has MAXG points");
+            S::total_forces::<BBAR>(geo, extra, sn, self.mat.thickness, &mut fe);
             scatter_lanes(conn, &fe, &w_acc, wk, f);
             return;
         }

@@ -61,6 +61,10 @@ use flem_core::element::{Dmat, Material, Plane};
 #[path = "mohr_coulomb_tangent.rs"]
 mod tangent;
 
+#[cfg(target_arch = "x86_64")]
+#[path = "mohr_coulomb_avx512.rs"]
+mod avx512;
+
 #[path = "mohr_coulomb_softening.rs"]
 pub mod softening;
 pub use softening::{MohrCoulombSoftening, SofteningCfg};
@@ -210,29 +214,47 @@ impl MohrCoulomb {
     /// bound `rad <= x` on Mohr's radius, tested as `x >= 0` and `rr <= x^2`. It may differ
     /// from `trial`'s test by round-off at the surface; `update_lanes` uses it only to route a
     /// pack (see there), so no result depends on it.
-    #[inline(always)]
+    #[cfg(test)]
     fn inside_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [bool; LANES] {
+        let slack = self.slack_lanes(mid, rr, pz);
+        std::array::from_fn(|l| slack[l] >= 0.0)
+    }
+
+    /// [`Self::inside_lanes`] as a bit mask of the lanes that fail it (bit `l` set: lane `l`
+    /// is routed on), in the form that vectorises (ours, session 37): each lane's slack, the
+    /// least of `x`, `x^2 - rr` and `sigma_t - pz` (each `>= 0` exactly when its test holds:
+    /// a rounded difference has the sign of the exact one), is compared with zero once, and
+    /// the tension plane's bound is a loop of its own rather than a branch in the loop. A NaN
+    /// input makes `x^2 - rr` NaN, which the minimum keeps (it is its first operand) and which
+    /// fails `>= 0`, so a NaN stress is routed on.
+    #[inline(always)]
+    fn slack_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [f64; LANES] {
         let (ka, kb, r) = (self.n[0][0], -self.n[0][2], self.r[0]);
         let [ra, ba, rb, ab] = self.pre;
-        let (t_on, st) = (self.used & 8 != 0, self.r[3]);
-        let mut inside = [false; LANES];
+        let st = self.r[3];
+        // `lo(a, b)`: `b` when it is smaller, else `a` (a NaN `a` is kept). Selects, not
+        // `f64::min`, whose NaN rule keeps a loop scalar.
+        let lo = |a: f64, b: f64| if b < a { b } else { a };
+        let mut x = [0.0; LANES];
         for l in 0..LANES {
             // (pa, pb), (pa, pz), (pz, pb): the largest over the orders, each `rad <= x`.
             let x1 = 0.5 * (r - (ka - kb) * mid[l]);
             let x2 = ra + ba * pz[l] - mid[l];
             let x3 = rb - ab * pz[l] + mid[l];
-            // Selects, not `f64::min` (whose NaN rule keeps the loop scalar): a NaN stress
-            // fails `rr <= x^2` whichever bound is kept, and is routed on.
-            let lo = |a: f64, b: f64| if a < b { a } else { b };
-            let mut x = lo(lo(x1, x2), x3);
-            let mut z_ok = true;
-            if t_on {
-                x = lo(x, st - mid[l]);
-                z_ok = pz[l] <= st;
-            }
-            inside[l] = (x >= 0.0) & (rr[l] <= x * x) & z_ok;
+            x[l] = lo(lo(x3, x2), x1);
         }
-        inside
+        let mut slack = [0.0; LANES];
+        if self.used & 8 != 0 {
+            for l in 0..LANES {
+                let xl = lo(x[l], st - mid[l]);
+                slack[l] = lo(lo(xl * xl - rr[l], xl), st - pz[l]);
+            }
+        } else {
+            for l in 0..LANES {
+                slack[l] = lo(x[l] * x[l] - rr[l], x[l]);
+            }
+        }
+        slack
     }
 
     /// The returns of `return_active` after the main face, in lanes, for a law without
@@ -344,6 +366,153 @@ impl MohrCoulomb {
             }
             gam[l] = if take { g } else { gam[l] };
             face[l] |= take;
+        }
+    }
+
+    /// The rest of `update_lanes` for a pack some of whose lanes fail the pre-test: the
+    /// principal stresses, the main-face return in lanes, the edges (`edge_lanes`) and the
+    /// scalar returns. Out of line, so that the elastic path that inlines into the stateful
+    /// block's pack loop stays small (its trial arrays stay in registers); compiled for the
+    /// instruction sets the block's pack loop is (AVX-512, AVX2, the baseline) and chosen at
+    /// run time as it is, so the same operations and bits on every path (ours, session 37).
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
+    fn yield_lanes(&self, s: &mut [[f64; LANES]; 4], ts: &[[f64; LANES]; 4], half: &[f64; LANES], mid: &[f64; LANES], rr: &[f64; LANES], state: &mut [f64], stride: usize, n: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq") {
+                // SAFETY: the CPU has the features (checked just above).
+                return unsafe { self.yield_lanes_avx512(s, ts, half, mid, rr, state, stride, n) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: as above.
+                return unsafe { self.yield_lanes_avx2(s, ts, half, mid, rr, state, stride, n) };
+            }
+        }
+        self.yield_lanes_body(s, ts, half, mid, rr, state, stride, n)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    fn yield_lanes_avx2(&self, s: &mut [[f64; LANES]; 4], ts: &[[f64; LANES]; 4], half: &[f64; LANES], mid: &[f64; LANES], rr: &[f64; LANES], state: &mut [f64], stride: usize, n: usize) {
+        self.yield_lanes_body(s, ts, half, mid, rr, state, stride, n)
+    }
+
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn yield_lanes_body(&self, s: &mut [[f64; LANES]; 4], ts: &[[f64; LANES]; 4], half: &[f64; LANES], mid: &[f64; LANES], rr: &[f64; LANES], state: &mut [f64], stride: usize, n: usize) {
+        let z = [0.0; LANES];
+        let (mut rad, mut pa, mut pb, mut inside) = (z, z, z, [false; LANES]);
+
+        let (r3, t_on) = (self.r[3], self.used & 8 != 0);
+        for l in 0..LANES {
+            rad[l] = rr[l].sqrt();
+            pa[l] = mid[l] + rad[l];
+            pb[l] = mid[l] - rad[l];
+            let pz = ts[3][l];
+            // `trial`'s quick test.
+            let (hi, lo) = (pa[l].max(pz), pb[l].min(pz));
+            let f13 = self.f(0, &[hi, 0.0, lo]);
+            let t1 = if t_on { hi - r3 } else { f64::NEG_INFINITY };
+            inside[l] = f13 <= 0.0 && t1 <= 0.0;
+        }
+        let pz = ts[3];
+        let (d0, big) = (self.a[0][0], self.a[0][0].abs().max(self.a[3][3].abs()));
+        let solvable = d0.abs() > 1e-12 * big;
+        let used: [bool; 6] = std::array::from_fn(|k| self.used & (1 << k) != 0);
+        // Sorted `s1 >= s2 >= s3` over (pa, pb, pz), as `sort_principal` sorts them.
+        // Selects only, no `else if` and no stored booleans: written this way the loop
+        // vectorises (its branchy form was compiled lane by lane, and the whole-pack loads that
+        // followed its scalar stores stalled; ours, session 37).
+        let (mut za, mut zb, mut q) = ([false; LANES], [false; LANES], [z; 3]);
+        for l in 0..LANES {
+            let (a, b, c) = (pa[l], pb[l], pz[l]);
+            let (ya, yb) = (c >= a, c >= b);
+            let m1 = if yb { c } else { b };
+            q[0][l] = if ya { c } else { a };
+            q[1][l] = if ya { a } else { m1 };
+            q[2][l] = if yb { b } else { c };
+        }
+        for l in 0..LANES {
+            za[l] = pz[l] >= pa[l];
+            zb[l] = pz[l] >= pb[l];
+        }
+        let (mut face, mut fs, mut gam, mut vio) = ([false; LANES], [z; 4], z, [false; LANES]);
+        for l in 0..LANES {
+            let ql = [q[0][l], q[1][l], q[2][l]];
+            let tol = 1e-12 * (self.scale + ql[0].abs().max(ql[2].abs()));
+            // `return_active`'s test over the planes in use, on the main face and the first
+            // tension plane only: for sorted stresses (`q0 >= q1 >= q2`) every other plane's
+            // `f` is at most one of these two, in floating point too (the same products and
+            // sums but one, larger or equal, and rounding is monotone: `f1, f2 <= f0`,
+            // `f4, f5 <= f3`), so the test has the same answer.
+            let viol = (self.f(0, &ql) > tol) | (used[3] & (self.f(3, &ql) > tol));
+            vio[l] = viol;
+            let dl = self.f(0, &ql) * self.inv_diag[0];
+            let ok = dl >= -1e-14 * (1.0 + dl.abs());
+            let mut out = ql;
+            let mut dep = [0.0; 3];
+            for d in 0..3 {
+                out[d] -= dl * self.dm[0][d];
+                dep[d] += dl * self.m[0][d];
+            }
+            let check = 1e-9 * (self.scale + ql[0].abs().max(ql[2].abs()));
+            let mut adm = true;
+            for k in 0..6 {
+                adm &= !used[k] | (self.f(k, &out) <= check);
+            }
+            face[l] = solvable & viol & ok & adm;
+            let (ya, yb) = (pz[l] >= pa[l], pz[l] >= pb[l]);
+            let na = if ya { out[1] } else { out[0] };
+            let nb = if ya | yb { out[2] } else { out[1] };
+            let t = if yb { out[1] } else { out[2] };
+            let nz = if ya { out[0] } else { t };
+            let (c2, s2) = rotation(half[l], ts[2][l], rad[l]);
+            let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
+            fs[0][l] = m + h * c2;
+            fs[1][l] = m - h * c2;
+            fs[2][l] = h * s2;
+            fs[3][l] = nz;
+            gam[l] = dep[0].max(dep[1]).max(dep[2]) - dep[0].min(dep[1]).min(dep[2]);
+        }
+        // The lanes that the face does not take: the next active sets of `return_active`'s
+        // order in lanes (`edge_lanes`), when some lane needs them.
+        // Only for a law without tension planes (Tresca's case: three planes, the sets in lanes
+        // cheaper than the scalar search from two lanes on; with the tension planes, five
+        // singles and six planes to check, the scalar search with its early exits is faster),
+        // and when two lanes at least need it.
+        if !t_on && (0..n).filter(|&l| !inside[l] & !face[l] & vio[l]).count() >= 2 {
+            self.edge_lanes(&q, &vio, &za, &zb, &rad, &half, &ts[2], &mut face, &mut fs, &mut gam);
+        }
+        // The elastic and face lanes without a branch: the stress selected, the history
+        // rewritten (a face lane: `h0 + gam`, state 1; an elastic one: state 1 -> 2); then the
+        // other lanes' returns, one by one.
+        for c in 0..4 {
+            for l in 0..LANES {
+                s[c][l] = if inside[l] { ts[c][l] } else { fs[c][l] };
+            }
+        }
+        for l in 0..n {
+            let (h0, h1) = (state[l * stride], state[l * stride + 1]);
+            let (fl, il) = (face[l] & !inside[l], inside[l]);
+            state[l * stride] = if fl { h0 + gam[l] } else { h0 };
+            state[l * stride + 1] = if fl {
+                1.0
+            } else if il & (h1 == 1.0) {
+                2.0
+            } else {
+                h1
+            };
+        }
+        for l in 0..n {
+            if !inside[l] && !face[l] {
+                let h = &mut state[l * stride..l * stride + 2];
+                let t = Trial { s: [ts[0][l], ts[1][l], ts[2][l], ts[3][l]], half: half[l], rad: rad[l], pa: pa[l], pb: pb[l], pz: pz[l], inside: false };
+                let mut sl = t.s;
+                self.plastic_update(&mut sl, &t, h);
+                (s[0][l], s[1][l], s[2][l], s[3][l]) = (sl[0], sl[1], sl[2], sl[3]);
+            }
         }
     }
 
@@ -548,14 +717,15 @@ impl MaterialLaw for MohrCoulomb {
             rr[l] = half[l] * half[l] + ts[2][l] * ts[2][l];
         }
         let n = n.min(LANES);
-        let pre = self.inside_lanes(&mid, &rr, &ts[3]);
-        // The lanes `..n` that fail the pre-test, as a bit mask (one compare of the pack, not
-        // a branch per lane).
-        let mut out = 0u32;
-        for (l, &i) in pre.iter().enumerate() {
-            out |= u32::from(!i) << l;
+        // Whether a lane of `..n` fails the pre-test: one compare of the pack and an OR over
+        // its lanes, not a branch per lane (nor a bit mask built lane by lane, which did not
+        // vectorise).
+        let slack = self.slack_lanes(&mid, &rr, &ts[3]);
+        let mut bad = [0u64; LANES];
+        for l in 0..LANES {
+            bad[l] = u64::from(!(slack[l] >= 0.0) & (l < n));
         }
-        if out & ((1u32 << n) - 1) == 0 {
+        if bad.iter().fold(0, |a, &b| a | b) == 0 {
             // Every lane elastic: no branch per lane but the history's.
             *s = ts;
             for l in 0..n {
@@ -566,124 +736,7 @@ impl MaterialLaw for MohrCoulomb {
             }
             return;
         }
-        let (mut rad, mut pa, mut pb, mut inside) = (z, z, z, [false; LANES]);
-        let (r3, t_on) = (self.r[3], self.used & 8 != 0);
-        for l in 0..LANES {
-            rad[l] = rr[l].sqrt();
-            pa[l] = mid[l] + rad[l];
-            pb[l] = mid[l] - rad[l];
-            let pz = ts[3][l];
-            // `trial`'s quick test.
-            let (hi, lo) = (pa[l].max(pz), pb[l].min(pz));
-            let f13 = self.f(0, &[hi, 0.0, lo]);
-            let t1 = if t_on { hi - r3 } else { f64::NEG_INFINITY };
-            inside[l] = f13 <= 0.0 && t1 <= 0.0;
-        }
-        let pz = ts[3];
-        let (d0, big) = (self.a[0][0], self.a[0][0].abs().max(self.a[3][3].abs()));
-        let solvable = d0.abs() > 1e-12 * big;
-        let used: [bool; 6] = std::array::from_fn(|k| self.used & (1 << k) != 0);
-        // Sorted `s1 >= s2 >= s3` over (pa, pb, pz), as `sort_principal` sorts them.
-        let (mut za, mut zb, mut q) = ([false; LANES], [false; LANES], [z; 3]);
-        for l in 0..LANES {
-            za[l] = pz[l] >= pa[l];
-            zb[l] = pz[l] >= pb[l];
-            q[0][l] = if za[l] { pz[l] } else { pa[l] };
-            q[1][l] = if za[l] {
-                pa[l]
-            } else if zb[l] {
-                pz[l]
-            } else {
-                pb[l]
-            };
-            q[2][l] = if zb[l] { pb[l] } else { pz[l] };
-        }
-        let (mut face, mut fs, mut gam, mut vio) = ([false; LANES], [z; 4], z, [false; LANES]);
-        for l in 0..LANES {
-            let ql = [q[0][l], q[1][l], q[2][l]];
-            let tol = 1e-12 * (self.scale + ql[0].abs().max(ql[2].abs()));
-            // `return_active`'s test over the planes in use, on the main face and the first
-            // tension plane only: for sorted stresses (`q0 >= q1 >= q2`) every other plane's
-            // `f` is at most one of these two, in floating point too (the same products and
-            // sums but one, larger or equal, and rounding is monotone: `f1, f2 <= f0`,
-            // `f4, f5 <= f3`), so the test has the same answer.
-            let viol = (self.f(0, &ql) > tol) | (used[3] & (self.f(3, &ql) > tol));
-            vio[l] = viol;
-            let dl = self.f(0, &ql) * self.inv_diag[0];
-            let ok = dl >= -1e-14 * (1.0 + dl.abs());
-            let mut out = ql;
-            let mut dep = [0.0; 3];
-            for d in 0..3 {
-                out[d] -= dl * self.dm[0][d];
-                dep[d] += dl * self.m[0][d];
-            }
-            let check = 1e-9 * (self.scale + ql[0].abs().max(ql[2].abs()));
-            let mut adm = true;
-            for k in 0..6 {
-                adm &= !used[k] | (self.f(k, &out) <= check);
-            }
-            face[l] = solvable & viol & ok & adm;
-            let na = if za[l] { out[1] } else { out[0] };
-            let nb = if zb[l] {
-                out[2]
-            } else if za[l] {
-                out[2]
-            } else {
-                out[1]
-            };
-            let nz = if za[l] {
-                out[0]
-            } else if zb[l] {
-                out[1]
-            } else {
-                out[2]
-            };
-            let (c2, s2) = rotation(half[l], ts[2][l], rad[l]);
-            let (m, h) = (0.5 * (na + nb), 0.5 * (na - nb));
-            fs[0][l] = m + h * c2;
-            fs[1][l] = m - h * c2;
-            fs[2][l] = h * s2;
-            fs[3][l] = nz;
-            gam[l] = dep[0].max(dep[1]).max(dep[2]) - dep[0].min(dep[1]).min(dep[2]);
-        }
-        // The lanes that the face does not take: the next active sets of `return_active`'s
-        // order in lanes (`edge_lanes`), when some lane needs them.
-        // Only for a law without tension planes (Tresca's case: three planes, the sets in lanes
-        // cheaper than the scalar search from two lanes on; with the tension planes, five
-        // singles and six planes to check, the scalar search with its early exits is faster),
-        // and when two lanes at least need it.
-        if !t_on && (0..n).filter(|&l| !inside[l] & !face[l] & vio[l]).count() >= 2 {
-            self.edge_lanes(&q, &vio, &za, &zb, &rad, &half, &ts[2], &mut face, &mut fs, &mut gam);
-        }
-        // The elastic and face lanes without a branch: the stress selected, the history
-        // rewritten (a face lane: `h0 + gam`, state 1; an elastic one: state 1 -> 2); then the
-        // other lanes' returns, one by one.
-        for c in 0..4 {
-            for l in 0..LANES {
-                s[c][l] = if inside[l] { ts[c][l] } else { fs[c][l] };
-            }
-        }
-        for l in 0..n {
-            let (h0, h1) = (state[l * stride], state[l * stride + 1]);
-            let (fl, il) = (face[l] & !inside[l], inside[l]);
-            state[l * stride] = if fl { h0 + gam[l] } else { h0 };
-            state[l * stride + 1] = if fl {
-                1.0
-            } else if il & (h1 == 1.0) {
-                2.0
-            } else {
-                h1
-            };
-        }
-        for l in 0..n {
-            if !inside[l] && !face[l] {
-                let h = &mut state[l * stride..l * stride + 2];
-                let t = Trial { s: [ts[0][l], ts[1][l], ts[2][l], ts[3][l]], half: half[l], rad: rad[l], pa: pa[l], pb: pb[l], pz: pz[l], inside: false };
-                let mut sl = t.s;
-                self.plastic_update(&mut sl, &t, h);
-                (s[0][l], s[1][l], s[2][l], s[3][l]) = (sl[0], sl[1], sl[2], sl[3]);
-            }
-        }
+        self.yield_lanes(s, &ts, &half, &mid, &rr, state, stride, n);
     }
     /// Elastic from zero stress until the trial first leaves the quick test's region; the
     /// history (`[0, 0]`) does not change on an elastic update from the initial state.

@@ -368,6 +368,88 @@ fn update_lanes_edges_are_update_bit_for_bit() {
     assert!(edges > 1000, "only {edges} returns to an edge or a corner");
 }
 
+/// The yielding lanes written with AVX-512 intrinsics (`mohr_coulomb_avx512.rs`, what
+/// `update_lanes` runs on a CPU that has AVX-512) against the generic body (`yield_lanes_body`,
+/// what it runs elsewhere), on the states of the two tests above (every return region, edges
+/// and corners, tension planes on and off, full and partial packs) and on packs holding
+/// special values (zeros of either sign, a zero Mohr radius, NaN and infinite stresses).
+/// Reference: the generic body, which `update_lanes_is_update_bit_for_bit` ties to `update`;
+/// tolerance: none (bitwise; a NaN against a NaN whatever its payload). Skipped, and says so,
+/// on a CPU without AVX-512.
+#[test]
+fn avx512_yield_is_the_generic_body_bit_for_bit() {
+    use flem_core::element::kernel::LANES;
+    #[cfg(target_arch = "x86_64")]
+    {
+        if !(std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq")) {
+            eprintln!("avx512_yield_is_the_generic_body_bit_for_bit: no AVX-512 on this CPU, skipped");
+            return;
+        }
+        let laws =
+            [law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(1.0, 0.0, 0.0, None), law(0.0, 35.0, 35.0, Some(0.0)), law(2.0, 20.0, 0.0, Some(0.0)), law(1.0, 30.0, 30.0, Some(0.5))];
+        let mut rnd = xorshift(0x51_7CC1_B727_220A);
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        let mut counted = [0usize; 3];
+        for law in &laws {
+            for round in 0..600 {
+                let n = if round % 5 == 4 { 1 + round % LANES } else { LANES };
+                let mut ts = [[0.0; LANES]; 4];
+                for l in 0..LANES {
+                    match (round + l) % 3 {
+                        // Anywhere within a few cohesions.
+                        0 => {
+                            for c in ts.iter_mut() {
+                                c[l] = 4.0 * rnd();
+                            }
+                        }
+                        // Near an edge: a small Mohr circle, szz away from it.
+                        1 => {
+                            let (a, b, e) = (-3.0 * rnd().abs(), (1.0 + 5.0 * rnd().abs()) * rnd().signum(), 0.05 * rnd());
+                            (ts[0][l], ts[1][l], ts[2][l], ts[3][l]) = (a + e, a - e, 0.5 * e * rnd(), a + b);
+                        }
+                        // Special values.
+                        _ => {
+                            let v = [0.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1.0, -1.0];
+                            for c in ts.iter_mut() {
+                                c[l] = v[(rnd().abs() * 7.0) as usize % 7];
+                            }
+                        }
+                    }
+                }
+                // `update_lanes`' trial quantities, as it computes them.
+                let (mut half, mut mid, mut rr) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+                for l in 0..LANES {
+                    mid[l] = 0.5 * (ts[0][l] + ts[1][l]);
+                    half[l] = 0.5 * (ts[0][l] - ts[1][l]);
+                    rr[l] = half[l] * half[l] + ts[2][l] * ts[2][l];
+                }
+                let mut hist = vec![0.0; LANES * 4];
+                for l in 0..LANES {
+                    hist[l * 4] = rnd().abs();
+                    hist[l * 4 + 1] = [0.0, 1.0, 2.0][(round + l) % 3];
+                }
+                let (mut s_ref, mut h_ref) = ([[0.0; LANES]; 4], hist.clone());
+                law.yield_lanes_body(&mut s_ref, &ts, &half, &mid, &rr, &mut h_ref, 4, n);
+                let mut s = [[0.0; LANES]; 4];
+                // SAFETY: the CPU has AVX-512 (checked above).
+                unsafe { law.yield_lanes_avx512(&mut s, &ts, &half, &mid, &rr, &mut hist, 4, n) };
+                for l in 0..LANES {
+                    for c in 0..4 {
+                        assert!(same(s[c][l], s_ref[c][l]), "stress {c} of lane {l}, round {round}: {} against {}", s[c][l], s_ref[c][l]);
+                    }
+                    assert!(same(hist[l * 4], h_ref[l * 4]), "plastic shear strain of lane {l}, round {round}");
+                    assert!(same(hist[l * 4 + 1], h_ref[l * 4 + 1]), "state of lane {l}, round {round}");
+                    if l < n {
+                        counted[(round + l) % 3] += usize::from(h_ref[l * 4 + 1] == 1.0);
+                    }
+                }
+            }
+        }
+        // Returns happened in the random and the edge packs (the special values mostly give NaN).
+        assert!(counted[0] > 1000 && counted[1] > 1000, "returns counted: {counted:?}");
+    }
+}
+
 /// The never-yielded shortcut of the stateful block (`StatefulOpts::elastic_shortcut`: a pack
 /// whose points never yielded takes the stress of the total strain and stores nothing)
 /// against the stored path (every point's stress updated incrementally), on a distorted
