@@ -726,12 +726,13 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
             let (geo, extra) = self.kind_geometry(p);
             let mut e = [[[0.0; LANES]; 4]; MAXG];
             S::total_strains::<BBAR>(geo, extra, &du, &mut e);
+            let mut old = [[[0.0; LANES]; 4]; MAXG];
+            old[..ng].copy_from_slice(&st[..ng]);
+            // The law updates the stored stresses of the pack's points in place, all at once.
+            self.law.update_points_lanes(&mut st[..ng], &e[..ng], hs, ng * ns, n);
             for k in 0..ng {
                 let c = &self.gw[p * ng + k];
-                let old = st[k];
-                // The law updates the stored stress in place (no copy of the pack's point).
-                self.law.update_lanes(&mut st[k], &e[k], &mut hs[k * ns..], ng * ns, n);
-                let (s, de) = (&st[k], &e[k]);
+                let (s, de, old) = (&st[k], &e[k], &old[k]);
                 for l in 0..LANES {
                     w_acc[l] += c[l] * 0.5 * ((old[0][l] + s[0][l]) * de[0][l] + (old[1][l] + s[1][l]) * de[1][l] + (old[2][l] + s[2][l]) * de[2][l]);
                 }

@@ -117,6 +117,20 @@ struct Return {
     size: usize,
 }
 
+/// A pack's elastic trial at one point (`MohrCoulomb::elastic_lanes`): the trial stress, half
+/// the in-plane difference, the centre and the squared radius of Mohr's circle, by lane.
+#[derive(Clone, Copy, Debug)]
+struct LaneTrial {
+    ts: [[f64; LANES]; 4],
+    half: [f64; LANES],
+    mid: [f64; LANES],
+    rr: [f64; LANES],
+}
+
+/// The most points of a pack that `update_points_lanes` handles together (Q4's four; a kind
+/// with more takes `update_lanes` point by point).
+const MAX_POINTS: usize = 4;
+
 /// The law with its constants in the form the return uses.
 #[derive(Clone, Copy, Debug)]
 pub struct MohrCoulomb {
@@ -213,20 +227,21 @@ impl MohrCoulomb {
     /// `k_a = 1 + sin(phi)`, `k_b = 1 - sin(phi) > 0`) and the first tension plane are each a
     /// bound `rad <= x` on Mohr's radius, tested as `x >= 0` and `rr <= x^2`. It may differ
     /// from `trial`'s test by round-off at the surface; `update_lanes` uses it only to route a
-    /// pack (see there), so no result depends on it.
+    /// pack (see there), so no result depends on it. (Its tests' form; `update_lanes` reads
+    /// the slack of [`Self::slack_lanes`].)
     #[cfg(test)]
     fn inside_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [bool; LANES] {
         let slack = self.slack_lanes(mid, rr, pz);
         std::array::from_fn(|l| slack[l] >= 0.0)
     }
 
-    /// [`Self::inside_lanes`] as a bit mask of the lanes that fail it (bit `l` set: lane `l`
-    /// is routed on), in the form that vectorises (ours, session 37): each lane's slack, the
-    /// least of `x`, `x^2 - rr` and `sigma_t - pz` (each `>= 0` exactly when its test holds:
-    /// a rounded difference has the sign of the exact one), is compared with zero once, and
-    /// the tension plane's bound is a loop of its own rather than a branch in the loop. A NaN
-    /// input makes `x^2 - rr` NaN, which the minimum keeps (it is its first operand) and which
-    /// fails `>= 0`, so a NaN stress is routed on.
+    /// The pre-test of [`Self::inside_lanes`] as each lane's slack, `>= 0` exactly when the
+    /// lane passes, in the form that vectorises (ours, session 37): the least of `x`,
+    /// `x^2 - rr` and `sigma_t - pz` (each `>= 0` exactly when its test holds: a rounded
+    /// difference of finite numbers has the sign of the exact one), with the tension plane's
+    /// bound in a loop of its own rather than a branch in the loop. A NaN input makes
+    /// `x^2 - rr` NaN, which the minimum keeps (it is its first operand) and which fails
+    /// `>= 0`, so a NaN stress is routed on.
     #[inline(always)]
     fn slack_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [f64; LANES] {
         let (ka, kb, r) = (self.n[0][0], -self.n[0][2], self.r[0]);
@@ -366,6 +381,84 @@ impl MohrCoulomb {
             }
             gam[l] = if take { g } else { gam[l] };
             face[l] |= take;
+        }
+    }
+
+    /// The elastic part of `update_lanes` for one point of a pack: the trial of every lane
+    /// and the pre-test. When every lane of `..n` passes it, the trial is the answer: it is
+    /// written to `s`, the history's state 1 becomes 2, and `None` is returned; otherwise
+    /// nothing is written and the trial is returned for the return (`yield_lanes`).
+    #[inline(always)]
+    fn elastic_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], state: &mut [f64], stride: usize, n: usize) -> Option<LaneTrial> {
+        let z = [0.0; LANES];
+        let (l_, g2, g) = (self.lambda, 2.0 * self.g, self.g);
+        let (mut ts, mut half, mut mid, mut rr) = ([z; 4], z, z, z);
+        for l in 0..LANES {
+            // `trial`'s arithmetic, in its order.
+            let tr = de[0][l] + de[1][l] + de[3][l];
+            ts[0][l] = s[0][l] + l_ * tr + g2 * de[0][l];
+            ts[1][l] = s[1][l] + l_ * tr + g2 * de[1][l];
+            ts[2][l] = s[2][l] + g * de[2][l];
+            ts[3][l] = s[3][l] + l_ * tr + g2 * de[3][l];
+            mid[l] = 0.5 * (ts[0][l] + ts[1][l]);
+            half[l] = 0.5 * (ts[0][l] - ts[1][l]);
+            rr[l] = half[l] * half[l] + ts[2][l] * ts[2][l];
+        }
+        let n = n.min(LANES);
+        // Whether a lane of `..n` fails the pre-test: one compare of the pack and an OR over
+        // its lanes, not a branch per lane (nor a bit mask built lane by lane, which did not
+        // vectorise).
+        let slack = self.slack_lanes(&mid, &rr, &ts[3]);
+        let mut bad = [0u64; LANES];
+        for l in 0..LANES {
+            bad[l] = u64::from(!(slack[l] >= 0.0) & (l < n));
+        }
+        if bad.iter().fold(0, |a, &b| a | b) != 0 {
+            return Some(LaneTrial { ts, half, mid, rr });
+        }
+        // Every lane elastic: no branch per lane but the history's.
+        *s = ts;
+        for l in 0..n {
+            let h = &mut state[l * stride + 1];
+            if *h == 1.0 {
+                *h = 2.0;
+            }
+        }
+        None
+    }
+
+    /// `yield_lanes` of the points `k` of a pack marked in `todo` (trial `tr[k]`, stress
+    /// `s[k]`, history at `state[k * STATE..]`), in one out-of-line call chosen at run time as
+    /// `yield_lanes` is (ours, session 37).
+    #[inline(never)]
+    fn yield_points(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq") {
+                // SAFETY: the CPU has the features (checked just above).
+                return unsafe { self.yield_points_avx512(s, tr, todo, state, stride, n) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: as above.
+                return unsafe { self.yield_points_avx2(s, tr, todo, state, stride, n) };
+            }
+        }
+        self.yield_points_body(s, tr, todo, state, stride, n)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn yield_points_avx2(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
+        self.yield_points_body(s, tr, todo, state, stride, n)
+    }
+
+    #[inline(always)]
+    fn yield_points_body(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
+        for (k, sk) in s.iter_mut().enumerate() {
+            if todo >> k & 1 == 1 {
+                let t = &tr[k];
+                self.yield_lanes_body(sk, &t.ts, &t.half, &t.mid, &t.rr, &mut state[k * Self::STATE..], stride, n);
+            }
         }
     }
 
@@ -690,53 +783,49 @@ impl MaterialLaw for MohrCoulomb {
     }
     /// `update` of a pack of points (bit for bit the same, lane by lane), every step written as
     /// a loop over the lanes of plain arithmetic and selects, so that it vectorises:
-    /// - the elastic trial, and a pre-test without the square root (`Self::inside_lanes`:
+    /// - the elastic trial, and a pre-test without the square root (`Self::slack_lanes`:
     ///   Mohr's radius squared against the room each yield plane leaves it); a pack whose lanes
     ///   all pass it takes the trial (most packs, most steps). The pre-test only routes: a lane
     ///   it sends on is a lane `update` may still find elastic, and the return then gives it
     ///   the trial stress too (`return_active`'s tolerance), so the bits do not depend on it;
-    /// - else the principal stresses (one square root per lane) and the main-face return of
-    ///   every lane at once: `return_principal`'s first active set (plane 0 alone, always the
-    ///   first tried) and `plastic_update`'s rotation back, the same operations. A lane takes
-    ///   it when the scalar return would (violated, multiplier >= 0, no plane violated after);
-    ///   any other lane (edges, apex, tension) goes through `plastic_update`.
+    /// - else, out of line (`Self::yield_lanes`; AVX-512 intrinsics where the CPU has them,
+    ///   `mohr_coulomb_avx512.rs`), the principal stresses (one square root per lane) and the
+    ///   main-face return of every lane at once: `return_principal`'s first active set (plane 0
+    ///   alone, always the first tried) and `plastic_update`'s rotation back, the same
+    ///   operations. A lane takes it when the scalar return would (violated, multiplier >= 0,
+    ///   no plane violated after); the edges of a law without tension planes in lanes
+    ///   (`edge_lanes`); any other lane (corners, apex, tension) through `plastic_update`.
     #[inline(always)]
     fn update_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], state: &mut [f64], stride: usize, n: usize) {
-        let z = [0.0; LANES];
-        let (l_, g2, g) = (self.lambda, 2.0 * self.g, self.g);
-        let (mut ts, mut half, mut mid, mut rr) = ([z; 4], z, z, z);
-        for l in 0..LANES {
-            // `trial`'s arithmetic, in its order.
-            let tr = de[0][l] + de[1][l] + de[3][l];
-            ts[0][l] = s[0][l] + l_ * tr + g2 * de[0][l];
-            ts[1][l] = s[1][l] + l_ * tr + g2 * de[1][l];
-            ts[2][l] = s[2][l] + g * de[2][l];
-            ts[3][l] = s[3][l] + l_ * tr + g2 * de[3][l];
-            mid[l] = 0.5 * (ts[0][l] + ts[1][l]);
-            half[l] = 0.5 * (ts[0][l] - ts[1][l]);
-            rr[l] = half[l] * half[l] + ts[2][l] * ts[2][l];
+        if let Some(t) = self.elastic_lanes(s, de, state, stride, n) {
+            self.yield_lanes(s, &t.ts, &t.half, &t.mid, &t.rr, state, stride, n.min(LANES));
         }
-        let n = n.min(LANES);
-        // Whether a lane of `..n` fails the pre-test: one compare of the pack and an OR over
-        // its lanes, not a branch per lane (nor a bit mask built lane by lane, which did not
-        // vectorise).
-        let slack = self.slack_lanes(&mid, &rr, &ts[3]);
-        let mut bad = [0u64; LANES];
-        for l in 0..LANES {
-            bad[l] = u64::from(!(slack[l] >= 0.0) & (l < n));
-        }
-        if bad.iter().fold(0, |a, &b| a | b) == 0 {
-            // Every lane elastic: no branch per lane but the history's.
-            *s = ts;
-            for l in 0..n {
-                let h = &mut state[l * stride + 1];
-                if *h == 1.0 {
-                    *h = 2.0;
-                }
+    }
+    /// `update_lanes` of a pack's points (ours, session 37): each point's trial and pre-test
+    /// as there, then the points some of whose lanes yield in one out-of-line call
+    /// (`yield_points`), not one call per point. The same operations per point, so the same
+    /// bits.
+    #[inline(always)]
+    fn update_points_lanes(&self, s: &mut [[[f64; LANES]; 4]], de: &[[[f64; LANES]; 4]], state: &mut [f64], stride: usize, n: usize) {
+        let ns = Self::STATE;
+        if s.len() > MAX_POINTS {
+            for (k, (sk, dk)) in s.iter_mut().zip(de).enumerate() {
+                self.update_lanes(sk, dk, &mut state[k * ns..], stride, n);
             }
             return;
         }
-        self.yield_lanes(s, &ts, &half, &mid, &rr, state, stride, n);
+        let z = [0.0; LANES];
+        let mut tr = [LaneTrial { ts: [z; 4], half: z, mid: z, rr: z }; MAX_POINTS];
+        let mut todo = 0u32;
+        for (k, (sk, dk)) in s.iter_mut().zip(de).enumerate() {
+            if let Some(t) = self.elastic_lanes(sk, dk, &mut state[k * ns..], stride, n) {
+                tr[k] = t;
+                todo |= 1 << k;
+            }
+        }
+        if todo != 0 {
+            self.yield_points(s, &tr, todo, state, stride, n.min(LANES));
+        }
     }
     /// Elastic from zero stress until the trial first leaves the quick test's region; the
     /// history (`[0, 0]`) does not change on an elastic update from the initial state.

@@ -14,8 +14,9 @@
 //! (`edge_lanes`, `plastic_update`), as in the generic body.
 use std::arch::x86_64::*;
 
-use super::{MohrCoulomb, Trial};
+use super::{LaneTrial, MohrCoulomb, Trial, MAX_POINTS};
 use flem_core::element::kernel::LANES;
+use flem_core::element::law::MaterialLaw;
 
 const _: () = assert!(LANES == 8, "the AVX-512 return holds a pack in one register");
 
@@ -73,7 +74,19 @@ impl MohrCoulomb {
         _mm512_sub_pd(_mm512_add_pd(a, _mm512_mul_pd(splat(n[2]), s[2])), splat(self.r[k]))
     }
 
+    /// `yield_points_body` with AVX-512.
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+    pub(super) fn yield_points_avx512(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
+        for (k, sk) in s.iter_mut().enumerate() {
+            if todo >> k & 1 == 1 {
+                let t = &tr[k];
+                self.yield_lanes_avx512(sk, &t.ts, &t.half, &t.mid, &t.rr, &mut state[k * Self::STATE..], stride, n);
+            }
+        }
+    }
+
     /// `yield_lanes_body` with AVX-512 (see the module docs).
+    #[inline]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
     #[allow(clippy::too_many_arguments)]
     pub(super) fn yield_lanes_avx512(&self, s: &mut [[f64; LANES]; 4], ts: &[[f64; LANES]; 4], half: &[f64; LANES], mid: &[f64; LANES], rr: &[f64; LANES], state: &mut [f64], stride: usize, n: usize) {

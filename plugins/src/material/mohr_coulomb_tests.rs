@@ -368,6 +368,59 @@ fn update_lanes_edges_are_update_bit_for_bit() {
     assert!(edges > 1000, "only {edges} returns to an edge or a corner");
 }
 
+/// `update_points_lanes` (the four points of a Q4 pack at once, the points that yield in one
+/// call) against `update_lanes` point by point, which the test above ties to `update`: packs
+/// whose points stay elastic, yield to the face, to an edge, or mix, with the tension planes
+/// on and off, full and partial packs. Reference: `update_lanes`; tolerance: none (bitwise).
+#[test]
+fn update_points_lanes_is_update_lanes_point_by_point() {
+    use flem_core::element::kernel::LANES;
+    let laws = [law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(1.0, 0.0, 0.0, None), law(0.0, 35.0, 35.0, Some(0.0))];
+    let mut rnd = xorshift(0x3C6E_F372_FE94_F82B);
+    let (ns, ng) = (2, 4);
+    let stride = ng * ns;
+    let mut mixed = 0;
+    for law in &laws {
+        for round in 0..300 {
+            let n = if round % 5 == 4 { 1 + round % LANES } else { LANES };
+            let mut s = [[[0.0; LANES]; 4]; 4];
+            let mut de = [[[0.0; LANES]; 4]; 4];
+            let mut hist = vec![0.0; LANES * stride];
+            for k in 0..ng {
+                // Per point: tiny increments (elastic), or large ones (returns).
+                let size = [1e-6, 1e-2, 5e-2, 1e-5][(round + k) % 4];
+                for l in 0..LANES {
+                    for c in 0..4 {
+                        // Small increments from small stresses (mostly elastic), large ones
+                        // from stresses of the cohesion's size.
+                        s[k][c][l] = if size < 1e-4 { -0.2 + 0.05 * rnd() } else { 2.0 * rnd() - 1.0 };
+                        de[k][c][l] = if c == 3 { 0.0 } else { size * rnd() };
+                    }
+                    hist[l * stride + k * ns] = rnd().abs();
+                    hist[l * stride + k * ns + 1] = [0.0, 1.0, 2.0][(round + k + l) % 3];
+                }
+            }
+            let (mut s_ref, mut h_ref) = (s, hist.clone());
+            for k in 0..ng {
+                law.update_lanes(&mut s_ref[k], &de[k], &mut h_ref[k * ns..], stride, n);
+            }
+            law.update_points_lanes(&mut s, &de, &mut hist, stride, n);
+            for k in 0..ng {
+                for l in 0..LANES {
+                    for c in 0..4 {
+                        assert_eq!(s[k][c][l].to_bits(), s_ref[k][c][l].to_bits(), "stress {c} of point {k}, lane {l}, round {round}");
+                    }
+                }
+            }
+            assert!(hist.iter().zip(&h_ref).all(|(a, b)| a.to_bits() == b.to_bits()), "history, round {round}");
+            let yielded = (0..ng).filter(|&k| (0..n).any(|l| h_ref[l * stride + k * ns + 1] == 1.0)).count();
+            mixed += usize::from(yielded > 0 && yielded < ng);
+        }
+    }
+    // Packs where some points yield and others stay elastic were met.
+    assert!(mixed > 100, "only {mixed} mixed packs");
+}
+
 /// The yielding lanes written with AVX-512 intrinsics (`mohr_coulomb_avx512.rs`, what
 /// `update_lanes` runs on a CPU that has AVX-512) against the generic body (`yield_lanes_body`,
 /// what it runs elsewhere), on the states of the two tests above (every return region, edges
