@@ -46,9 +46,10 @@ pub trait MaterialLaw: Clone + Send + Sync + 'static {
     /// `update` of lanes `0..n` of a pack of points (structure of arrays: `s[c][l]` is stress
     /// component `c` of lane `l`, `de[c][l]` its strain increment; lane `l`'s history is
     /// `state[l * stride..l * stride + n_state()]`). Must give bit for bit what `update` gives
-    /// on each lane (the stateful block calls this in its vectorised path and `update` in the
-    /// others). The default calls `update` lane by lane; a law overrides it with a vectorised
-    /// elastic trial and calls `update` only for the lanes that yield (`mohr_coulomb`).
+    /// on each lane (the stateful block calls this in its vectorised path, directly or through
+    /// [`Self::update_points_lanes`], and `update` in the others). The default calls `update`
+    /// lane by lane; a law overrides it with a vectorised elastic trial and calls `update` only
+    /// for the lanes that yield (`mohr_coulomb`).
     #[inline(always)]
     fn update_lanes(&self, s: &mut [[f64; LANES]; 4], de: &[[f64; LANES]; 4], state: &mut [f64], stride: usize, n: usize) {
         let ns = self.n_state();
@@ -62,12 +63,15 @@ pub trait MaterialLaw: Clone + Send + Sync + 'static {
     }
     /// [`Self::update_lanes`] of every point of a pack at once: point `k` of the `s.len()`
     /// (`s[k]`, `de[k]`; its lanes' history at `state[k * ns + l * stride..]`, `ns` =
-    /// `n_state()`). The same bits as calling `update_lanes` point by point, which the default
-    /// does; a law may override it to handle the points that yield together (`mohr_coulomb`:
-    /// one out-of-line call per pack instead of one per point; ours, session 37).
+    /// `n_state()`; the caller keeps `stride >= s.len() * ns`, so that the points' histories do
+    /// not overlap). The same bits as calling `update_lanes` point by point, which the default
+    /// does; an override must keep them, point `k` touching only `s[k]` and its own history
+    /// (`mohr_coulomb` handles the points that yield together: one out-of-line call per pack
+    /// instead of one per point; ours, session 37).
     #[inline(always)]
     fn update_points_lanes(&self, s: &mut [[[f64; LANES]; 4]], de: &[[[f64; LANES]; 4]], state: &mut [f64], stride: usize, n: usize) {
         let ns = self.n_state();
+        debug_assert_eq!(s.len(), de.len());
         for (k, (sk, dk)) in s.iter_mut().zip(de).enumerate() {
             self.update_lanes(sk, dk, &mut state[k * ns..], stride, n);
         }

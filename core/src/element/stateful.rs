@@ -683,10 +683,11 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
     }
 
     /// The step of the `n` elements of pack `p` (small strain, no modes) at once, as loops
-    /// over the lanes that the compiler vectorises, with the law called once per Gauss point
-    /// for the whole pack (`MaterialLaw::update_lanes`): in the kind's own form when it has
-    /// one (`stored_total`; the same strains and forces as `update_elem` to round-off), else
-    /// on the stored gradients with `update_elem`'s arithmetic lane by lane (the same bits).
+    /// over the lanes that the compiler vectorises, with the law called for the whole pack: in
+    /// the kind's own form when it has one (`stored_total`; the same strains and forces as
+    /// `update_elem` to round-off), once for all its points (`MaterialLaw::update_points_lanes`,
+    /// session 37), else once per Gauss point (`MaterialLaw::update_lanes`) on the stored
+    /// gradients with `update_elem`'s arithmetic lane by lane (the same bits).
     /// `st`, `hs`, `up`, `wk` start at the pack's first element.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
@@ -737,9 +738,15 @@ impl<S: Shape<N>, L: MaterialLaw, const N: usize> StatefulBlock<S, L, N> {
                     w_acc[l] += c[l] * 0.5 * ((old[0][l] + s[0][l]) * de[0][l] + (old[1][l] + s[1][l]) * de[1][l] + (old[2][l] + s[2][l]) * de[2][l]);
                 }
             }
-            // The kind's form has `MAXG` points (`Shape::total_forces`), as many as `st` holds.
-            let sn: &[[[f64; LANES]; 4]; MAXG] = st[..MAXG].try_into().expect("a kind with its own form has MAXG points");
-            S::total_forces::<BBAR>(geo, extra, sn, self.mat.thickness, &mut fe);
+            // `Shape::total_forces` takes `MAXG` points: the stored ones themselves when the
+            // kind has that many (q4), else a copy padded with zeros.
+            if let Ok(sn) = <&[[[f64; LANES]; 4]; MAXG]>::try_from(&st[..]) {
+                S::total_forces::<BBAR>(geo, extra, sn, self.mat.thickness, &mut fe);
+            } else {
+                let mut sn = [[[0.0; LANES]; 4]; MAXG];
+                sn[..ng].copy_from_slice(st);
+                S::total_forces::<BBAR>(geo, extra, &sn, self.mat.thickness, &mut fe);
+            }
             scatter_lanes(conn, &fe, &w_acc, wk, f);
             return;
         }

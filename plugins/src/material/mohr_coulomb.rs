@@ -54,6 +54,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::elements::build_stateful;
 use flem_core::element::block::Block;
+use flem_core::element::block::Simd;
 use flem_core::element::kernel::LANES;
 use flem_core::element::law::{LawCfg, MaterialLaw, RegionElems, StatefulOpts};
 use flem_core::element::{Dmat, Material, Plane};
@@ -149,7 +150,7 @@ pub struct MohrCoulomb {
     used: u8,
     /// Stress scale for tolerances.
     scale: f64,
-    /// The bounds of `inside_lanes`: `(r / ka, kb / ka, r / kb, ka / kb)` (constants of the law).
+    /// The bounds of the pre-test (`slack_lanes`): `(r / ka, kb / ka, r / kb, ka / kb)` (constants of the law).
     pre: [f64; 4],
     /// `1 / a_kk`: a single plane's multiplier is `f_k * inv_diag[k]` (one multiply, not a
     /// division, in every single-plane return; pairs and triples still divide; ours, session 30).
@@ -220,28 +221,30 @@ impl MohrCoulomb {
         Trial { s, half, rad, pa, pb, pz, inside: f13 <= 0.0 && t1 <= 0.0 }
     }
 
-    /// The quick test of `trial` without the square root, for a pack: with `mid`, `rr` the
-    /// centre and the squared radius of Mohr's in-plane circle and `pz` the out-of-plane
-    /// stress, the main face `F_13 <= 0` (over every order of the three principal stresses:
-    /// `F_13` of the sorted ones is the largest of `k_a s_i - k_b s_j - 2 c cos(phi)`,
-    /// `k_a = 1 + sin(phi)`, `k_b = 1 - sin(phi) > 0`) and the first tension plane are each a
-    /// bound `rad <= x` on Mohr's radius, tested as `x >= 0` and `rr <= x^2`. It may differ
-    /// from `trial`'s test by round-off at the surface; `update_lanes` uses it only to route a
-    /// pack (see there), so no result depends on it. (Its tests' form; `update_lanes` reads
-    /// the slack of [`Self::slack_lanes`].)
+    /// The pre-test of [`Self::slack_lanes`] as booleans (its tests' form).
     #[cfg(test)]
     fn inside_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [bool; LANES] {
         let slack = self.slack_lanes(mid, rr, pz);
         std::array::from_fn(|l| slack[l] >= 0.0)
     }
 
-    /// The pre-test of [`Self::inside_lanes`] as each lane's slack, `>= 0` exactly when the
-    /// lane passes, in the form that vectorises (ours, session 37): the least of `x`,
-    /// `x^2 - rr` and `sigma_t - pz` (each `>= 0` exactly when its test holds: a rounded
-    /// difference of finite numbers has the sign of the exact one), with the tension plane's
-    /// bound in a loop of its own rather than a branch in the loop. A NaN input makes
-    /// `x^2 - rr` NaN, which the minimum keeps (it is its first operand) and which fails
-    /// `>= 0`, so a NaN stress is routed on.
+    /// The quick test of `trial` without the square root, for a pack, as each lane's slack
+    /// (`>= 0`: the lane passes): with `mid`, `rr` the centre and the squared radius of Mohr's
+    /// in-plane circle and `pz` the out-of-plane stress, the main face `F_13 <= 0` (over every
+    /// order of the three principal stresses: `F_13` of the sorted ones is the largest of
+    /// `k_a s_i - k_b s_j - 2 c cos(phi)`, `k_a = 1 + sin(phi)`, `k_b = 1 - sin(phi) > 0`) and
+    /// the first tension plane are each a bound `rad <= x` on Mohr's radius, tested as `x >= 0`
+    /// and `rr <= x^2`. It may differ from `trial`'s test by round-off at the surface;
+    /// `update_lanes` uses it only to route a pack (see there), so no result depends on it.
+    ///
+    /// The form vectorises (ours, session 37; before, booleans and a bit mask built lane by
+    /// lane): the slack is the least of `x`, `x^2 - rr` and `sigma_t - pz`, each `>= 0` exactly
+    /// when its test holds (a rounded difference of finite numbers has the sign of the exact
+    /// one; `inf - inf`, stresses whose squares overflow, is NaN and routes the lane on), with
+    /// the tension plane's bound in a loop of its own rather than a branch in the loop. A NaN
+    /// input makes `x` or `x^2 - rr` NaN, and the minimum keeps it because the NaN candidates
+    /// (`x3`, `x2`, `x^2 - rr`) are `lo`'s first operands: do not reorder them. A NaN fails
+    /// `>= 0`, so a NaN stress is routed on (`pre_test_passes_only_lanes_inside_nan_and_infinities_included`).
     #[inline(always)]
     fn slack_lanes(&self, mid: &[f64; LANES], rr: &[f64; LANES], pz: &[f64; LANES]) -> [f64; LANES] {
         let (ka, kb, r) = (self.n[0][0], -self.n[0][2], self.r[0]);
@@ -427,36 +430,34 @@ impl MohrCoulomb {
         None
     }
 
-    /// `yield_lanes` of the points `k` of a pack marked in `todo` (trial `tr[k]`, stress
-    /// `s[k]`, history at `state[k * STATE..]`), in one out-of-line call chosen at run time as
+    /// `yield_lanes` of the points `k` of a pack that have a trial `tr[k]` (stress `s[k]`,
+    /// history at `state[k * STATE..]`), in one out-of-line call chosen at run time as
     /// `yield_lanes` is (ours, session 37).
     #[inline(never)]
-    fn yield_points(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
+    fn yield_points(&self, s: &mut [[[f64; LANES]; 4]], tr: &[Option<LaneTrial>; MAX_POINTS], state: &mut [f64], stride: usize, n: usize) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq") {
-                // SAFETY: the CPU has the features (checked just above).
-                return unsafe { self.yield_points_avx512(s, tr, todo, state, stride, n) };
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
+            match Simd::best() {
+                // SAFETY: `Simd::best` answers a set only when the CPU runs it.
+                Simd::Avx512 => return unsafe { self.yield_points_avx512(s, tr, state, stride, n) },
                 // SAFETY: as above.
-                return unsafe { self.yield_points_avx2(s, tr, todo, state, stride, n) };
+                Simd::Avx2 => return unsafe { self.yield_points_avx2(s, tr, state, stride, n) },
+                Simd::Plain => {}
             }
         }
-        self.yield_points_body(s, tr, todo, state, stride, n)
+        self.yield_points_body(s, tr, state, stride, n)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn yield_points_avx2(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
-        self.yield_points_body(s, tr, todo, state, stride, n)
+    fn yield_points_avx2(&self, s: &mut [[[f64; LANES]; 4]], tr: &[Option<LaneTrial>; MAX_POINTS], state: &mut [f64], stride: usize, n: usize) {
+        self.yield_points_body(s, tr, state, stride, n)
     }
 
     #[inline(always)]
-    fn yield_points_body(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
-        for (k, sk) in s.iter_mut().enumerate() {
-            if todo >> k & 1 == 1 {
-                let t = &tr[k];
+    fn yield_points_body(&self, s: &mut [[[f64; LANES]; 4]], tr: &[Option<LaneTrial>; MAX_POINTS], state: &mut [f64], stride: usize, n: usize) {
+        for (k, (sk, t)) in s.iter_mut().zip(tr).enumerate() {
+            if let Some(t) = t {
                 self.yield_lanes_body(sk, &t.ts, &t.half, &t.mid, &t.rr, &mut state[k * Self::STATE..], stride, n);
             }
         }
@@ -466,20 +467,20 @@ impl MohrCoulomb {
     /// principal stresses, the main-face return in lanes, the edges (`edge_lanes`) and the
     /// scalar returns. Out of line, so that the elastic path that inlines into the stateful
     /// block's pack loop stays small (its trial arrays stay in registers); compiled for the
-    /// instruction sets the block's pack loop is (AVX-512, AVX2, the baseline) and chosen at
-    /// run time as it is, so the same operations and bits on every path (ours, session 37).
+    /// instruction sets the block's pack loop is (AVX-512 in intrinsics, AVX2, the baseline)
+    /// and chosen at run time by the same `Simd::best` (so `FLEM_SIMD` caps it too), with the
+    /// same operations and bits on every path (ours, session 37).
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
     fn yield_lanes(&self, s: &mut [[f64; LANES]; 4], ts: &[[f64; LANES]; 4], half: &[f64; LANES], mid: &[f64; LANES], rr: &[f64; LANES], state: &mut [f64], stride: usize, n: usize) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl") && std::arch::is_x86_feature_detected!("avx512dq") {
-                // SAFETY: the CPU has the features (checked just above).
-                return unsafe { self.yield_lanes_avx512(s, ts, half, mid, rr, state, stride, n) };
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
+            match Simd::best() {
+                // SAFETY: `Simd::best` answers a set only when the CPU runs it.
+                Simd::Avx512 => return unsafe { self.yield_lanes_avx512(s, ts, half, mid, rr, state, stride, n) },
                 // SAFETY: as above.
-                return unsafe { self.yield_lanes_avx2(s, ts, half, mid, rr, state, stride, n) };
+                Simd::Avx2 => return unsafe { self.yield_lanes_avx2(s, ts, half, mid, rr, state, stride, n) },
+                Simd::Plain => {}
             }
         }
         self.yield_lanes_body(s, ts, half, mid, rr, state, stride, n)
@@ -808,23 +809,25 @@ impl MaterialLaw for MohrCoulomb {
     #[inline(always)]
     fn update_points_lanes(&self, s: &mut [[[f64; LANES]; 4]], de: &[[[f64; LANES]; 4]], state: &mut [f64], stride: usize, n: usize) {
         let ns = Self::STATE;
+        debug_assert_eq!(self.n_state(), ns);
+        // (More points than a Q4's: not met by the stateful block, whose own form has four.)
         if s.len() > MAX_POINTS {
             for (k, (sk, dk)) in s.iter_mut().zip(de).enumerate() {
                 self.update_lanes(sk, dk, &mut state[k * ns..], stride, n);
             }
             return;
         }
-        let z = [0.0; LANES];
-        let mut tr = [LaneTrial { ts: [z; 4], half: z, mid: z, rr: z }; MAX_POINTS];
-        let mut todo = 0u32;
+        debug_assert_eq!(s.len(), de.len());
+        // `None` for a point whose lanes all stayed elastic (a tag written, not the 448 bytes
+        // of a trial: the all-elastic path zeroes nothing).
+        let mut tr: [Option<LaneTrial>; MAX_POINTS] = [None; MAX_POINTS];
+        let mut any = false;
         for (k, (sk, dk)) in s.iter_mut().zip(de).enumerate() {
-            if let Some(t) = self.elastic_lanes(sk, dk, &mut state[k * ns..], stride, n) {
-                tr[k] = t;
-                todo |= 1 << k;
-            }
+            tr[k] = self.elastic_lanes(sk, dk, &mut state[k * ns..], stride, n);
+            any |= tr[k].is_some();
         }
-        if todo != 0 {
-            self.yield_points(s, &tr, todo, state, stride, n.min(LANES));
+        if any {
+            self.yield_points(s, &tr, state, stride, n.min(LANES));
         }
     }
     /// Elastic from zero stress until the trial first leaves the quick test's region; the

@@ -7,10 +7,11 @@
 //!
 //! Every operation is the generic body's, on the same operands in the same order, with no
 //! fused multiply-add (`_mm512_mul_pd` then `_mm512_add_pd`, as Rust compiles `a * b + c`):
-//! so the same bits (`update_lanes_is_update_bit_for_bit`, and the generic body on the
-//! machines without AVX-512). `f64::max` / `f64::min` of two numbers are `vmaxpd` / `vminpd`
-//! except for a NaN operand, where Rust returns the other operand: `max_rs` / `min_rs` keep
-//! that rule. The edges, the corners and the tension planes are left to the generic code
+//! so the same bits (`avx512_yield_is_the_generic_body_bit_for_bit` compares the two directly;
+//! `update_lanes_is_update_bit_for_bit` ties both to `update`). `f64::max` / `f64::min` are
+//! written as LLVM lowers them (`max_rs`, `min_rs`: a NaN operand gives the other one, a tie of
+//! `+0` and `-0` the first); the values they take here only meet comparisons, absolute values
+//! or non-negative zeros, so even a different tie rule would not change a stored bit. The edges, the corners and the tension planes are left to the generic code
 //! (`edge_lanes`, `plastic_update`), as in the generic body.
 use std::arch::x86_64::*;
 
@@ -20,22 +21,19 @@ use flem_core::element::law::MaterialLaw;
 
 const _: () = assert!(LANES == 8, "the AVX-512 return holds a pack in one register");
 
-/// Rust's `a.max(b)`: `vmaxpd` unless one is NaN, then the other.
+/// Rust's `a.max(b)` as LLVM lowers it on x86: `vmaxpd(b, a)` (which answers `a` when `b` is
+/// NaN, and on a tie of `+0` and `-0`), then `b` where `a` is NaN.
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
 fn max_rs(a: __m512d, b: __m512d) -> __m512d {
-    let m = _mm512_max_pd(a, b);
-    let m = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_UNORD_Q>(a, a), m, b);
-    _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_UNORD_Q>(b, b), m, a)
+    _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_UNORD_Q>(a, a), _mm512_max_pd(b, a), b)
 }
 
 /// Rust's `a.min(b)`, as [`max_rs`].
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
 fn min_rs(a: __m512d, b: __m512d) -> __m512d {
-    let m = _mm512_min_pd(a, b);
-    let m = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_UNORD_Q>(a, a), m, b);
-    _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_UNORD_Q>(b, b), m, a)
+    _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_UNORD_Q>(a, a), _mm512_min_pd(b, a), b)
 }
 
 #[inline]
@@ -76,10 +74,9 @@ impl MohrCoulomb {
 
     /// `yield_points_body` with AVX-512.
     #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-    pub(super) fn yield_points_avx512(&self, s: &mut [[[f64; LANES]; 4]], tr: &[LaneTrial; MAX_POINTS], todo: u32, state: &mut [f64], stride: usize, n: usize) {
-        for (k, sk) in s.iter_mut().enumerate() {
-            if todo >> k & 1 == 1 {
-                let t = &tr[k];
+    pub(super) fn yield_points_avx512(&self, s: &mut [[[f64; LANES]; 4]], tr: &[Option<LaneTrial>; MAX_POINTS], state: &mut [f64], stride: usize, n: usize) {
+        for (k, (sk, t)) in s.iter_mut().zip(tr).enumerate() {
+            if let Some(t) = t {
                 self.yield_lanes_avx512(sk, &t.ts, &t.half, &t.mid, &t.rr, &mut state[k * Self::STATE..], stride, n);
             }
         }

@@ -368,6 +368,65 @@ fn update_lanes_edges_are_update_bit_for_bit() {
     assert!(edges > 1000, "only {edges} returns to an edge or a corner");
 }
 
+/// The pre-test's slack (`slack_lanes`, session 37) on special stresses: zeros of either sign,
+/// ones, 1e155 (whose squares overflow), infinities and NaN in every component. A lane it
+/// passes (`slack >= 0`) must pass `trial`'s quick test, the exact test `update` uses (the
+/// trial is then the answer), and the former boolean pre-test (2cd6d0f's `inside_lanes`,
+/// written out below as the reference); on finite states the two pre-tests agree exactly.
+/// Tolerance: none (booleans).
+#[test]
+fn pre_test_passes_only_lanes_inside_nan_and_infinities_included() {
+    use flem_core::element::kernel::LANES;
+    let old_inside = |law: &MohrCoulomb, mid: f64, rr: f64, pz: f64| {
+        let (ka, kb, r) = (law.n[0][0], -law.n[0][2], law.r[0]);
+        let [ra, ba, rb, ab] = law.pre;
+        let lo = |a: f64, b: f64| if a < b { a } else { b };
+        let mut x = lo(lo(0.5 * (r - (ka - kb) * mid), ra + ba * pz - mid), rb - ab * pz + mid);
+        let mut z_ok = true;
+        if law.used & 8 != 0 {
+            x = lo(x, law.r[3] - mid);
+            z_ok = pz <= law.r[3];
+        }
+        (x >= 0.0) & (rr <= x * x) & z_ok
+    };
+    let laws = [law(1.0, 0.0, 0.0, None), law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(0.5, 40.0, 40.0, Some(0.2))];
+    let v = [0.0, -0.0, 0.25, -0.25, 1.0, -1.0, 1e155, -1e155, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
+    let mut rnd = xorshift(0x0F1E_2D3C_4B5A_6978);
+    let (mut passed, mut special) = (0, 0);
+    for law in &laws {
+        for _ in 0..2000 {
+            let mut s = [[0.0; LANES]; 4];
+            for c in s.iter_mut() {
+                for x in c.iter_mut() {
+                    *x = v[(rnd().abs() * 11.0) as usize % 11];
+                }
+            }
+            let (mut mid, mut rr) = ([0.0; LANES], [0.0; LANES]);
+            for l in 0..LANES {
+                mid[l] = 0.5 * (s[0][l] + s[1][l]);
+                let half = 0.5 * (s[0][l] - s[1][l]);
+                rr[l] = half * half + s[2][l] * s[2][l];
+            }
+            let slack = law.slack_lanes(&mid, &rr, &s[3]);
+            for l in 0..LANES {
+                let st = [s[0][l], s[1][l], s[2][l], s[3][l]];
+                let old = old_inside(law, mid[l], rr[l], s[3][l]);
+                if slack[l] >= 0.0 {
+                    passed += 1;
+                    assert!(law.trial(&st, [0.0; 4]).inside, "{st:?}: the pre-test passes a lane the quick test fails");
+                    assert!(old, "{st:?}: the pre-test passes a lane the former one failed");
+                }
+                if st.iter().all(|x| x.abs() < 1e150) {
+                    assert_eq!(slack[l] >= 0.0, old, "{st:?}: the two pre-tests differ on a finite state");
+                } else {
+                    special += 1;
+                }
+            }
+        }
+    }
+    assert!(passed > 1000 && special > 10000, "passed {passed}, special {special}");
+}
+
 /// `update_points_lanes` (the four points of a Q4 pack at once, the points that yield in one
 /// call) against `update_lanes` point by point, which the test above ties to `update`: packs
 /// whose points stay elastic, yield to the face, to an edge, or mix, with the tension planes
@@ -423,12 +482,15 @@ fn update_points_lanes_is_update_lanes_point_by_point() {
 
 /// The yielding lanes written with AVX-512 intrinsics (`mohr_coulomb_avx512.rs`, what
 /// `update_lanes` runs on a CPU that has AVX-512) against the generic body (`yield_lanes_body`,
-/// what it runs elsewhere), on the states of the two tests above (every return region, edges
-/// and corners, tension planes on and off, full and partial packs) and on packs holding
-/// special values (zeros of either sign, a zero Mohr radius, NaN and infinite stresses).
-/// Reference: the generic body, which `update_lanes_is_update_bit_for_bit` ties to `update`;
-/// tolerance: none (bitwise; a NaN against a NaN whatever its payload). Skipped, and says so,
-/// on a CPU without AVX-512.
+/// what it runs elsewhere), on trial states like those of the two tests above (anywhere within
+/// a few cohesions, and near the edges: every return region, tension planes on and off, full
+/// and partial packs) and on packs holding special values (zeros of either sign, a zero Mohr
+/// radius, NaN and infinite stresses). Reference: the generic body, which
+/// `update_lanes_is_update_bit_for_bit` ties to `update`; tolerance: none (bitwise; a NaN
+/// against a NaN whatever its payload). The outputs start from different sentinels, so a lane
+/// one side leaves unwritten fails; counts that the face, the edges in lanes and the scalar
+/// returns were all reached. On a CPU without AVX-512 it passes without comparing (and says
+/// so on stderr).
 #[test]
 fn avx512_yield_is_the_generic_body_bit_for_bit() {
     use flem_core::element::kernel::LANES;
@@ -443,6 +505,9 @@ fn avx512_yield_is_the_generic_body_bit_for_bit() {
         let mut rnd = xorshift(0x51_7CC1_B727_220A);
         let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
         let mut counted = [0usize; 3];
+        // Face returns; edges of a law without tension planes (`edge_lanes`); edges and corners
+        // with them (the scalar `plastic_update`).
+        let mut paths = [0usize; 3];
         for law in &laws {
             for round in 0..600 {
                 let n = if round % 5 == 4 { 1 + round % LANES } else { LANES };
@@ -481,9 +546,9 @@ fn avx512_yield_is_the_generic_body_bit_for_bit() {
                     hist[l * 4] = rnd().abs();
                     hist[l * 4 + 1] = [0.0, 1.0, 2.0][(round + l) % 3];
                 }
-                let (mut s_ref, mut h_ref) = ([[0.0; LANES]; 4], hist.clone());
+                let (mut s_ref, mut h_ref) = ([[-999.0; LANES]; 4], hist.clone());
                 law.yield_lanes_body(&mut s_ref, &ts, &half, &mid, &rr, &mut h_ref, 4, n);
-                let mut s = [[0.0; LANES]; 4];
+                let mut s = [[1234.5; LANES]; 4];
                 // SAFETY: the CPU has AVX-512 (checked above).
                 unsafe { law.yield_lanes_avx512(&mut s, &ts, &half, &mid, &rr, &mut hist, 4, n) };
                 for l in 0..LANES {
@@ -494,12 +559,22 @@ fn avx512_yield_is_the_generic_body_bit_for_bit() {
                     assert!(same(hist[l * 4 + 1], h_ref[l * 4 + 1]), "state of lane {l}, round {round}");
                     if l < n {
                         counted[(round + l) % 3] += usize::from(h_ref[l * 4 + 1] == 1.0);
+                        // Which return a finite plastic lane took: two equal principal
+                        // stresses (an edge or a corner) or not (the face).
+                        let sl = [s_ref[0][l], s_ref[1][l], s_ref[2][l], s_ref[3][l]];
+                        if h_ref[l * 4 + 1] == 1.0 && sl.iter().all(|v| v.is_finite()) {
+                            let (c, r) = (0.5 * (sl[0] + sl[1]), (0.25 * (sl[0] - sl[1]).powi(2) + sl[2] * sl[2]).sqrt());
+                            let close = |x: f64, y: f64| (x - y).abs() < 1e-9 * (1.0 + x.abs());
+                            let edge = close(c + r, sl[3]) || close(c - r, sl[3]) || r < 1e-12;
+                            paths[usize::from(edge) + usize::from(law.r[3].is_finite() && edge)] += 1;
+                        }
                     }
                 }
             }
         }
         // Returns happened in the random and the edge packs (the special values mostly give NaN).
         assert!(counted[0] > 1000 && counted[1] > 1000, "returns counted: {counted:?}");
+        assert!(paths.iter().all(|&c| c > 100), "face, edges in lanes, scalar edges and corners: {paths:?}");
     }
 }
 
