@@ -588,16 +588,7 @@ impl MohrCoulomb {
             }
         }
         for l in 0..n {
-            let (h0, h1) = (state[l * stride], state[l * stride + 1]);
-            let (fl, il) = (face[l] & !inside[l], inside[l]);
-            state[l * stride] = if fl { h0 + gam[l] } else { h0 };
-            state[l * stride + 1] = if fl {
-                1.0
-            } else if il & (h1 == 1.0) {
-                2.0
-            } else {
-                h1
-            };
+            lane_history(&mut state[l * stride..l * stride + 2], face[l], inside[l], gam[l]);
         }
         for l in 0..n {
             if !inside[l] && !face[l] {
@@ -859,6 +850,24 @@ impl MaterialLaw for MohrCoulomb {
     fn tangent_symmetric(&self) -> bool {
         self.associated()
     }
+}
+
+/// The history `[plastic shear strain, state]` of a lane after the lanes' return
+/// (`yield_lanes`): a face lane (`face`, not `inside`) adds `gam` and is in state 1; an elastic
+/// one (`inside`) goes from state 1 to 2; any other lane is left to `plastic_update`. Shared by
+/// the generic body and the AVX-512 one, so that they write the same bits.
+#[inline(always)]
+pub(crate) fn lane_history(h: &mut [f64], face: bool, inside: bool, gam: f64) {
+    let fl = face & !inside;
+    let (h0, h1) = (h[0], h[1]);
+    h[0] = if fl { h0 + gam } else { h0 };
+    h[1] = if fl {
+        1.0
+    } else if inside & (h1 == 1.0) {
+        2.0
+    } else {
+        h1
+    };
 }
 
 /// The in-plane principal stresses `pa >= pb` and the out-of-plane `pz`, sorted in decreasing

@@ -15,7 +15,7 @@
 //! (`edge_lanes`, `plastic_update`), as in the generic body.
 use std::arch::x86_64::*;
 
-use super::{LaneTrial, MohrCoulomb, Trial, MAX_POINTS};
+use super::{lane_history, LaneTrial, MohrCoulomb, Trial, MAX_POINTS};
 use flem_core::element::kernel::LANES;
 use flem_core::element::law::MaterialLaw;
 
@@ -174,17 +174,7 @@ impl MohrCoulomb {
             store(&mut s[c], _mm512_mask_blend_pd(inside, load(&fs[c]), load(&ts[c])));
         }
         for l in 0..n.min(LANES) {
-            let (il, fl) = (inside >> l & 1 == 1, face >> l & 1 == 1);
-            let (h0, h1) = (state[l * stride], state[l * stride + 1]);
-            let fl = fl & !il;
-            state[l * stride] = if fl { h0 + gam[l] } else { h0 };
-            state[l * stride + 1] = if fl {
-                1.0
-            } else if il & (h1 == 1.0) {
-                2.0
-            } else {
-                h1
-            };
+            lane_history(&mut state[l * stride..l * stride + 2], face >> l & 1 == 1, inside >> l & 1 == 1, gam[l]);
         }
         let rest = !inside & !face & live;
         if rest != 0 {

@@ -401,12 +401,7 @@ fn pre_test_passes_only_lanes_inside_nan_and_infinities_included() {
                     *x = v[(rnd().abs() * 11.0) as usize % 11];
                 }
             }
-            let (mut mid, mut rr) = ([0.0; LANES], [0.0; LANES]);
-            for l in 0..LANES {
-                mid[l] = 0.5 * (s[0][l] + s[1][l]);
-                let half = 0.5 * (s[0][l] - s[1][l]);
-                rr[l] = half * half + s[2][l] * s[2][l];
-            }
+            let (mid, _, rr) = mohr_circle(&s);
             let slack = law.slack_lanes(&mid, &rr, &s[3]);
             for l in 0..LANES {
                 let st = [s[0][l], s[1][l], s[2][l], s[3][l]];
@@ -535,12 +530,7 @@ fn avx512_yield_is_the_generic_body_bit_for_bit() {
                     }
                 }
                 // `update_lanes`' trial quantities, as it computes them.
-                let (mut half, mut mid, mut rr) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-                for l in 0..LANES {
-                    mid[l] = 0.5 * (ts[0][l] + ts[1][l]);
-                    half[l] = 0.5 * (ts[0][l] - ts[1][l]);
-                    rr[l] = half[l] * half[l] + ts[2][l] * ts[2][l];
-                }
+                let (mid, half, rr) = mohr_circle(&ts);
                 let mut hist = vec![0.0; LANES * 4];
                 for l in 0..LANES {
                     hist[l * 4] = rnd().abs();
@@ -781,13 +771,7 @@ fn elastic_pre_test_agrees_with_the_quick_test() {
                 s[2][l] = h * th.sin();
                 s[3][l] = sz * t;
             }
-            let mut mid = [0.0; LANES];
-            let mut rr = [0.0; LANES];
-            for l in 0..LANES {
-                mid[l] = 0.5 * (s[0][l] + s[1][l]);
-                let half = 0.5 * (s[0][l] - s[1][l]);
-                rr[l] = half * half + s[2][l] * s[2][l];
-            }
+            let (mid, _, rr) = mohr_circle(&s);
             let pre = law.inside_lanes(&mid, &rr, &s[3]);
             for l in 0..LANES {
                 let t = law.trial(&[s[0][l], s[1][l], s[2][l], s[3][l]], [0.0; 4]);
@@ -828,6 +812,18 @@ fn elastic_pre_test_agrees_with_the_quick_test() {
 
 /// A small deterministic generator (xorshift) from `seed`, values in [-1, 1): the random states
 /// of the bit-for-bit tests above.
+/// Mohr's circle of a pack's stresses as `update_lanes` computes it: the centre, half the
+/// in-plane difference and the squared radius, by lane.
+fn mohr_circle(s: &[[f64; flem_core::element::kernel::LANES]; 4]) -> ([f64; 8], [f64; 8], [f64; 8]) {
+    let (mut mid, mut half, mut rr) = ([0.0; 8], [0.0; 8], [0.0; 8]);
+    for l in 0..8 {
+        mid[l] = 0.5 * (s[0][l] + s[1][l]);
+        half[l] = 0.5 * (s[0][l] - s[1][l]);
+        rr[l] = half[l] * half[l] + s[2][l] * s[2][l];
+    }
+    (mid, half, rr)
+}
+
 fn xorshift(seed: u64) -> impl FnMut() -> f64 {
     let mut x = seed;
     move || {
