@@ -470,6 +470,10 @@ impl MohrCoulomb {
     /// instruction sets the block's pack loop is (AVX-512 in intrinsics, AVX2, the baseline)
     /// and chosen at run time by the same `Simd::best` (so `FLEM_SIMD` caps it too), with the
     /// same operations and bits on every path (ours, session 37).
+    ///
+    /// (`yield_points` does the same for a pack's points at once. Routing `update_lanes`
+    /// through it with one point, to keep one dispatch, was tried: the face case went from 46
+    /// to 53 ns and large strain from 90 to 121-127 ns, so both stay.)
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
     fn yield_lanes(&self, s: &mut [[f64; LANES]; 4], ts: &[[f64; LANES]; 4], half: &[f64; LANES], mid: &[f64; LANES], rr: &[f64; LANES], state: &mut [f64], stride: usize, n: usize) {
@@ -516,9 +520,10 @@ impl MohrCoulomb {
         let solvable = d0.abs() > 1e-12 * big;
         let used: [bool; 6] = std::array::from_fn(|k| self.used & (1 << k) != 0);
         // Sorted `s1 >= s2 >= s3` over (pa, pb, pz), as `sort_principal` sorts them.
-        // Selects only, no `else if` and no stored booleans: written this way the loop
+        // Selects only, no `else if` and no booleans stored in the loop: written this way it
         // vectorises (its branchy form was compiled lane by lane, and the whole-pack loads that
-        // followed its scalar stores stalled; ours, session 37).
+        // followed its scalar stores stalled; ours, session 37). The orders `edge_lanes` needs
+        // are a loop of their own.
         let (mut za, mut zb, mut q) = ([false; LANES], [false; LANES], [z; 3]);
         for l in 0..LANES {
             let (a, b, c) = (pa[l], pb[l], pz[l]);
@@ -801,7 +806,8 @@ impl MaterialLaw for MohrCoulomb {
     fn update_points_lanes(&self, s: &mut [[[f64; LANES]; 4]], de: &[[[f64; LANES]; 4]], state: &mut [f64], stride: usize, n: usize) {
         let ns = Self::STATE;
         debug_assert_eq!(self.n_state(), ns);
-        // (More points than a Q4's: not met by the stateful block, whose own form has four.)
+        // More points than a Q4's (not met by the stateful block, whose own form has four):
+        // point by point.
         if s.len() > MAX_POINTS {
             for (k, (sk, dk)) in s.iter_mut().zip(de).enumerate() {
                 self.update_lanes(sk, dk, &mut state[k * ns..], stride, n);
@@ -853,7 +859,7 @@ impl MaterialLaw for MohrCoulomb {
 }
 
 /// The history `[plastic shear strain, state]` of a lane after the lanes' return
-/// (`yield_lanes`): a face lane (`face`, not `inside`) adds `gam` and is in state 1; an elastic
+/// (`yield_lanes_body`, `yield_lanes_avx512`): a face lane (`face`, not `inside`) adds `gam` and is in state 1; an elastic
 /// one (`inside`) goes from state 1 to 2; any other lane is left to `plastic_update`. Shared by
 /// the generic body and the AVX-512 one, so that they write the same bits.
 #[inline(always)]

@@ -425,20 +425,24 @@ fn pre_test_passes_only_lanes_inside_nan_and_infinities_included() {
 /// `update_points_lanes` (the four points of a Q4 pack at once, the points that yield in one
 /// call) against `update_lanes` point by point, which the test above ties to `update`: packs
 /// whose points stay elastic, yield to the face, to an edge, or mix, with the tension planes
-/// on and off, full and partial packs. Reference: `update_lanes`; tolerance: none (bitwise).
+/// on and off, full and partial packs, of 4 points and of 1, 3 and 5 (more than it takes
+/// together). It checks the routing and the offsets; the return's bits come from the tests of
+/// `update_lanes` and of the AVX-512 return. Reference: `update_lanes`; tolerance: none (bitwise).
 #[test]
 fn update_points_lanes_is_update_lanes_point_by_point() {
     use flem_core::element::kernel::LANES;
     let laws = [law(1.0, 30.0, 10.0, None), law(1.0, 30.0, 0.0, Some(0.5)), law(1.0, 0.0, 0.0, None), law(0.0, 35.0, 35.0, Some(0.0))];
     let mut rnd = xorshift(0x3C6E_F372_FE94_F82B);
-    let (ns, ng) = (2, 4);
-    let stride = ng * ns;
+    let ns = 2;
     let mut mixed = 0;
-    for law in &laws {
-        for round in 0..300 {
+    // Four points (a Q4 pack), fewer, and more than `update_points_lanes` takes together (it
+    // then goes point by point).
+    for (law, ng) in laws.iter().flat_map(|l| [4, 1, 3, 5].map(|ng| (l, ng))) {
+        let stride = ng * ns;
+        for round in 0..150 {
             let n = if round % 5 == 4 { 1 + round % LANES } else { LANES };
-            let mut s = [[[0.0; LANES]; 4]; 4];
-            let mut de = [[[0.0; LANES]; 4]; 4];
+            let mut s = vec![[[0.0; LANES]; 4]; ng];
+            let mut de = vec![[[0.0; LANES]; 4]; ng];
             let mut hist = vec![0.0; LANES * stride];
             for k in 0..ng {
                 // Per point: tiny increments (elastic), or large ones (returns).
@@ -454,7 +458,7 @@ fn update_points_lanes_is_update_lanes_point_by_point() {
                     hist[l * stride + k * ns + 1] = [0.0, 1.0, 2.0][(round + k + l) % 3];
                 }
             }
-            let (mut s_ref, mut h_ref) = (s, hist.clone());
+            let (mut s_ref, mut h_ref) = (s.clone(), hist.clone());
             for k in 0..ng {
                 law.update_lanes(&mut s_ref[k], &de[k], &mut h_ref[k * ns..], stride, n);
             }
